@@ -1,0 +1,8 @@
+//! Anatomy on a surface scan: landmarks (reading, validating, snapping), the anatomical
+//! frame, clinical measurements and rigid registration of two scans.
+//!
+//! Works on [`mesh::TriMesh`]; knows nothing about finite elements or implants.
+
+pub mod landmarks;
+
+pub use landmarks::{LandmarkName, Landmarks};

@@ -1,0 +1,21 @@
+//! Triangle surface meshes: the data type every stage shares, file I/O (PLY, OBJ, STL),
+//! validation, topology (adjacency, boundary loops, components), geometry (normals, areas,
+//! enclosed volume), spatial queries (closest point, ray casts) and on-surface paths
+//! (plane sections and geodesics).
+//!
+//! Lengths are in millimetres wherever a unit matters; the crate itself is unit-agnostic.
+//! This crate knows nothing about anatomy, landmarks or simulation.
+
+pub mod error;
+pub mod geometry;
+pub mod io;
+pub mod shapes;
+pub mod spatial;
+pub mod topology;
+pub mod trimesh;
+
+pub use error::MeshError;
+pub use glam::{DVec2, DVec3};
+pub use spatial::{ClosestPoint, RayHit, SurfaceIndex};
+pub use topology::Topology;
+pub use trimesh::{MaterialLayer, TriMesh, UvLayer};
