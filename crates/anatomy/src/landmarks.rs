@@ -2,7 +2,10 @@
 //! `{"units":"mm","landmarks":{"Pj":[x,y,z],...},"extra":{"name":[x,y,z]}}`.
 
 use glam::DVec3;
+use serde_json::{Value, json};
 use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
 
 /// The twelve required landmarks. Suffix `l`/`r` is the patient's left/right.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -125,5 +128,280 @@ impl Landmarks {
         for p in self.extra.values_mut() {
             *p = f(*p);
         }
+    }
+}
+
+/// A problem with a landmark file or with landmarks on a scan.
+#[derive(Debug, thiserror::Error)]
+pub enum LandmarkError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: not a valid landmark file: {message}")]
+    Format { path: PathBuf, message: String },
+    #[error("{path}: missing required landmark{} {}", if names.len() > 1 { "s" } else { "" }, names.join(", "))]
+    Missing { path: PathBuf, names: Vec<String> },
+    #[error("{path}: landmark {name}: {message}")]
+    BadValue {
+        path: PathBuf,
+        name: String,
+        message: String,
+    },
+    #[error(
+        "landmark {name} is {distance_mm:.1} mm from the scan surface (at most {limit_mm} mm allowed): is it placed on this scan, in this scan's frame?"
+    )]
+    OffSurface {
+        name: String,
+        distance_mm: f64,
+        limit_mm: f64,
+    },
+    #[error("{0}")]
+    Write(#[from] mesh::MeshError),
+}
+
+/// A landmark that was moved onto the surface.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SnapWarning {
+    pub name: String,
+    /// How far it was moved (mm).
+    pub distance_mm: f64,
+}
+
+impl std::fmt::Display for SnapWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "landmark {} was {:.2} mm off the surface and has been snapped onto it",
+            self.name, self.distance_mm
+        )
+    }
+}
+
+/// Landmarks farther than this from the surface are rejected (mm).
+pub const MAX_SNAP_DISTANCE_MM: f64 = 5.0;
+/// Landmarks closer than this are considered on the surface and left alone (mm).
+const ON_SURFACE_TOLERANCE_MM: f64 = 1e-3;
+
+impl Landmarks {
+    /// Reads a landmark file. Unknown keys are ignored; `units`, if given, must be `"mm"`.
+    pub fn read(path: &Path) -> Result<Landmarks, LandmarkError> {
+        let text = std::fs::read_to_string(path).map_err(|source| LandmarkError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Landmarks::from_json(&text, path)
+    }
+
+    /// Parses landmark JSON; `path` is only used in error messages.
+    pub fn from_json(text: &str, path: &Path) -> Result<Landmarks, LandmarkError> {
+        let format_error = |message: String| LandmarkError::Format {
+            path: path.to_path_buf(),
+            message,
+        };
+        let root: Value = serde_json::from_str(text).map_err(|e| format_error(e.to_string()))?;
+        let root = root
+            .as_object()
+            .ok_or_else(|| format_error("expected a JSON object at the top".into()))?;
+        if let Some(units) = root.get("units") {
+            if units.as_str() != Some("mm") {
+                return Err(format_error(format!("units are {units}, expected \"mm\"")));
+            }
+        }
+        let points = |key: &str| -> Result<BTreeMap<String, DVec3>, LandmarkError> {
+            let Some(value) = root.get(key) else {
+                return Ok(BTreeMap::new());
+            };
+            let object = value.as_object().ok_or_else(|| {
+                format_error(format!("\"{key}\" must be an object of name: [x, y, z]"))
+            })?;
+            object
+                .iter()
+                .map(|(name, value)| {
+                    parse_point(value)
+                        .map(|p| (name.clone(), p))
+                        .map_err(|message| LandmarkError::BadValue {
+                            path: path.to_path_buf(),
+                            name: name.clone(),
+                            message,
+                        })
+                })
+                .collect()
+        };
+        let mut required = points("landmarks")?;
+        let extra = points("extra")?;
+        let missing: Vec<String> = LandmarkName::ALL
+            .iter()
+            .filter(|n| !required.contains_key(n.as_str()))
+            .map(|n| n.as_str().to_string())
+            .collect();
+        if !missing.is_empty() {
+            return Err(LandmarkError::Missing {
+                path: path.to_path_buf(),
+                names: missing,
+            });
+        }
+        let mut landmarks = Landmarks::new(|n| required[n.as_str()]);
+        // Unknown names under "landmarks" are kept as extras rather than dropped.
+        required.retain(|name, _| LandmarkName::parse(name).is_none());
+        landmarks.extra = required.into_iter().chain(extra).collect();
+        Ok(landmarks)
+    }
+
+    /// The landmark file as JSON, with `additional` top-level fields (e.g. a phantom's
+    /// true volumes) after `units`, `landmarks` and `extra`.
+    pub fn to_json(&self, additional: serde_json::Map<String, Value>) -> Value {
+        let point = |p: DVec3| json!([p.x, p.y, p.z]);
+        let required: serde_json::Map<String, Value> = LandmarkName::ALL
+            .iter()
+            .map(|n| (n.as_str().to_string(), point(self.get(*n))))
+            .collect();
+        let extra: serde_json::Map<String, Value> = self
+            .extra
+            .iter()
+            .map(|(k, v)| (k.clone(), point(*v)))
+            .collect();
+        let mut root = serde_json::Map::new();
+        root.insert("units".into(), json!("mm"));
+        root.insert("landmarks".into(), Value::Object(required));
+        root.insert("extra".into(), Value::Object(extra));
+        root.extend(additional);
+        Value::Object(root)
+    }
+
+    /// Writes the landmark file atomically.
+    pub fn write(
+        &self,
+        path: &Path,
+        additional: serde_json::Map<String, Value>,
+    ) -> Result<(), LandmarkError> {
+        let json = self.to_json(additional);
+        mesh::io::write_atomically(path, |w| {
+            serde_json::to_writer_pretty(&mut *w, &json)?;
+            writeln!(w)
+        })?;
+        Ok(())
+    }
+
+    /// Moves every point onto the nearest surface point. Points more than
+    /// [`MAX_SNAP_DISTANCE_MM`] away are an error naming the landmark; points that moved
+    /// noticeably are returned as warnings.
+    pub fn snap_to_surface(
+        &mut self,
+        surface: &mesh::SurfaceIndex,
+    ) -> Result<Vec<SnapWarning>, LandmarkError> {
+        let mut warnings = Vec::new();
+        let names: Vec<String> = self.iter().map(|(n, _)| n.to_string()).collect();
+        for name in names {
+            let position = self.lookup(&name).unwrap_or_default();
+            let nearest = surface.closest_point(position);
+            if nearest.distance > MAX_SNAP_DISTANCE_MM {
+                return Err(LandmarkError::OffSurface {
+                    name,
+                    distance_mm: nearest.distance,
+                    limit_mm: MAX_SNAP_DISTANCE_MM,
+                });
+            }
+            if nearest.distance > ON_SURFACE_TOLERANCE_MM {
+                warnings.push(SnapWarning {
+                    name: name.clone(),
+                    distance_mm: nearest.distance,
+                });
+            }
+            match LandmarkName::parse(&name) {
+                Some(required) => self.set(required, nearest.point),
+                None => {
+                    self.extra.insert(name, nearest.point);
+                }
+            }
+        }
+        Ok(warnings)
+    }
+}
+
+fn parse_point(value: &Value) -> Result<DVec3, String> {
+    let array = value
+        .as_array()
+        .filter(|a| a.len() == 3)
+        .ok_or_else(|| format!("expected [x, y, z], found {value}"))?;
+    let mut coordinates = [0.0; 3];
+    for (c, v) in coordinates.iter_mut().zip(array) {
+        *c = v
+            .as_f64()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("coordinate {v} is not a finite number"))?;
+    }
+    Ok(DVec3::from_array(coordinates))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mesh::shapes::grid;
+
+    fn sample_json() -> String {
+        let entries: Vec<String> = LandmarkName::ALL
+            .iter()
+            .enumerate()
+            .map(|(i, n)| format!("\"{}\": [{}, 2.0, 0.5]", n.as_str(), i as f64))
+            .collect();
+        format!(
+            "{{\"units\":\"mm\",\"frame\":\"ignored\",\"landmarks\":{{{}}},\"extra\":{{\"scar\":[1,2,3]}}}}",
+            entries.join(",")
+        )
+    }
+
+    #[test]
+    fn reads_required_and_extra_points_and_ignores_unknown_keys() {
+        let landmarks = Landmarks::from_json(&sample_json(), Path::new("lm.json")).unwrap();
+        assert_eq!(landmarks.get(LandmarkName::Px), DVec3::new(11.0, 2.0, 0.5));
+        assert_eq!(landmarks.lookup("scar"), Some(DVec3::new(1.0, 2.0, 3.0)));
+        let again = Landmarks::from_json(
+            &landmarks.to_json(serde_json::Map::new()).to_string(),
+            Path::new("lm.json"),
+        )
+        .unwrap();
+        assert_eq!(again, landmarks);
+    }
+
+    #[test]
+    fn a_missing_landmark_is_named() {
+        let text = sample_json().replace("\"Pj\"", "\"Pjx\"");
+        let error = Landmarks::from_json(&text, Path::new("lm.json")).unwrap_err();
+        assert_eq!(error.to_string(), "lm.json: missing required landmark Pj");
+    }
+
+    #[test]
+    fn bad_values_are_named() {
+        let text = sample_json().replace("[4, 2.0, 0.5]", "[4, \"a\", 0.5]");
+        let error = Landmarks::from_json(&text, Path::new("lm.json")).unwrap_err();
+        assert!(
+            error.to_string().contains("landmark Pnr: coordinate \"a\""),
+            "{error}"
+        );
+        let error = Landmarks::from_json("{\"units\":\"cm\"}", Path::new("lm.json")).unwrap_err();
+        assert!(error.to_string().contains("expected \"mm\""), "{error}");
+        assert!(Landmarks::from_json("[1,2", Path::new("lm.json")).is_err());
+    }
+
+    #[test]
+    fn snapping_moves_near_points_and_rejects_far_ones() {
+        // Landmarks 0.5 mm above the plane z = 0 of a 20 x 20 mm grid.
+        let surface = mesh::SurfaceIndex::new(&grid(20, 20, 1.0)).unwrap();
+        let mut landmarks = Landmarks::from_json(&sample_json(), Path::new("lm.json")).unwrap();
+        landmarks.extra.clear();
+        let warnings = landmarks.snap_to_surface(&surface).unwrap();
+        assert_eq!(warnings.len(), 12);
+        assert!((warnings[0].distance_mm - 0.5).abs() < 1e-12);
+        assert!(landmarks.get(LandmarkName::Pj).z.abs() < 1e-12);
+
+        landmarks.set(LandmarkName::Pnl, DVec3::new(5.0, 5.0, 20.0));
+        let error = landmarks.snap_to_surface(&surface).unwrap_err();
+        assert!(
+            error.to_string().starts_with("landmark Pnl is 20.0 mm"),
+            "{error}"
+        );
     }
 }

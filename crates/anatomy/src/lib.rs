@@ -3,6 +3,9 @@
 //!
 //! Works on [`mesh::TriMesh`]; knows nothing about finite elements or implants.
 
+pub mod frame;
 pub mod landmarks;
+pub mod register;
 
-pub use landmarks::{LandmarkName, Landmarks};
+pub use frame::{AnatomicalFrame, FrameError};
+pub use landmarks::{LandmarkError, LandmarkName, Landmarks, SnapWarning};

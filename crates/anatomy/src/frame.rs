@@ -1,0 +1,133 @@
+//! The anatomical frame (GUIDE section 4): `y` up (Px towards Pj), `x` to the patient's
+//! left (Pcr towards Pcl, orthogonalised), `z` anterior = x × y, origin at Pj.
+
+use crate::landmarks::{LandmarkName, Landmarks};
+use glam::{DMat3, DVec3};
+
+/// An orthonormal, right-handed frame derived from the bony landmarks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AnatomicalFrame {
+    /// The sternal notch Pj (mm, file frame).
+    pub origin: DVec3,
+    /// Columns: the x (left), y (up) and z (anterior) axes in file coordinates.
+    pub axes: DMat3,
+}
+
+/// The landmarks do not span a frame.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FrameError {
+    #[error("Pj and Px coincide ({0:.2} mm apart): cannot tell which way is up")]
+    NoVerticalAxis(f64),
+    #[error(
+        "the line from Pcr to Pcl is (nearly) parallel to the line from Px to Pj: cannot tell left from right"
+    )]
+    NoLateralAxis,
+}
+
+impl AnatomicalFrame {
+    /// The frame from Pj, Px, Pcl and Pcr.
+    pub fn from_landmarks(landmarks: &Landmarks) -> Result<AnatomicalFrame, FrameError> {
+        let pj = landmarks.get(LandmarkName::Pj);
+        let up = pj - landmarks.get(LandmarkName::Px);
+        if up.length() < 1.0 {
+            return Err(FrameError::NoVerticalAxis(up.length()));
+        }
+        let y = up.normalize();
+        let across = landmarks.get(LandmarkName::Pcl) - landmarks.get(LandmarkName::Pcr);
+        let lateral = across - y * across.dot(y);
+        if lateral.length() < 0.1 * across.length().max(1.0) {
+            return Err(FrameError::NoLateralAxis);
+        }
+        let x = lateral.normalize();
+        let z = x.cross(y);
+        Ok(AnatomicalFrame {
+            origin: pj,
+            axes: DMat3::from_cols(x, y, z),
+        })
+    }
+
+    /// The patient's left direction (file frame).
+    pub fn left(&self) -> DVec3 {
+        self.axes.x_axis
+    }
+
+    /// The up direction (file frame).
+    pub fn up(&self) -> DVec3 {
+        self.axes.y_axis
+    }
+
+    /// The anterior direction, the normal of the coronal plane (file frame).
+    pub fn anterior(&self) -> DVec3 {
+        self.axes.z_axis
+    }
+
+    /// File coordinates to frame coordinates (mm, relative to Pj).
+    pub fn to_local(&self, p: DVec3) -> DVec3 {
+        self.axes.transpose() * (p - self.origin)
+    }
+
+    /// Frame coordinates to file coordinates.
+    pub fn to_file(&self, local: DVec3) -> DVec3 {
+        self.origin + self.axes * local
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DQuat;
+
+    fn upright_landmarks() -> Landmarks {
+        Landmarks::new(|name| match name {
+            LandmarkName::Pj => DVec3::new(0.0, 0.0, 0.0),
+            LandmarkName::Px => DVec3::new(0.0, -150.0, 60.0),
+            LandmarkName::Pcl => DVec3::new(85.0, -20.0, 0.0),
+            LandmarkName::Pcr => DVec3::new(-85.0, -20.0, 2.0),
+            _ => DVec3::new(0.0, -100.0, 100.0),
+        })
+    }
+
+    #[test]
+    fn frame_is_orthonormal_right_handed_and_follows_a_rigid_motion() {
+        let landmarks = upright_landmarks();
+        let frame = AnatomicalFrame::from_landmarks(&landmarks).unwrap();
+        let axes = frame.axes;
+        assert!((axes.transpose() * axes - DMat3::IDENTITY).abs_diff_eq(DMat3::ZERO, 1e-12));
+        assert!((axes.determinant() - 1.0).abs() < 1e-12);
+        assert!(frame.left().x > 0.9 && frame.up().y > 0.9 && frame.anterior().z > 0.9);
+
+        // Move the scan rigidly: the frame moves with it, local coordinates do not change.
+        let rotation = DQuat::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 1.1);
+        let shift = DVec3::new(10.0, -4.0, 7.0);
+        let mut moved = landmarks.clone();
+        moved.map_positions(|p| rotation * p + shift);
+        let moved_frame = AnatomicalFrame::from_landmarks(&moved).unwrap();
+        let nipple = landmarks.get(LandmarkName::Pnl);
+        let local = frame.to_local(nipple);
+        assert!(
+            moved_frame
+                .to_local(rotation * nipple + shift)
+                .distance(local)
+                < 1e-9
+        );
+        assert!(frame.to_file(local).distance(nipple) < 1e-12);
+    }
+
+    #[test]
+    fn degenerate_landmarks_are_rejected() {
+        let mut landmarks = upright_landmarks();
+        landmarks.set(LandmarkName::Px, DVec3::ZERO);
+        assert!(matches!(
+            AnatomicalFrame::from_landmarks(&landmarks),
+            Err(FrameError::NoVerticalAxis(_))
+        ));
+        let mut landmarks = upright_landmarks();
+        landmarks.set(LandmarkName::Px, DVec3::new(0.0, -150.0, 0.0));
+        landmarks.set(LandmarkName::Pcl, DVec3::new(0.0, 100.0, 0.0));
+        landmarks.set(LandmarkName::Pcr, DVec3::new(0.0, -100.0, 0.0));
+        assert_eq!(
+            AnatomicalFrame::from_landmarks(&landmarks),
+            Err(FrameError::NoLateralAxis)
+        );
+    }
+}
