@@ -75,6 +75,60 @@ pub fn write_atomically(
     result.map_err(io_error)
 }
 
+/// Reads the whole file into memory (every reader parses from a byte slice).
+fn read_file(path: &Path) -> Result<Vec<u8>, MeshError> {
+    std::fs::read(path).map_err(|source| MeshError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// A format error found by a reader, before the file path is attached.
+#[derive(Debug)]
+struct ParseError {
+    /// 1-based line number for text formats.
+    line: Option<usize>,
+    message: String,
+}
+
+impl ParseError {
+    /// An error not tied to a line (binary data, whole-file checks).
+    fn new(message: impl Into<String>) -> ParseError {
+        ParseError {
+            line: None,
+            message: message.into(),
+        }
+    }
+
+    /// An error on 1-based line `line`.
+    fn at(line: usize, message: impl Into<String>) -> ParseError {
+        ParseError {
+            line: Some(line),
+            message: message.into(),
+        }
+    }
+
+    fn in_file(self, path: &Path) -> MeshError {
+        MeshError::Parse {
+            path: path.to_path_buf(),
+            line: self.line,
+            message: self.message,
+        }
+    }
+}
+
+/// Parses a decimal number of a text format, naming the offending word on failure.
+fn parse_number(word: &str) -> Result<f64, String> {
+    word.parse()
+        .map_err(|_| format!("'{word}' is not a number"))
+}
+
+/// Corner triples of the fan triangulation of a polygon with `corners` corners:
+/// `[0, 1, 2], [0, 2, 3], …` (none for fewer than three).
+fn fan(corners: usize) -> impl Iterator<Item = [usize; 3]> {
+    (2..corners).map(|k| [0, k - 1, k])
+}
+
 fn temporary_sibling(path: &Path) -> PathBuf {
     let name = path
         .file_name()
