@@ -205,10 +205,10 @@ impl Landmarks {
         let root = root
             .as_object()
             .ok_or_else(|| format_error("expected a JSON object at the top".into()))?;
-        if let Some(units) = root.get("units") {
-            if units.as_str() != Some("mm") {
-                return Err(format_error(format!("units are {units}, expected \"mm\"")));
-            }
+        if let Some(units) = root.get("units")
+            && units.as_str() != Some("mm")
+        {
+            return Err(format_error(format!("units are {units}, expected \"mm\"")));
         }
         let points = |key: &str| -> Result<BTreeMap<String, DVec3>, LandmarkError> {
             let Some(value) = root.get(key) else {

@@ -3,9 +3,13 @@
 //!
 //! Works on [`mesh::TriMesh`]; knows nothing about finite elements or implants.
 
+pub mod fill_in;
 pub mod frame;
 pub mod landmarks;
+pub mod measure;
 pub mod register;
+pub mod scan_holes;
 
+pub use fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
 pub use frame::{AnatomicalFrame, FrameError};
 pub use landmarks::{LandmarkError, LandmarkName, Landmarks, SnapWarning};

@@ -1,1 +1,215 @@
-fn main() {}
+//! `mammaplan`: the command-line front end. A thin layer over the `plan` crate: parse
+//! arguments, call one function, print a summary or JSON. No algorithms here.
+
+mod progress;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+use plan::{Cup, PhantomParams};
+use progress::TerminalProgress;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "mammaplan", version, about = "Breast augmentation planning from 3D surface scans")]
+struct Cli {
+    /// No progress bars or warnings on stderr.
+    #[arg(long, global = true)]
+    quiet: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the whole pipeline on the built-in phantom and write every result to DIR.
+    Demo {
+        #[arg(long, value_name = "DIR")]
+        out: PathBuf,
+        /// Print the report as one JSON object instead of a summary.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write the synthetic torso scan and its landmark file.
+    Phantom {
+        /// Output scan (.ply, .obj or .stl).
+        #[arg(long, value_name = "SCAN")]
+        out: PathBuf,
+        /// Output landmark file (JSON), with the true breast volumes.
+        #[arg(long, value_name = "JSON")]
+        landmarks: PathBuf,
+        #[arg(long, default_value = "medium")]
+        cup: Cup,
+        /// Breast ptosis, 0 (none) to 1 (marked).
+        #[arg(long, default_value_t = PhantomParams::default().ptosis, value_parser = unit_interval)]
+        ptosis: f64,
+        /// Scanner noise along the normals, standard deviation in mm.
+        #[arg(long, default_value_t = 0.0, value_parser = non_negative)]
+        noise_mm: f64,
+        /// Natural left/right asymmetry, 0 (none) to 1 (noticeable).
+        #[arg(long, default_value_t = 0.0, value_parser = unit_interval)]
+        asymmetry: f64,
+        #[arg(long, default_value_t = PhantomParams::default().seed)]
+        seed: u64,
+    },
+    /// Clinical distances between landmarks (Euclidean, plane-section and geodesic).
+    Measure {
+        #[arg(long, value_name = "SCAN")]
+        scan: PathBuf,
+        #[arg(long, value_name = "JSON")]
+        landmarks: PathBuf,
+        /// An extra distance between two named points, e.g. `--pair Pj,scar_top`; repeatable.
+        #[arg(long, value_name = "A,B", value_parser = landmark_pair)]
+        pair: Vec<(String, String)>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Rigidly register a moving scan onto a fixed scan (bony landmarks, then optional ICP).
+    Register {
+        #[arg(long, value_name = "SCAN")]
+        fixed: PathBuf,
+        #[arg(long, value_name = "JSON")]
+        fixed_landmarks: PathBuf,
+        #[arg(long, value_name = "SCAN")]
+        moving: PathBuf,
+        #[arg(long, value_name = "JSON")]
+        moving_landmarks: PathBuf,
+        /// The moving scan, registered (mesh format by extension).
+        #[arg(long, value_name = "SCAN")]
+        out: PathBuf,
+        /// Refine with point-to-plane ICP on the surface away from the breasts.
+        #[arg(long)]
+        icp: bool,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let progress = TerminalProgress::new(cli.quiet);
+    match run(cli.command, &progress) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            progress.finish();
+            eprintln!("error: {}", one_line(&error));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The error and its causes on one line, outermost first.
+fn one_line(error: &anyhow::Error) -> String {
+    error.chain().map(|e| e.to_string()).collect::<Vec<_>>().join(": ")
+}
+
+fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
+    match command {
+        Command::Demo { out, json } => {
+            let report = plan::demo::demo(&out, progress)?;
+            progress.finish();
+            if json {
+                print_json(&report)
+            } else {
+                print!("{}", summary::demo(&report));
+                Ok(())
+            }
+        }
+        Command::Phantom {
+            out,
+            landmarks,
+            cup,
+            ptosis,
+            noise_mm,
+            asymmetry,
+            seed,
+        } => {
+            let params = PhantomParams {
+                cup,
+                ptosis,
+                noise_mm,
+                asymmetry,
+                seed,
+            };
+            let phantom = plan::demo::write_phantom(&params, &out, &landmarks)?;
+            progress.finish();
+            println!(
+                "phantom: {} vertices, {} triangles -> {}\nlandmarks and true breast volumes (left {:.1} ml, right {:.1} ml) -> {}",
+                phantom.scan.vertex_count(),
+                phantom.scan.triangle_count(),
+                out.display(),
+                phantom.breast_volume_ml.left,
+                phantom.breast_volume_ml.right,
+                landmarks.display()
+            );
+            Ok(())
+        }
+        Command::Measure {
+            scan,
+            landmarks,
+            pair,
+            json,
+        } => {
+            let marked = plan::MarkedScan::load(&scan, &landmarks, progress)?;
+            let report = plan::measure::measure(&marked, &pair, progress)?;
+            progress.finish();
+            if json {
+                print_json(&report)
+            } else {
+                print!("{}", summary::distances(&report.distances));
+                Ok(())
+            }
+        }
+        Command::Register {
+            fixed,
+            fixed_landmarks,
+            moving,
+            moving_landmarks,
+            out,
+            icp,
+            json,
+        } => {
+            let fixed = plan::MarkedScan::load(&fixed, &fixed_landmarks, progress)?;
+            let moving = plan::MarkedScan::load(&moving, &moving_landmarks, progress)?;
+            let (transform, report) = plan::register::register(&fixed, &moving, icp)?;
+            plan::register::write_registered_mesh(&out, &moving, &transform)?;
+            progress.finish();
+            if json {
+                print_json(&report)
+            } else {
+                print!("{}", summary::registration(&report));
+                Ok(())
+            }
+        }
+    }
+}
+
+fn print_json(value: &impl serde::Serialize) -> Result<()> {
+    println!("{}", serde_json::to_string_pretty(value)?);
+    Ok(())
+}
+
+fn unit_interval(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if (0.0..=1.0).contains(&x) => Ok(x),
+        _ => Err(format!("expected a number from 0 to 1, got {text:?}")),
+    }
+}
+
+fn non_negative(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if x >= 0.0 && x.is_finite() => Ok(x),
+        _ => Err(format!("expected a number >= 0, got {text:?}")),
+    }
+}
+
+fn landmark_pair(text: &str) -> Result<(String, String), String> {
+    match text.split_once(',') {
+        Some((a, b)) if !a.trim().is_empty() && !b.trim().is_empty() => {
+            Ok((a.trim().to_string(), b.trim().to_string()))
+        }
+        _ => Err(format!("expected two point names separated by a comma, got {text:?}")),
+    }
+}
+
+mod summary;

@@ -6,16 +6,24 @@
 //! Lengths are in millimetres wherever a unit matters; the crate itself is unit-agnostic.
 //! This crate knows nothing about anatomy, landmarks or simulation.
 
+pub mod cut;
 pub mod error;
+pub mod geodesic;
 pub mod geometry;
 pub mod io;
+pub mod section;
 pub mod shapes;
 pub mod spatial;
+pub mod surface_curve;
 pub mod topology;
 pub mod trimesh;
 
+pub use cut::{CutError, CutMesh, MeshPart, Region, cut_along_curves};
 pub use error::MeshError;
+pub use geodesic::{GeodesicSolver, PathError, SurfacePath, SurfacePoint};
 pub use glam::{DVec2, DVec3};
+pub use section::plane_section_path;
 pub use spatial::{ClosestPoint, RayHit, SurfaceIndex};
+pub use surface_curve::{CurveError, CurveLocation, CurvePoint, SurfaceCurve};
 pub use topology::Topology;
 pub use trimesh::{MaterialLayer, TriMesh, UvLayer};

@@ -1,1 +1,31 @@
-//! plan
+//! The orchestration layer: loading scans and landmarks, measuring, registering and the
+//! demo pipeline. Both front ends (CLI, GUI) call only this crate; it holds the glue, the
+//! algorithms live in the stage crates below it.
+
+pub mod demo;
+pub mod measure;
+pub mod register;
+pub mod scan;
+
+pub use anatomy::measure::Distance;
+pub use phantom::{Cup, PhantomParams};
+pub use scan::{MarkedScan, Scan};
+
+/// Receives progress of long operations (a terminal bar, a GUI, or nothing).
+pub trait Progress: Sync {
+    /// A new stage starts, with the number of steps it has.
+    fn stage(&self, name: &str, steps: u64);
+    /// One step of the current stage is done.
+    fn step(&self);
+    /// A warning for the user (e.g. a landmark snapped onto the surface).
+    fn warn(&self, message: &str);
+}
+
+/// Progress that goes nowhere.
+pub struct Silent;
+
+impl Progress for Silent {
+    fn stage(&self, _: &str, _: u64) {}
+    fn step(&self) {}
+    fn warn(&self, _: &str) {}
+}

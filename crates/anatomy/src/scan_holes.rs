@@ -1,0 +1,125 @@
+//! Closing a scan's small holes (missing data where no camera saw the skin, e.g. under the
+//! lateral breast) for measurements along the surface: a tape measure lies across such a
+//! gap, a path on the raw mesh would have to go around it.
+//!
+//! Every boundary loop except the scan's outer border (the longest loop) is closed with
+//! the paper's fill-in ([`crate::fill_in`]), which continues the surrounding curvature.
+
+use crate::fill_in::{FillInParams, fill_hole, stitch};
+use mesh::{Topology, TriMesh};
+
+/// One closed hole.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClosedHole {
+    /// Length of the hole's boundary (mm).
+    pub perimeter_mm: f64,
+    /// Centre of its boundary vertices (mm).
+    pub centre: [f64; 3],
+}
+
+/// A hole that could not be closed, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OpenHole {
+    pub perimeter_mm: f64,
+    pub centre: [f64; 3],
+    pub reason: String,
+}
+
+/// A scan with its holes closed. Its first vertices and triangles are the input's, in
+/// the same order, so points located on the input are valid on it.
+#[derive(Debug, Clone)]
+pub struct ClosedScan {
+    pub mesh: TriMesh,
+    pub closed: Vec<ClosedHole>,
+    pub left_open: Vec<OpenHole>,
+}
+
+/// Closes every hole of `scan` but its outer border (the longest boundary loop).
+pub fn close_scan_holes(scan: &TriMesh, topology: &Topology) -> ClosedScan {
+    let mut loops: Vec<(f64, Vec<u32>)> = topology
+        .boundary_loops(scan)
+        .into_iter()
+        .map(|l| (loop_length(scan, &l), l))
+        .collect();
+    loops.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let mut mesh = scan.clone();
+    let mut closed = Vec::new();
+    let mut left_open = Vec::new();
+    for (perimeter_mm, boundary) in loops.into_iter().skip(1) {
+        let centre = (boundary
+            .iter()
+            .map(|&v| scan.positions[v as usize])
+            .sum::<mesh::DVec3>()
+            / boundary.len() as f64)
+            .to_array();
+        // Holes are filled one at a time into the growing mesh; earlier vertices keep
+        // their indices, so the loop stays valid.
+        match fill_hole(&mesh, &boundary, &FillInParams::default()) {
+            Ok(fill) => {
+                mesh = stitch(&mesh, &fill);
+                closed.push(ClosedHole {
+                    perimeter_mm,
+                    centre,
+                });
+            }
+            Err(error) => left_open.push(OpenHole {
+                perimeter_mm,
+                centre,
+                reason: error.to_string(),
+            }),
+        }
+    }
+    ClosedScan {
+        mesh,
+        closed,
+        left_open,
+    }
+}
+
+fn loop_length(mesh: &TriMesh, boundary: &[u32]) -> f64 {
+    (0..boundary.len())
+        .map(|i| {
+            let next = boundary[(i + 1) % boundary.len()];
+            mesh.positions[boundary[i] as usize].distance(mesh.positions[next as usize])
+        })
+        .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mesh::shapes::grid;
+
+    #[test]
+    fn inner_holes_are_closed_and_the_border_is_kept() {
+        // A 40 x 40 mm grid with two square holes of 4 x 4 cells.
+        let mut scan = grid(40, 40, 1.0);
+        let holes = [(10.0, 10.0), (25.0, 28.0)];
+        let in_hole = |c: mesh::DVec3| {
+            holes
+                .iter()
+                .any(|&(x, y)| (c.x - x).abs() < 2.0 && (c.y - y).abs() < 2.0)
+        };
+        let remove: Vec<usize> = (0..scan.triangle_count())
+            .filter(|&t| in_hole(scan.triangle_positions(t).iter().sum::<mesh::DVec3>() / 3.0))
+            .collect();
+        let area_before = scan.area();
+        scan.remove_triangles(&remove);
+        let topology = Topology::new(&scan);
+        assert_eq!(topology.boundary_loops(&scan).len(), 3);
+
+        let result = close_scan_holes(&scan, &topology);
+        assert_eq!(result.closed.len(), 2);
+        assert!(result.left_open.is_empty());
+        for hole in &result.closed {
+            assert!((hole.perimeter_mm - 16.0).abs() < 1e-12);
+        }
+        let closed_topology = Topology::new(&result.mesh);
+        assert_eq!(closed_topology.boundary_loops(&result.mesh).len(), 1);
+        assert_eq!(closed_topology.inconsistent_edge_count, 0);
+        // Flat holes are filled flat: the area is the full grid's again.
+        assert!((result.mesh.area() - area_before).abs() < 1e-9);
+        assert_eq!(&result.mesh.positions[..scan.vertex_count()], &scan.positions[..]);
+        assert_eq!(&result.mesh.triangles[..scan.triangle_count()], &scan.triangles[..]);
+    }
+}

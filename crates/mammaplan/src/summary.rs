@@ -1,0 +1,78 @@
+//! Human-readable summaries printed when `--json` is not given.
+
+use plan::Distance;
+use plan::demo::DemoReport;
+use plan::register::RegisterReport;
+use std::fmt::Write;
+
+fn millimetres(value: Option<f64>) -> String {
+    value.map_or_else(|| "-".to_string(), |v| format!("{v:.1}"))
+}
+
+/// The distance table.
+pub fn distances(distances: &[Distance]) -> String {
+    let mut out = format!(
+        "{:<14} {:>14} {:>12} {:>12}\n",
+        "distance", "euclidean mm", "surface mm", "geodesic mm"
+    );
+    for d in distances {
+        let _ = writeln!(
+            out,
+            "{:<14} {:>14.1} {:>12} {:>12}{}",
+            d.name,
+            d.euclidean_mm,
+            millimetres(d.surface_mm),
+            millimetres(d.geodesic_mm),
+            d.note.as_ref().map(|n| format!("  ({n})")).unwrap_or_default()
+        );
+    }
+    out
+}
+
+/// The registration figures.
+pub fn registration(report: &RegisterReport) -> String {
+    let mut out = String::from("moving -> fixed (row-major 4x4):\n");
+    for row in &report.matrix {
+        let _ = writeln!(out, "  {:>10.6} {:>10.6} {:>10.6} {:>10.3}", row[0], row[1], row[2], row[3]);
+    }
+    let _ = writeln!(
+        out,
+        "rotation {:.3} deg, translation {:.2} mm\nbony landmark RMS {:.2} mm\nsurface RMS away from the breasts {:.3} mm ({} points; landmarks only: {:.3} mm){}",
+        report.rotation_deg,
+        glam_length(report.translation_mm),
+        report.landmark_rms_mm,
+        report.surface_rms_mm,
+        report.surface_points,
+        report.surface_rms_landmarks_only_mm,
+        if report.icp { format!(", ICP {} iterations", report.icp_iterations) } else { String::new() }
+    );
+    out
+}
+
+fn glam_length(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// What the demo did and where the files are.
+pub fn demo(report: &DemoReport) -> String {
+    let mut out = format!(
+        "mammaplan demo -> {}\n\nphantom: {} vertices, {} triangles; true breast volumes left {:.1} ml, right {:.1} ml\n\n",
+        report.out_dir.display(),
+        report.vertices,
+        report.triangles,
+        report.true_breast_volume_ml[0],
+        report.true_breast_volume_ml[1]
+    );
+    out += &distances(&report.measurements.distances);
+    out += "\nregistration of a noisy follow-up scan in a moved frame:\n";
+    out += &registration(&report.registration);
+    let _ = writeln!(
+        out,
+        "error against the known motion: {:.4} deg, {:.3} mm\n\nfiles:",
+        report.registration_error_deg, report.registration_error_mm
+    );
+    for file in &report.files {
+        let _ = writeln!(out, "  {}", file.display());
+    }
+    out
+}

@@ -1,0 +1,1208 @@
+//! Closed curves on a triangle mesh: a 3D curve projected onto the surface by walking
+//! across triangles (the cut curve of paper section IV-B), and the checks every closed
+//! surface curve must pass before the mesh can be cut along it ([`crate::cut`]).
+//!
+//! # Algorithm
+//! [`SurfaceCurve::project`] starts at the first sample, in the triangle the caller names.
+//! For every further sample it takes the segment from the current point to the sample,
+//! projects it into the current triangle's plane along the triangle normal, and clips it
+//! where it leaves the triangle; the crossing point is recorded and the rest of the
+//! segment is projected into the neighbour's plane, until the projected sample falls inside
+//! a triangle. After the last sample it walks back to the first point, closing the loop.
+//!
+//! Points within [`SNAP_TOLERANCE`] of an edge or vertex are moved onto it, so a curve
+//! running along an edge or through a vertex is followed exactly:
+//! - on an edge, the walk enters whichever of the two triangles the projected segment
+//!   points into; if it points out of both (the sample lies beyond a ridge) it follows the
+//!   edge to the sample's foot on it;
+//! - at a vertex, it enters the triangle whose corner wedge contains the projected
+//!   direction; where no wedge does (a sharp cone vertex) it follows the nearest wedge side.
+//!
+//! Following a ridge can double back along the edge (the foot lies behind the point where
+//! the walk reached the edge); such back-tracking points are dropped. The result is
+//! checked: the curve must be closed and must not cross or touch itself.
+
+use crate::topology::{NO_TRIANGLE, Topology};
+use crate::trimesh::TriMesh;
+use glam::{DVec2, DVec3};
+
+/// Barycentric distance (a fraction of the triangle's height) within which a point is moved
+/// onto an edge or vertex. On a 2 mm triangle it is 2 nm: far below scan noise, far above
+/// the 1e-16 round-off of the walk, so a curve along an edge or through a vertex is
+/// recognised as such, and a cut never puts a vertex nearer than this to an edge it is not
+/// on.
+pub const SNAP_TOLERANCE: f64 = 1e-6;
+/// A triangle whose height is below this fraction of its longest edge counts as degenerate
+/// (zero area): its plane and barycentric coordinates are meaningless, so the walk refuses
+/// to enter it. Well below [`SNAP_TOLERANCE`], so slivers of real scans still count as
+/// triangles.
+const DEGENERATE_RATIO: f64 = 1e-8;
+/// Relative barycentric tolerance for a projected direction running along an edge
+/// (round-off of a direction computed in two triangle planes).
+const ALONG_EDGE_TOLERANCE: f64 = 1e-9;
+/// Barycentric distance below which two non-consecutive segments count as touching.
+const TOUCH_TOLERANCE: f64 = 1e-9;
+/// Walking steps allowed per mesh triangle (plus a constant) for one segment of the curve:
+/// a walk that takes longer is going round in circles.
+const STEPS_PER_TRIANGLE: usize = 4;
+
+/// Where a curve point lies on the mesh. Edge `k` of a triangle runs from corner `k` to
+/// corner `(k + 1) % 3`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum CurveLocation {
+    /// On a mesh vertex.
+    OnVertex(u32),
+    /// Inside edge `edge` of `triangle`, at the fraction `t` of the way from its start
+    /// corner to its end corner (0 < t < 1).
+    OnEdge {
+        triangle: usize,
+        edge: usize,
+        t: f64,
+    },
+    /// Inside `triangle`, at these barycentric coordinates (positive, summing to one).
+    InTriangle {
+        triangle: usize,
+        barycentric: [f64; 3],
+    },
+}
+
+/// One point of a [`SurfaceCurve`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CurvePoint {
+    /// Position on the surface (mm).
+    pub position: DVec3,
+    /// Where it lies on the mesh.
+    pub location: CurveLocation,
+}
+
+/// A closed polyline on a mesh: consecutive points, and the last and the first, share a
+/// triangle, so every segment runs on the surface. The first point is not repeated at the
+/// end.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SurfaceCurve {
+    /// The points in curve order.
+    pub points: Vec<CurvePoint>,
+}
+
+/// Why a curve could not be put on, or is not a valid closed curve on, the surface.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CurveError {
+    #[error(
+        "the topology was built for a mesh with {topology_triangles} triangles, but this mesh has {mesh_triangles}"
+    )]
+    TopologyMismatch {
+        topology_triangles: usize,
+        mesh_triangles: usize,
+    },
+    #[error("a closed curve needs at least 3 points, got {count}")]
+    TooFewPoints { count: usize },
+    #[error("sample {index} has a non-finite coordinate {position:?}")]
+    NonFiniteSample { index: usize, position: [f64; 3] },
+    #[error(
+        "the start triangle {triangle} does not exist (the mesh has {triangle_count} triangles)"
+    )]
+    StartOutOfRange {
+        triangle: usize,
+        triangle_count: usize,
+    },
+    #[error("the first sample {position:?} does not lie on its start triangle {triangle}")]
+    StartOffTriangle { triangle: usize, position: [f64; 3] },
+    #[error(
+        "the curve leaves the scan at its border or a hole near ({:.1}, {:.1}, {:.1}) mm",
+        position[0], position[1], position[2]
+    )]
+    LeavesMesh { position: [f64; 3] },
+    #[error(
+        "the curve runs into the degenerate (zero-area) triangle {triangle} near ({:.1}, {:.1}, {:.1}) mm; remove degenerate triangles first",
+        position[0], position[1], position[2]
+    )]
+    DegenerateTriangle { triangle: usize, position: [f64; 3] },
+    #[error(
+        "the walk towards sample {sample} makes no progress near ({:.1}, {:.1}, {:.1}) mm",
+        position[0], position[1], position[2]
+    )]
+    NoProgress { sample: usize, position: [f64; 3] },
+    #[error(
+        "curve point {index} is not a valid location: a triangle, edge or vertex the mesh lacks, or coordinates off it"
+    )]
+    InvalidLocation { index: usize },
+    #[error(
+        "curve points {index} and {} share no triangle: the curve is not connected on the surface",
+        index + 1
+    )]
+    NotConnected { index: usize },
+    #[error(
+        "the curve is not closed: its last point ({:.1}, {:.1}, {:.1}) mm shares no triangle with its first, {gap_mm:.3} mm away",
+        last[0], last[1], last[2]
+    )]
+    NotClosed { last: [f64; 3], gap_mm: f64 },
+    #[error(
+        "the curve crosses or touches itself near ({:.1}, {:.1}, {:.1}) mm",
+        position[0], position[1], position[2]
+    )]
+    SelfCrossing { position: [f64; 3] },
+}
+
+impl CurveLocation {
+    /// The location of the point with barycentric coordinates `barycentric` in `triangle`,
+    /// moved onto the edge or vertex it lies within [`SNAP_TOLERANCE`] of. Coordinates
+    /// slightly outside the triangle are clamped onto it.
+    fn from_barycentric(mesh: &TriMesh, triangle: usize, barycentric: [f64; 3]) -> Self {
+        // NaN fails the comparison and becomes zero too.
+        let snapped = barycentric.map(|x| if x >= SNAP_TOLERANCE { x } else { 0.0 });
+        let sum: f64 = snapped.iter().sum();
+        let corners = mesh.triangles[triangle];
+        if sum <= 0.0 || !sum.is_finite() {
+            return CurveLocation::OnVertex(corners[0]);
+        }
+        let weights = snapped.map(|x| x / sum);
+        match weights.map(|x| x == 0.0) {
+            [false, false, false] => CurveLocation::InTriangle {
+                triangle,
+                barycentric: weights,
+            },
+            [true, true, _] => CurveLocation::OnVertex(corners[2]),
+            [true, _, true] => CurveLocation::OnVertex(corners[1]),
+            [_, true, true] => CurveLocation::OnVertex(corners[0]),
+            zero => {
+                // Coordinate `i` vanishes on edge `i + 1`, whose end corner is `i + 2`.
+                let i = zero.iter().position(|&z| z).unwrap_or(0);
+                let edge = (i + 1) % 3;
+                CurveLocation::OnEdge {
+                    triangle,
+                    edge,
+                    t: weights[(edge + 1) % 3],
+                }
+            }
+        }
+    }
+
+    /// The mesh vertices the location interpolates and their weights.
+    pub(crate) fn vertex_weights(&self, mesh: &TriMesh) -> ([u32; 3], [f64; 3]) {
+        match *self {
+            CurveLocation::OnVertex(v) => ([v; 3], [1.0, 0.0, 0.0]),
+            CurveLocation::OnEdge { triangle, edge, t } => {
+                let corners = mesh.triangles[triangle];
+                let (a, b) = (corners[edge], corners[(edge + 1) % 3]);
+                ([a, b, b], [1.0 - t, t, 0.0])
+            }
+            CurveLocation::InTriangle {
+                triangle,
+                barycentric,
+            } => (mesh.triangles[triangle], barycentric),
+        }
+    }
+
+    /// Position on the surface (mm). Panics if `mesh` lacks the location's triangle or
+    /// vertex ([`SurfaceCurve::check`] tells).
+    pub fn position(&self, mesh: &TriMesh) -> DVec3 {
+        let (vertices, weights) = self.vertex_weights(mesh);
+        (0..3)
+            .map(|k| mesh.positions[vertices[k] as usize] * weights[k])
+            .sum()
+    }
+
+    /// Barycentric coordinates in `triangle`, if the location lies on it; coordinates of
+    /// the corners off the location's edge or vertex are exactly zero.
+    pub(crate) fn barycentric_in(&self, mesh: &TriMesh, triangle: usize) -> Option<[f64; 3]> {
+        if let CurveLocation::InTriangle {
+            triangle: own,
+            barycentric,
+        } = *self
+        {
+            return (own == triangle).then_some(barycentric);
+        }
+        let corners = mesh.triangles[triangle];
+        let (vertices, weights) = self.vertex_weights(mesh);
+        let mut result = [0.0; 3];
+        for (&v, &w) in vertices.iter().zip(&weights).filter(|(_, w)| **w != 0.0) {
+            result[corners.iter().position(|&c| c == v)?] = w;
+        }
+        Some(result)
+    }
+
+    /// The triangles the location lies on.
+    pub(crate) fn triangles(&self, topology: &Topology) -> Vec<usize> {
+        match *self {
+            CurveLocation::OnVertex(v) => topology
+                .vertex_triangles(v as usize)
+                .iter()
+                .map(|&t| t as usize)
+                .collect(),
+            CurveLocation::OnEdge { triangle, edge, .. } => {
+                let neighbor = topology.triangle_neighbors[triangle][edge];
+                std::iter::once(triangle)
+                    .chain((neighbor != NO_TRIANGLE).then_some(neighbor as usize))
+                    .collect()
+            }
+            CurveLocation::InTriangle { triangle, .. } => vec![triangle],
+        }
+    }
+
+    /// Whether the location exists on `mesh` and is in the form
+    /// `CurveLocation::from_barycentric` gives: a point within the snap tolerance of an
+    /// edge or vertex is on it (half the tolerance allows for round-off).
+    fn is_valid(&self, mesh: &TriMesh) -> bool {
+        let inner = 0.5 * SNAP_TOLERANCE..=1.0 - 0.5 * SNAP_TOLERANCE;
+        match *self {
+            CurveLocation::OnVertex(v) => (v as usize) < mesh.positions.len(),
+            CurveLocation::OnEdge { triangle, edge, t } => {
+                triangle < mesh.triangles.len() && edge < 3 && inner.contains(&t)
+            }
+            CurveLocation::InTriangle {
+                triangle,
+                barycentric,
+            } => {
+                triangle < mesh.triangles.len()
+                    && barycentric.iter().all(|x| inner.contains(x))
+                    && (barycentric.iter().sum::<f64>() - 1.0).abs() <= SNAP_TOLERANCE
+            }
+        }
+    }
+}
+
+impl SurfaceCurve {
+    /// Projects the closed curve through `samples` (mm) onto the surface by walking across
+    /// triangles (see the module documentation). `samples[0]` must lie on triangle
+    /// `start_triangle` (e.g. from [`crate::SurfaceIndex::closest_point`]); the others may
+    /// lie off the surface. Do not repeat the first sample at the end. The mesh must pass
+    /// [`TriMesh::validate`].
+    ///
+    /// Errors if the curve leaves the mesh at its border or a hole, runs into a degenerate
+    /// triangle, or crosses or touches itself.
+    pub fn project(
+        mesh: &TriMesh,
+        topology: &Topology,
+        start_triangle: usize,
+        samples: &[DVec3],
+    ) -> Result<SurfaceCurve, CurveError> {
+        check_topology(mesh, topology)?;
+        if samples.len() < 3 {
+            return Err(CurveError::TooFewPoints {
+                count: samples.len(),
+            });
+        }
+        if let Some(index) = samples.iter().position(|s| !s.is_finite()) {
+            return Err(CurveError::NonFiniteSample {
+                index,
+                position: samples[index].to_array(),
+            });
+        }
+        if start_triangle >= mesh.triangles.len() {
+            return Err(CurveError::StartOutOfRange {
+                triangle: start_triangle,
+                triangle_count: mesh.triangles.len(),
+            });
+        }
+        if is_degenerate(mesh, start_triangle) {
+            return Err(CurveError::DegenerateTriangle {
+                triangle: start_triangle,
+                position: samples[0].to_array(),
+            });
+        }
+        let start = projected_barycentric(mesh, start_triangle, samples[0]);
+        if start.iter().any(|&x| x < -SNAP_TOLERANCE) {
+            return Err(CurveError::StartOffTriangle {
+                triangle: start_triangle,
+                position: samples[0].to_array(),
+            });
+        }
+        let first = CurveLocation::from_barycentric(mesh, start_triangle, start);
+        let mut walker = Walker {
+            mesh,
+            topology,
+            location: first,
+            points: Vec::new(),
+            step_limit: STEPS_PER_TRIANGLE * mesh.triangles.len() + 16,
+        };
+        walker.push(first);
+        for (index, &sample) in samples.iter().enumerate().skip(1) {
+            walker.walk_to(sample, index)?;
+        }
+        let first_position = walker.points[0].position;
+        walker.walk_to(first_position, 0)?;
+        let curve = SurfaceCurve {
+            points: without_edge_spikes(mesh, topology, walker.points),
+        };
+        curve.check(mesh, topology)?;
+        Ok(curve)
+    }
+
+    /// Total length of the closed polyline (mm).
+    pub fn length_mm(&self) -> f64 {
+        let n = self.points.len();
+        (0..n)
+            .map(|i| {
+                self.points[i]
+                    .position
+                    .distance(self.points[(i + 1) % n].position)
+            })
+            .sum()
+    }
+
+    /// The same curve run the other way.
+    pub fn reversed(&self) -> SurfaceCurve {
+        SurfaceCurve {
+            points: self.points.iter().rev().copied().collect(),
+        }
+    }
+
+    /// Area (mm²) enclosed by the polyline projected onto the plane orthogonal to `axis`:
+    /// positive if the curve runs counter-clockwise seen from the tip of `axis`.
+    pub fn signed_area_about(&self, axis: DVec3) -> f64 {
+        let axis = axis.normalize_or_zero();
+        let Some(origin) = self.points.first().map(|p| p.position) else {
+            return 0.0;
+        };
+        let n = self.points.len();
+        (0..n)
+            .map(|i| {
+                let p = self.points[i].position - origin;
+                let q = self.points[(i + 1) % n].position - origin;
+                0.5 * p.cross(q).dot(axis)
+            })
+            .sum()
+    }
+
+    /// The curve, reversed if needed so that it runs counter-clockwise seen from outside
+    /// along `outward` (e.g. the mean normal of the enclosed region). Then the region the
+    /// curve encloses is its inside for [`crate::cut`].
+    pub fn oriented_counter_clockwise_about(self, outward: DVec3) -> SurfaceCurve {
+        if self.signed_area_about(outward) < 0.0 {
+            self.reversed()
+        } else {
+            self
+        }
+    }
+
+    /// Checks that the curve is a closed simple curve on `mesh`: at least three points,
+    /// valid locations, consecutive points (and the last and first) sharing a triangle,
+    /// and no two segments crossing or touching except consecutive ones at their common
+    /// point.
+    pub fn check(&self, mesh: &TriMesh, topology: &Topology) -> Result<(), CurveError> {
+        check_topology(mesh, topology)?;
+        check_curves(mesh, topology, std::slice::from_ref(self)).map_err(|defect| match defect {
+            CurvesDefect::Curve { error, .. } => error,
+            CurvesDefect::Touch { position, .. } => CurveError::SelfCrossing { position },
+        })
+    }
+}
+
+/// Whether `topology` was built for `mesh` (as far as a cheap check tells).
+pub(crate) fn check_topology(mesh: &TriMesh, topology: &Topology) -> Result<(), CurveError> {
+    if topology.triangle_neighbors.len() == mesh.triangles.len() {
+        Ok(())
+    } else {
+        Err(CurveError::TopologyMismatch {
+            topology_triangles: topology.triangle_neighbors.len(),
+            mesh_triangles: mesh.triangles.len(),
+        })
+    }
+}
+
+/// What is wrong with a set of curves: one curve on its own, or two that touch.
+pub(crate) enum CurvesDefect {
+    Curve {
+        curve: usize,
+        error: CurveError,
+    },
+    Touch {
+        first: usize,
+        second: usize,
+        position: [f64; 3],
+    },
+}
+
+/// Where a curve segment runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum SegmentPlace {
+    /// Through the inside of a triangle (it must be split along the segment).
+    InTriangle(usize),
+    /// Along an edge of these one or two triangles (already a mesh edge).
+    AlongEdge([Option<usize>; 2]),
+}
+
+/// Where the segment between two curve locations runs, or `None` if they share no
+/// triangle.
+pub(crate) fn segment_place(
+    mesh: &TriMesh,
+    topology: &Topology,
+    a: &CurveLocation,
+    b: &CurveLocation,
+) -> Option<SegmentPlace> {
+    a.triangles(topology).into_iter().find_map(|t| {
+        let (from, to) = (a.barycentric_in(mesh, t)?, b.barycentric_in(mesh, t)?);
+        Some(match (0..3).find(|&i| from[i] == 0.0 && to[i] == 0.0) {
+            Some(i) => {
+                let neighbor = topology.triangle_neighbors[t][(i + 1) % 3];
+                SegmentPlace::AlongEdge([
+                    Some(t),
+                    (neighbor != NO_TRIANGLE).then_some(neighbor as usize),
+                ])
+            }
+            None => SegmentPlace::InTriangle(t),
+        })
+    })
+}
+
+/// One segment in one triangle, in that triangle's barycentric plane `(b1, b2)`.
+struct PlacedSegment {
+    triangle: usize,
+    curve: usize,
+    index: usize,
+    from: DVec2,
+    to: DVec2,
+}
+
+/// Checks curves on their own (see [`SurfaceCurve::check`]) and against each other.
+pub(crate) fn check_curves(
+    mesh: &TriMesh,
+    topology: &Topology,
+    curves: &[SurfaceCurve],
+) -> Result<(), CurvesDefect> {
+    let mut placed: Vec<PlacedSegment> = Vec::new();
+    let mut vertices: Vec<(u32, usize)> = Vec::new();
+    for (curve, points) in curves.iter().map(|c| &c.points).enumerate() {
+        let defect = |error| CurvesDefect::Curve { curve, error };
+        let n = points.len();
+        if n < 3 {
+            return Err(defect(CurveError::TooFewPoints { count: n }));
+        }
+        if let Some(index) = points.iter().position(|p| !p.location.is_valid(mesh)) {
+            return Err(defect(CurveError::InvalidLocation { index }));
+        }
+        for (index, point) in points.iter().enumerate() {
+            let next = &points[(index + 1) % n];
+            let triangles = match segment_place(mesh, topology, &point.location, &next.location) {
+                Some(SegmentPlace::InTriangle(t)) => [Some(t), None],
+                Some(SegmentPlace::AlongEdge(triangles)) => triangles,
+                None if index + 1 == n => {
+                    return Err(defect(CurveError::NotClosed {
+                        last: point.position.to_array(),
+                        gap_mm: point.position.distance(next.position),
+                    }));
+                }
+                None => return Err(defect(CurveError::NotConnected { index })),
+            };
+            for t in triangles.into_iter().flatten() {
+                let plane = |p: &CurvePoint| {
+                    let b = p.location.barycentric_in(mesh, t).unwrap_or_default();
+                    DVec2::new(b[1], b[2])
+                };
+                placed.push(PlacedSegment {
+                    triangle: t,
+                    curve,
+                    index,
+                    from: plane(point),
+                    to: plane(next),
+                });
+            }
+            if let CurveLocation::OnVertex(v) = point.location {
+                vertices.push((v, curve));
+            }
+        }
+    }
+    // A vertex visited twice: the segments around it may lie in different triangles.
+    vertices.sort_unstable();
+    if let Some(pair) = vertices.windows(2).find(|w| w[0].0 == w[1].0) {
+        let position = mesh.positions[pair[0].0 as usize].to_array();
+        return Err(touch(pair[0].1, pair[1].1, position));
+    }
+    placed.sort_by_key(|s| s.triangle);
+    for segments in placed.chunk_by(|s, r| s.triangle == r.triangle) {
+        for (i, s) in segments.iter().enumerate() {
+            for r in &segments[i + 1..] {
+                let n = curves[s.curve].points.len();
+                let consecutive = s.curve == r.curve
+                    && (s.index.abs_diff(r.index) == 1 || s.index.abs_diff(r.index) == n - 1);
+                if !consecutive && segments_touch(s, r) {
+                    let location = CurveLocation::InTriangle {
+                        triangle: s.triangle,
+                        barycentric: [1.0 - s.from.x - s.from.y, s.from.x, s.from.y],
+                    };
+                    return Err(touch(s.curve, r.curve, location.position(mesh).to_array()));
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn touch(first: usize, second: usize, position: [f64; 3]) -> CurvesDefect {
+    if first == second {
+        CurvesDefect::Curve {
+            curve: first,
+            error: CurveError::SelfCrossing { position },
+        }
+    } else {
+        CurvesDefect::Touch {
+            first,
+            second,
+            position,
+        }
+    }
+}
+
+/// Whether two segments cross, or come within [`TOUCH_TOLERANCE`] of each other.
+fn segments_touch(s: &PlacedSegment, r: &PlacedSegment) -> bool {
+    let orient = |a: DVec2, b: DVec2, c: DVec2| (b - a).perp_dot(c - a);
+    let crosses = orient(r.from, r.to, s.from) * orient(r.from, r.to, s.to) < 0.0
+        && orient(s.from, s.to, r.from) * orient(s.from, s.to, r.to) < 0.0;
+    crosses
+        || [
+            point_segment_distance(s.from, r.from, r.to),
+            point_segment_distance(s.to, r.from, r.to),
+            point_segment_distance(r.from, s.from, s.to),
+            point_segment_distance(r.to, s.from, s.to),
+        ]
+        .into_iter()
+        .any(|d| d <= TOUCH_TOLERANCE)
+}
+
+fn point_segment_distance(p: DVec2, a: DVec2, b: DVec2) -> f64 {
+    let ab = b - a;
+    let length_squared = ab.length_squared();
+    let s = if length_squared > 0.0 {
+        ((p - a).dot(ab) / length_squared).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    p.distance(a + s * ab)
+}
+
+/// The closed curve `points` without back-tracking along edges. Where the walk follows a
+/// ridge edge to the foot of a sample, that foot can lie behind the point where the walk
+/// reached the edge, and the curve would double back over itself. So a point whose two
+/// neighbours lie on the same edge on one side of it is dropped, and so is a point that
+/// then coincides with the one before (the first point included: the curve is closed).
+fn without_edge_spikes(
+    mesh: &TriMesh,
+    topology: &Topology,
+    points: Vec<CurvePoint>,
+) -> Vec<CurvePoint> {
+    let is_spike = |a: &CurvePoint, b: &CurvePoint, c: &CurvePoint| {
+        b.location.triangles(topology).into_iter().any(|t| {
+            let on_t = |p: &CurvePoint| p.location.barycentric_in(mesh, t);
+            let (Some(a), Some(b), Some(c)) = (on_t(a), on_t(b), on_t(c)) else {
+                return false;
+            };
+            // On the edge opposite corner k, the weight of corner k + 1 orders the points.
+            (0..3).any(|k| {
+                let j = (k + 1) % 3;
+                a[k] == 0.0
+                    && b[k] == 0.0
+                    && c[k] == 0.0
+                    && (b[j] <= a[j].min(c[j]) || b[j] >= a[j].max(c[j]))
+            })
+        })
+    };
+    let mut kept: Vec<CurvePoint> = Vec::with_capacity(points.len());
+    for point in points {
+        kept.push(point);
+        loop {
+            let n = kept.len();
+            if n >= 2 && coincide(mesh, topology, &kept[n - 2], &kept[n - 1]) {
+                kept.pop();
+            } else if n >= 3 && is_spike(&kept[n - 3], &kept[n - 2], &kept[n - 1]) {
+                kept.remove(n - 2);
+            } else {
+                break;
+            }
+        }
+    }
+    // The same around the seam between the last and the first point.
+    loop {
+        let n = kept.len();
+        if n < 4 {
+            break;
+        }
+        if coincide(mesh, topology, &kept[n - 1], &kept[0]) {
+            kept.pop();
+        } else if is_spike(&kept[n - 2], &kept[n - 1], &kept[0]) {
+            kept.remove(n - 1);
+        } else if is_spike(&kept[n - 1], &kept[0], &kept[1]) {
+            kept.remove(0);
+        } else {
+            break;
+        }
+    }
+    kept
+}
+
+/// Whether two curve points are the same point: on a common triangle, with barycentric
+/// coordinates within [`SNAP_TOLERANCE`].
+fn coincide(mesh: &TriMesh, topology: &Topology, a: &CurvePoint, b: &CurvePoint) -> bool {
+    a.location.triangles(topology).into_iter().any(|t| {
+        match (
+            a.location.barycentric_in(mesh, t),
+            b.location.barycentric_in(mesh, t),
+        ) {
+            (Some(p), Some(q)) => (0..3).all(|k| (p[k] - q[k]).abs() < SNAP_TOLERANCE),
+            _ => false,
+        }
+    })
+}
+
+/// Whether triangle `t` has (numerically) no area; see [`DEGENERATE_RATIO`].
+fn is_degenerate(mesh: &TriMesh, t: usize) -> bool {
+    let [a, b, c] = mesh.triangle_positions(t);
+    let double_area = (b - a).cross(c - a).length();
+    let longest_squared = a
+        .distance_squared(b)
+        .max(b.distance_squared(c))
+        .max(c.distance_squared(a));
+    double_area.is_nan() || double_area <= DEGENERATE_RATIO * longest_squared
+}
+
+/// Barycentric coordinates in triangle `t` of `point` projected onto the triangle's plane
+/// along its normal. Linear in `point`, so a segment maps to a segment.
+fn projected_barycentric(mesh: &TriMesh, t: usize, point: DVec3) -> [f64; 3] {
+    let [a, b, c] = mesh.triangle_positions(t);
+    let (ab, ac, ap) = (b - a, c - a, point - a);
+    let normal = ab.cross(ac);
+    // Dotting with the normal drops the off-plane part of `ap`: the orthogonal projection.
+    let scale = 1.0 / normal.length_squared();
+    let v = ap.cross(ac).dot(normal) * scale;
+    let w = ab.cross(ap).dot(normal) * scale;
+    [1.0 - v - w, v, w]
+}
+
+/// Barycentric coordinates in `t` of `point` projected onto the line of edge `edge`.
+fn edge_line_barycentric(mesh: &TriMesh, t: usize, edge: usize, point: DVec3) -> [f64; 3] {
+    let corners = mesh.triangle_positions(t);
+    let (a, b) = (corners[edge], corners[(edge + 1) % 3]);
+    let s = (point - a).dot(b - a) / a.distance_squared(b);
+    let mut result = [0.0; 3];
+    result[edge] = 1.0 - s;
+    result[(edge + 1) % 3] = s;
+    result
+}
+
+/// The state of the walk of [`SurfaceCurve::project`].
+struct Walker<'a> {
+    mesh: &'a TriMesh,
+    topology: &'a Topology,
+    location: CurveLocation,
+    points: Vec<CurvePoint>,
+    step_limit: usize,
+}
+
+/// One straight move inside a triangle, in its barycentric coordinates.
+struct Move {
+    triangle: usize,
+    from: [f64; 3],
+    to: [f64; 3],
+}
+
+impl Walker<'_> {
+    /// Records `location` unless it coincides with the last point, and moves to the last
+    /// point.
+    fn push(&mut self, location: CurveLocation) {
+        let point = CurvePoint {
+            position: location.position(self.mesh),
+            location,
+        };
+        match self.points.last() {
+            Some(last) if coincide(self.mesh, self.topology, last, &point) => {
+                self.location = last.location;
+            }
+            _ => {
+                self.location = location;
+                self.points.push(point);
+            }
+        }
+    }
+
+    fn position(&self) -> [f64; 3] {
+        self.location.position(self.mesh).to_array()
+    }
+
+    /// Walks from the current point towards `target`, triangle by triangle, recording
+    /// every edge crossing and the end point.
+    fn walk_to(&mut self, target: DVec3, sample: usize) -> Result<(), CurveError> {
+        for _ in 0..self.step_limit {
+            let Some(Move { triangle, from, to }) = self.next_move(target)? else {
+                return Ok(()); // the target projects onto the current point
+            };
+            // The first coordinate to turn negative names the edge the segment leaves by.
+            let exit = (0..3)
+                .filter(|&i| to[i] < -SNAP_TOLERANCE)
+                .map(|i| (from[i] / (from[i] - to[i]), i))
+                .min_by(|x, y| x.0.total_cmp(&y.0));
+            let Some((s, i)) = exit else {
+                self.push(CurveLocation::from_barycentric(self.mesh, triangle, to));
+                return Ok(());
+            };
+            let mut crossing = [0, 1, 2].map(|k| from[k] + s * (to[k] - from[k]));
+            crossing[i] = 0.0;
+            self.push(CurveLocation::from_barycentric(
+                self.mesh, triangle, crossing,
+            ));
+        }
+        Err(CurveError::NoProgress {
+            sample,
+            position: self.position(),
+        })
+    }
+
+    /// The triangle to move in from the current point towards `target`, with the
+    /// projected segment; `None` if the target projects onto the current point.
+    fn next_move(&self, target: DVec3) -> Result<Option<Move>, CurveError> {
+        match self.location {
+            CurveLocation::InTriangle {
+                triangle,
+                barycentric,
+            } => Ok(Some(Move {
+                triangle,
+                from: barycentric,
+                to: projected_barycentric(self.mesh, triangle, target),
+            })),
+            CurveLocation::OnEdge { triangle, edge, .. } => {
+                self.leave_edge(triangle, edge, target).map(Some)
+            }
+            CurveLocation::OnVertex(v) => self.leave_vertex(v as usize, target),
+        }
+    }
+
+    /// From a point on edge `edge` of `triangle`: into the triangle on the side the segment
+    /// points to, or along the edge if it points out of both.
+    fn leave_edge(&self, triangle: usize, edge: usize, target: DVec3) -> Result<Move, CurveError> {
+        let mesh = self.mesh;
+        let here = |t: usize| self.location.barycentric_in(mesh, t).unwrap_or_default();
+        let from = here(triangle);
+        let to = projected_barycentric(mesh, triangle, target);
+        let off_edge = (edge + 2) % 3;
+        let displacement = (0..3).map(|k| (to[k] - from[k]).abs()).fold(0.0, f64::max);
+        let along_edge = Move {
+            triangle,
+            from,
+            to: edge_line_barycentric(mesh, triangle, edge, target),
+        };
+        if to[off_edge] >= 0.0 {
+            return Ok(Move { triangle, from, to });
+        }
+        if to[off_edge] >= -ALONG_EDGE_TOLERANCE * displacement {
+            return Ok(along_edge);
+        }
+        let neighbor = self.topology.triangle_neighbors[triangle][edge];
+        if neighbor == NO_TRIANGLE {
+            return Err(CurveError::LeavesMesh {
+                position: self.position(),
+            });
+        }
+        let neighbor = neighbor as usize;
+        if is_degenerate(mesh, neighbor) {
+            return Err(CurveError::DegenerateTriangle {
+                triangle: neighbor,
+                position: self.position(),
+            });
+        }
+        let (from, to) = (
+            here(neighbor),
+            projected_barycentric(mesh, neighbor, target),
+        );
+        if let Some(k) = (0..3).find(|&k| from[k] == 0.0)
+            && to[k] >= 0.0
+        {
+            return Ok(Move {
+                triangle: neighbor,
+                from,
+                to,
+            });
+        }
+        // Both triangles send the segment back across the edge: the target lies beyond a
+        // ridge, and its foot on the edge is the nearest surface point.
+        Ok(along_edge)
+    }
+
+    /// From vertex `v`: into the incident triangle whose corner wedge contains the
+    /// projected segment, or along the nearest wedge side if none does.
+    fn leave_vertex(&self, v: usize, target: DVec3) -> Result<Option<Move>, CurveError> {
+        let mesh = self.mesh;
+        // (score, triangle, corner of v, projected target); the score is positive inside
+        // the wedge, scale-free, and largest for the wedge's bisector.
+        let mut best: Option<(f64, usize, usize, [f64; 3])> = None;
+        for &t in self.topology.vertex_triangles(v) {
+            let t = t as usize;
+            if is_degenerate(mesh, t) {
+                continue;
+            }
+            let corner = (0..3)
+                .find(|&k| mesh.triangles[t][k] as usize == v)
+                .unwrap_or(0);
+            let to = projected_barycentric(mesh, t, target);
+            let (alpha, beta) = (to[(corner + 1) % 3], to[(corner + 2) % 3]);
+            let size = alpha.abs() + beta.abs();
+            if size < SNAP_TOLERANCE {
+                return Ok(None);
+            }
+            let score = alpha.min(beta) / size;
+            if best.is_none_or(|b| score > b.0) {
+                best = Some((score, t, corner, to));
+            }
+        }
+        let Some((score, triangle, corner, to)) = best else {
+            return Err(CurveError::DegenerateTriangle {
+                triangle: self
+                    .topology
+                    .vertex_triangles(v)
+                    .first()
+                    .map_or(0, |&t| t as usize),
+                position: self.position(),
+            });
+        };
+        let mut from = [0.0; 3];
+        from[corner] = 1.0;
+        if score >= 0.0 {
+            return Ok(Some(Move { triangle, from, to }));
+        }
+        if score < -ALONG_EDGE_TOLERANCE && self.is_boundary_vertex(v) {
+            return Err(CurveError::LeavesMesh {
+                position: self.position(),
+            });
+        }
+        // Follow the wedge side nearer the direction: edge `corner` runs to the next
+        // corner, edge `corner + 2` arrives from the previous one.
+        let (next, previous) = ((corner + 1) % 3, (corner + 2) % 3);
+        let (edge, other) = if to[next] >= to[previous] {
+            (corner, next)
+        } else {
+            (previous, previous)
+        };
+        let to = edge_line_barycentric(mesh, triangle, edge, target);
+        Ok((to[other] > 0.0).then_some(Move { triangle, from, to }))
+    }
+
+    /// Whether vertex `v` lies on the mesh border or a hole.
+    fn is_boundary_vertex(&self, v: usize) -> bool {
+        self.topology.vertex_triangles(v).iter().any(|&t| {
+            let t = t as usize;
+            (0..3).any(|k| {
+                let corners = self.mesh.triangles[t];
+                let touches_v = corners[k] as usize == v || corners[(k + 1) % 3] as usize == v;
+                touches_v && self.topology.triangle_neighbors[t][k] == NO_TRIANGLE
+            })
+        })
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::shapes::{grid, icosphere};
+    use crate::spatial::SurfaceIndex;
+    use std::f64::consts::{PI, TAU};
+
+    /// `count` points of the circle of `radius` about `center` in the plane spanned by the
+    /// unit vectors `u` and `v`, counter-clockwise seen from the tip of `u × v`.
+    pub(crate) fn circle(
+        center: DVec3,
+        radius: f64,
+        [u, v]: [DVec3; 2],
+        count: usize,
+    ) -> Vec<DVec3> {
+        (0..count)
+            .map(|i| {
+                let angle = TAU * i as f64 / count as f64;
+                center + radius * (angle.cos() * u + angle.sin() * v)
+            })
+            .collect()
+    }
+
+    /// Projects `samples` as a caller would: the first sample moved onto the surface.
+    pub(crate) fn project(
+        mesh: &TriMesh,
+        topology: &Topology,
+        samples: &[DVec3],
+    ) -> Result<SurfaceCurve, CurveError> {
+        let start = SurfaceIndex::new(mesh).unwrap().closest_point(samples[0]);
+        let mut samples = samples.to_vec();
+        samples[0] = start.point;
+        SurfaceCurve::project(mesh, topology, start.triangle, &samples)
+    }
+
+    fn distance_to_polygon(p: DVec3, polygon: &[DVec3]) -> f64 {
+        (0..polygon.len())
+            .map(|i| {
+                let (a, b) = (polygon[i], polygon[(i + 1) % polygon.len()]);
+                let s = ((p - a).dot(b - a) / a.distance_squared(b)).clamp(0.0, 1.0);
+                p.distance(a + s * (b - a))
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Checks the invariants of a projected curve: positions match locations, and the
+    /// curve passes every check.
+    fn assert_consistent(mesh: &TriMesh, topology: &Topology, curve: &SurfaceCurve) {
+        for point in &curve.points {
+            assert!(point.position.distance(point.location.position(mesh)) < 1e-12);
+        }
+        curve.check(mesh, topology).unwrap();
+    }
+
+    #[test]
+    fn circle_on_a_grid_is_the_sample_polygon() {
+        let mesh = grid(20, 20, 1.0);
+        let topology = Topology::new(&mesh);
+        let (radius, count) = (6.0, 720);
+        let samples = circle(
+            DVec3::new(10.3, 9.7, 0.0),
+            radius,
+            [DVec3::X, DVec3::Y],
+            count,
+        );
+        let curve = project(&mesh, &topology, &samples).unwrap();
+        assert_consistent(&mesh, &topology, &curve);
+
+        // Every sample is a curve point, in order, and every edge crossing is on a chord.
+        let mut next_sample = 0;
+        for point in &curve.points {
+            if next_sample < count && point.position.distance(samples[next_sample]) < 1e-12 {
+                next_sample += 1;
+            }
+            assert!(distance_to_polygon(point.position, &samples) < 1e-12);
+        }
+        assert_eq!(next_sample, count);
+        assert!(curve.points.len() > count + 40, "{}", curve.points.len());
+
+        // So the length is the polygon's perimeter, which is below 2 pi r by the chord
+        // error 2 pi r (1 - sin(pi/N) / (pi/N)) <= 2 pi r pi^2 / (6 N^2) (3.2e-6 relative).
+        let perimeter: f64 = (0..count)
+            .map(|i| samples[i].distance(samples[(i + 1) % count]))
+            .sum();
+        assert!((curve.length_mm() - perimeter).abs() < 1e-9);
+        let exact = TAU * radius;
+        let chord_error = exact * PI * PI / (6.0 * (count * count) as f64);
+        assert!(exact - curve.length_mm() >= 0.0);
+        assert!(exact - curve.length_mm() <= chord_error);
+        assert!((curve.signed_area_about(DVec3::Z) - PI * radius * radius).abs() < 2e-3);
+    }
+
+    #[test]
+    fn latitude_circle_on_a_sphere_stays_within_the_discretisation_error() {
+        let radius = 50.0;
+        let mesh = icosphere(radius, 4);
+        let topology = Topology::new(&mesh);
+        // The inscribed polyhedron lies between the smallest face-plane distance and R.
+        let depth = (0..mesh.triangle_count())
+            .map(|t| {
+                let [a, ..] = mesh.triangle_positions(t);
+                radius - a.dot(mesh.triangle_normal(t))
+            })
+            .fold(0.0, f64::max);
+        let polar = 60f64.to_radians();
+        let (height, circle_radius) = (radius * polar.cos(), radius * polar.sin());
+        let samples = circle(
+            DVec3::new(0.0, 0.0, height),
+            circle_radius,
+            [DVec3::X, DVec3::Y],
+            1000,
+        );
+        let curve = project(&mesh, &topology, &samples).unwrap();
+        assert_consistent(&mesh, &topology, &curve);
+        let worst = curve
+            .points
+            .iter()
+            .map(|p| {
+                let q = p.position;
+                DVec2::new(q.x.hypot(q.y) - circle_radius, q.z - height).length()
+            })
+            .fold(0.0, f64::max);
+        assert!(
+            worst <= depth,
+            "{worst} mm off the circle, depth {depth} mm"
+        );
+        let exact = TAU * circle_radius;
+        // The polyline runs slightly inside the sphere (0.07 % short here).
+        assert!((curve.length_mm() - exact).abs() < 2e-3 * exact);
+    }
+
+    #[test]
+    fn curves_along_grid_edges_and_through_vertices_are_followed_exactly() {
+        let mesh = grid(10, 10, 1.0);
+        let topology = Topology::new(&mesh);
+        let polyline = |corners: &[[f64; 2]], step: f64| -> Vec<DVec3> {
+            let mut samples = Vec::new();
+            for (i, a) in corners.iter().enumerate() {
+                let b = corners[(i + 1) % corners.len()];
+                let (a, b) = (DVec3::new(a[0], a[1], 0.0), DVec3::new(b[0], b[1], 0.0));
+                let steps = (a.distance(b) / step).round() as usize;
+                samples.extend((0..steps).map(|k| a.lerp(b, k as f64 / steps as f64)));
+            }
+            samples
+        };
+
+        // A square along grid lines: only vertices and edge midpoints.
+        let corners = [[2.0, 2.0], [7.0, 2.0], [7.0, 7.0], [2.0, 7.0]];
+        let square = project(&mesh, &topology, &polyline(&corners, 0.5)).unwrap();
+        assert_consistent(&mesh, &topology, &square);
+        assert_eq!(square.points.len(), 40);
+        assert!(square.points.iter().all(|p| match p.location {
+            CurveLocation::OnVertex(_) => true,
+            CurveLocation::OnEdge { t, .. } => (t - 0.5).abs() < 1e-12,
+            CurveLocation::InTriangle { .. } => false,
+        }));
+        assert!((square.length_mm() - 20.0).abs() < 1e-12);
+
+        // Along the diagonal edges, then back along grid lines.
+        let corners = [[2.0, 2.0], [8.0, 8.0], [2.0, 8.0]];
+        let wedge = project(&mesh, &topology, &polyline(&corners, 0.7)).unwrap();
+        assert_consistent(&mesh, &topology, &wedge);
+        let vertices = wedge
+            .points
+            .iter()
+            .filter(|p| matches!(p.location, CurveLocation::OnVertex(_)))
+            .count();
+        assert_eq!(vertices, 18);
+        assert!(
+            wedge
+                .points
+                .iter()
+                .all(|p| !matches!(p.location, CurveLocation::InTriangle { .. }))
+        );
+        assert!((wedge.length_mm() - (12.0 + 6.0 * 2f64.sqrt())).abs() < 1e-12);
+
+        // Oblique sides through vertices (4,3), (5,6) and (3,5), crossing edges between.
+        let corners = [[2.0, 2.0], [6.0, 4.0], [4.0, 8.0]];
+        let samples = polyline(&corners, 0.3);
+        let oblique = project(&mesh, &topology, &samples).unwrap();
+        assert_consistent(&mesh, &topology, &oblique);
+        let on_vertex = |x: f64, y: f64| {
+            let v = (y as u32) * 11 + x as u32;
+            oblique
+                .points
+                .iter()
+                .any(|p| p.location == CurveLocation::OnVertex(v))
+        };
+        assert!(on_vertex(4.0, 3.0) && on_vertex(5.0, 6.0) && on_vertex(3.0, 5.0));
+        let triangle: Vec<DVec3> = corners
+            .iter()
+            .map(|c| DVec3::new(c[0], c[1], 0.0))
+            .collect();
+        assert!(
+            oblique
+                .points
+                .iter()
+                .all(|p| distance_to_polygon(p.position, &triangle) < 1e-12)
+        );
+        let perimeter = 20f64.sqrt() + 20f64.sqrt() + 40f64.sqrt();
+        assert!((oblique.length_mm() - perimeter).abs() < 1e-9);
+    }
+
+    #[test]
+    fn curve_leaving_the_grid_is_an_error() {
+        let mesh = grid(10, 10, 1.0);
+        let topology = Topology::new(&mesh);
+        let samples = circle(DVec3::new(3.0, 5.0, 0.0), 4.0, [DVec3::X, DVec3::Y], 200);
+        let error = project(&mesh, &topology, &samples).unwrap_err();
+        let CurveError::LeavesMesh { position } = error else {
+            panic!("{error}");
+        };
+        assert!(position[0].abs() < 1e-9, "{position:?}");
+        assert!(error.to_string().contains("leaves the scan at its border"));
+
+        // A hole: the two triangles of the square (5, 5)-(6, 6) are missing.
+        let mut holed = grid(10, 10, 1.0);
+        holed.remove_triangles(&[110, 111]);
+        let topology = Topology::new(&holed);
+        let samples = circle(DVec3::new(5.5, 3.0, 0.0), 2.5, [DVec3::X, DVec3::Y], 200);
+        let error = project(&holed, &topology, &samples).unwrap_err();
+        let CurveError::LeavesMesh { position } = error else {
+            panic!("{error}");
+        };
+        // On the hole's rim, where the circle (up to y = 5.5) first reaches it.
+        let on_rim = |x: f64| (5.0..=6.0).contains(&x);
+        assert!(on_rim(position[0]) && on_rim(position[1]), "{position:?}");
+    }
+
+    #[test]
+    fn degenerate_triangle_on_the_way_is_an_error() {
+        let mut mesh = grid(10, 10, 1.0);
+        // Vertex (5, 4) onto the diagonal (4, 4)-(5, 5): triangle [(4,4), (5,4), (5,5)] has
+        // no area.
+        mesh.positions[4 * 11 + 5] = DVec3::new(4.5, 4.5, 0.0);
+        let degenerate = 2 * (4 * 10 + 4);
+        assert_eq!(mesh.degenerate_triangles(1e-12), vec![degenerate]);
+        let topology = Topology::new(&mesh);
+        let samples = circle(DVec3::new(4.3, 6.0, 0.0), 1.8, [DVec3::X, DVec3::Y], 100);
+        let error = project(&mesh, &topology, &samples).unwrap_err();
+        assert!(
+            matches!(error, CurveError::DegenerateTriangle { triangle, .. } if triangle == degenerate),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn self_crossing_curve_is_an_error() {
+        let mesh = grid(20, 20, 1.0);
+        let topology = Topology::new(&mesh);
+        // A figure eight (lemniscate of Gerono) about (10, 10).
+        let samples: Vec<DVec3> = (0..400)
+            .map(|i| {
+                let angle = TAU * i as f64 / 400.0;
+                DVec3::new(
+                    10.0 + 6.0 * angle.cos(),
+                    10.0 + 6.0 * angle.sin() * angle.cos(),
+                    0.0,
+                )
+            })
+            .collect();
+        let error = project(&mesh, &topology, &samples).unwrap_err();
+        let CurveError::SelfCrossing { position } = error else {
+            panic!("{error}");
+        };
+        assert!(DVec3::from_array(position).distance(DVec3::new(10.0, 10.0, 0.0)) < 1.5);
+    }
+
+    #[test]
+    fn orientation_follows_the_outward_direction() {
+        let mesh = grid(20, 20, 1.0);
+        let topology = Topology::new(&mesh);
+        let mut samples = circle(DVec3::new(10.0, 10.0, 0.0), 5.0, [DVec3::X, DVec3::Y], 100);
+        samples.reverse();
+        let clockwise = project(&mesh, &topology, &samples).unwrap();
+        assert!(clockwise.signed_area_about(DVec3::Z) < 0.0);
+        let oriented = clockwise.clone().oriented_counter_clockwise_about(DVec3::Z);
+        assert!(oriented.signed_area_about(DVec3::Z) > 0.0);
+        assert_eq!(oriented, clockwise.reversed());
+        assert_eq!(
+            oriented.clone().oriented_counter_clockwise_about(DVec3::Z),
+            oriented
+        );
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let mesh = grid(4, 4, 1.0);
+        let topology = Topology::new(&mesh);
+        let samples = [
+            DVec3::new(1.2, 1.1, 0.0),
+            DVec3::new(2.0, 1.5, 0.0),
+            DVec3::new(1.5, 2.5, 0.0),
+        ];
+        assert!(SurfaceCurve::project(&mesh, &topology, 10, &samples).is_ok());
+        assert!(matches!(
+            SurfaceCurve::project(&mesh, &topology, 10, &samples[..2]),
+            Err(CurveError::TooFewPoints { count: 2 })
+        ));
+        assert!(matches!(
+            SurfaceCurve::project(&mesh, &topology, 99, &samples),
+            Err(CurveError::StartOutOfRange { .. })
+        ));
+        assert!(matches!(
+            SurfaceCurve::project(&mesh, &topology, 0, &samples),
+            Err(CurveError::StartOffTriangle { .. })
+        ));
+        let mut nan = samples;
+        nan[1].y = f64::NAN;
+        assert!(matches!(
+            SurfaceCurve::project(&mesh, &topology, 10, &nan),
+            Err(CurveError::NonFiniteSample { index: 1, .. })
+        ));
+        let other = Topology::new(&grid(2, 2, 1.0));
+        assert!(matches!(
+            SurfaceCurve::project(&mesh, &other, 2, &samples),
+            Err(CurveError::TopologyMismatch { .. })
+        ));
+    }
+}

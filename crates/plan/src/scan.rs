@@ -1,0 +1,93 @@
+//! A scan loaded for work: the mesh with its connectivity and spatial index, and
+//! optionally its landmarks, snapped and turned into an anatomical frame.
+
+use anatomy::{AnatomicalFrame, Landmarks};
+use anyhow::{Context, Result, bail};
+use mesh::{SurfaceIndex, Topology, TriMesh};
+use std::path::{Path, PathBuf};
+
+/// Triangles with less area than this are dropped on load (mm²).
+const DEGENERATE_AREA_MM2: f64 = 1e-10;
+
+/// A surface scan ready for queries.
+pub struct Scan {
+    /// Where it came from (for messages and reports).
+    pub path: PathBuf,
+    pub mesh: TriMesh,
+    pub topology: Topology,
+    pub index: SurfaceIndex,
+}
+
+impl Scan {
+    /// Reads and validates a mesh file; degenerate (zero-area) triangles are dropped with
+    /// a warning naming the first one.
+    pub fn load(path: &Path, progress: &dyn crate::Progress) -> Result<Scan> {
+        let mut mesh = mesh::io::read_mesh(path)?;
+        let degenerate = mesh.degenerate_triangles(DEGENERATE_AREA_MM2);
+        if let Some(first) = degenerate.first() {
+            progress.warn(&format!(
+                "{}: dropped {} zero-area triangle(s), the first is triangle {first}",
+                path.display(),
+                degenerate.len()
+            ));
+            mesh.remove_triangles(&degenerate);
+        }
+        Scan::from_mesh(mesh, path)
+    }
+
+    /// Wraps a mesh already in memory (validated here).
+    pub fn from_mesh(mesh: TriMesh, path: &Path) -> Result<Scan> {
+        mesh.validate().map_err(|e| e.in_file(path))?;
+        let topology = Topology::new(&mesh);
+        let Some(index) = SurfaceIndex::new(&mesh) else {
+            bail!("{}: the mesh has no triangles", path.display());
+        };
+        Ok(Scan {
+            path: path.to_path_buf(),
+            mesh,
+            topology,
+            index,
+        })
+    }
+}
+
+/// A scan with its landmarks on the surface and its anatomical frame.
+pub struct MarkedScan {
+    pub scan: Scan,
+    pub landmarks: Landmarks,
+    pub landmarks_path: PathBuf,
+    pub frame: AnatomicalFrame,
+}
+
+impl MarkedScan {
+    /// Loads a scan and its landmark file, snaps landmarks within 5 mm onto the surface
+    /// (warning for each moved one) and rejects farther ones.
+    pub fn load(scan: &Path, landmarks: &Path, progress: &dyn crate::Progress) -> Result<MarkedScan> {
+        let scan = Scan::load(scan, progress)?;
+        let landmark_set = Landmarks::read(landmarks)?;
+        MarkedScan::new(scan, landmark_set, landmarks, progress)
+    }
+
+    /// Attaches landmarks (already in memory) to a scan.
+    pub fn new(
+        scan: Scan,
+        mut landmarks: Landmarks,
+        landmarks_path: &Path,
+        progress: &dyn crate::Progress,
+    ) -> Result<MarkedScan> {
+        let warnings = landmarks
+            .snap_to_surface(&scan.index)
+            .with_context(|| format!("{} on {}", landmarks_path.display(), scan.path.display()))?;
+        for warning in warnings {
+            progress.warn(&format!("{}: {warning}", landmarks_path.display()));
+        }
+        let frame = AnatomicalFrame::from_landmarks(&landmarks)
+            .with_context(|| landmarks_path.display().to_string())?;
+        Ok(MarkedScan {
+            scan,
+            landmarks,
+            landmarks_path: landmarks_path.to_path_buf(),
+            frame,
+        })
+    }
+}
