@@ -153,6 +153,22 @@ mod tests {
         (mesh, landmarks)
     }
 
+    fn measure_on(
+        mesh: &TriMesh,
+        landmarks: &Landmarks,
+        specs: &[DistanceSpec],
+    ) -> Result<Vec<Distance>, UnknownLandmark> {
+        let topology = Topology::new(mesh);
+        let index = SurfaceIndex::new(mesh).unwrap();
+        let frame = AnatomicalFrame::from_landmarks(landmarks).unwrap();
+        let surface = MeasuredSurface {
+            mesh,
+            topology: &topology,
+            index: &index,
+        };
+        measure_distances(&surface, &frame, landmarks, specs)
+    }
+
     /// The cylinder point at azimuth `angle` from the front (rad, positive to the left)
     /// and height `y` (mm); on a vertex when both fall on the grid.
     fn on_cylinder(angle: f64, y: f64) -> DVec3 {
@@ -164,19 +180,20 @@ mod tests {
     fn distances_on_a_cylinder_match_arcs_and_helices() {
         let (mesh, mut landmarks) = vertical_cylinder();
         let step = std::f64::consts::TAU / 512.0;
-        landmarks.extra.insert("a".into(), on_cylinder(-40.0 * step, 100.0));
-        landmarks.extra.insert("b".into(), on_cylinder(40.0 * step, 100.0));
-        landmarks.extra.insert("c".into(), on_cylinder(60.0 * step, 187.5));
-        let topology = Topology::new(&mesh);
-        let index = SurfaceIndex::new(&mesh).unwrap();
-        let frame = AnatomicalFrame::from_landmarks(&landmarks).unwrap();
-        let surface = MeasuredSurface {
-            mesh: &mesh,
-            topology: &topology,
-            index: &index,
-        };
-        let specs = [DistanceSpec::between("a", "b"), DistanceSpec::between("a", "c")];
-        let measured = measure_distances(&surface, &frame, &landmarks, &specs).unwrap();
+        landmarks
+            .extra
+            .insert("a".into(), on_cylinder(-40.0 * step, 100.0));
+        landmarks
+            .extra
+            .insert("b".into(), on_cylinder(40.0 * step, 100.0));
+        landmarks
+            .extra
+            .insert("c".into(), on_cylinder(60.0 * step, 187.5));
+        let specs = [
+            DistanceSpec::between("a", "b"),
+            DistanceSpec::between("a", "c"),
+        ];
+        let measured = measure_on(&mesh, &landmarks, &specs).unwrap();
 
         // Same height: the section plane is horizontal, so section and geodesic are both
         // the 80-segment polygon arc; the polygon is inscribed, 2 sin(step/2)/step of the
@@ -184,8 +201,14 @@ mod tests {
         let arc = 100.0 * 80.0 * step;
         let polygon_arc = arc * (2.0 * (step / 2.0).sin() / step);
         let ab = &measured[0];
-        assert!((ab.surface_mm.unwrap() - polygon_arc).abs() < 1e-9 * arc, "{ab:?}");
-        assert!((ab.geodesic_mm.unwrap() - polygon_arc).abs() < 1e-9 * arc, "{ab:?}");
+        assert!(
+            (ab.surface_mm.unwrap() - polygon_arc).abs() < 1e-9 * arc,
+            "{ab:?}"
+        );
+        assert!(
+            (ab.geodesic_mm.unwrap() - polygon_arc).abs() < 1e-9 * arc,
+            "{ab:?}"
+        );
         assert!((ab.euclidean_mm - 200.0 * (40.0 * step).sin()).abs() < 1e-9);
 
         // Different heights: the geodesic is the helix, a straight line on the unrolled
@@ -194,28 +217,21 @@ mod tests {
         let ac = &measured[1];
         let helix = (100.0f64 * 100.0 * step).hypot(87.5);
         let geodesic = ac.geodesic_mm.unwrap();
-        assert!((geodesic - helix).abs() < 1e-4 * helix, "{geodesic} vs {helix}");
-        assert!(ac.surface_mm.unwrap() > geodesic && geodesic > ac.euclidean_mm, "{ac:?}");
+        assert!(
+            (geodesic - helix).abs() < 1e-4 * helix,
+            "{geodesic} vs {helix}"
+        );
+        assert!(
+            ac.surface_mm.unwrap() > geodesic && geodesic > ac.euclidean_mm,
+            "{ac:?}"
+        );
     }
 
     #[test]
     fn an_unknown_name_is_reported() {
         let (mesh, landmarks) = vertical_cylinder();
-        let topology = Topology::new(&mesh);
-        let index = SurfaceIndex::new(&mesh).unwrap();
-        let frame = AnatomicalFrame::from_landmarks(&landmarks).unwrap();
-        let surface = MeasuredSurface {
-            mesh: &mesh,
-            topology: &topology,
-            index: &index,
-        };
-        let error = measure_distances(
-            &surface,
-            &frame,
-            &landmarks,
-            &[DistanceSpec::between("Pj", "scar")],
-        )
-        .unwrap_err();
+        let error =
+            measure_on(&mesh, &landmarks, &[DistanceSpec::between("Pj", "scar")]).unwrap_err();
         assert_eq!(error, UnknownLandmark("scar".into()));
     }
 
@@ -225,8 +241,17 @@ mod tests {
         assert_eq!(
             names,
             [
-                "Pcl-Pnl", "Pj-Pnl", "Pnl-PSMFl", "Pnl-PSMFml", "Pnl-PSMFll", "Pcr-Pnr", "Pj-Pnr",
-                "Pnr-PSMFr", "Pnr-PSMFmr", "Pnr-PSMFlr", "Pnl-Pnr"
+                "Pcl-Pnl",
+                "Pj-Pnl",
+                "Pnl-PSMFl",
+                "Pnl-PSMFml",
+                "Pnl-PSMFll",
+                "Pcr-Pnr",
+                "Pj-Pnr",
+                "Pnr-PSMFr",
+                "Pnr-PSMFmr",
+                "Pnr-PSMFlr",
+                "Pnl-Pnr"
             ]
         );
         for spec in clinical_distances() {

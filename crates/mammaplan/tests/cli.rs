@@ -19,10 +19,30 @@ fn stderr(output: &Output) -> String {
 /// Fails unless the command failed cleanly with a message containing `expected`.
 fn assert_clean_failure(output: &Output, expected: &str) {
     let message = stderr(output);
-    assert!(!output.status.success(), "expected failure, stderr: {message}");
+    assert!(
+        !output.status.success(),
+        "expected failure, stderr: {message}"
+    );
     assert!(!message.contains("panicked"), "panic: {message}");
-    assert!(!message.contains("RUST_BACKTRACE"), "backtrace hint: {message}");
-    assert!(message.contains(expected), "expected {expected:?} in: {message}");
+    assert!(
+        !message.contains("RUST_BACKTRACE"),
+        "backtrace hint: {message}"
+    );
+    assert!(
+        message.contains(expected),
+        "expected {expected:?} in: {message}"
+    );
+}
+
+/// `mammaplan measure` on a scan and landmark file.
+fn measure(scan: &Path, landmarks: &Path) -> Output {
+    mammaplan(&[
+        "measure",
+        "--scan",
+        scan.to_str().unwrap(),
+        "--landmarks",
+        landmarks.to_str().unwrap(),
+    ])
 }
 
 /// A phantom scan and landmark file in `dir`.
@@ -67,7 +87,14 @@ fn measure_prints_json_with_eleven_distances() {
     let distances = json["distances"].as_array().unwrap();
     assert_eq!(distances.len(), 12);
     for d in distances {
-        for key in ["name", "from", "to", "euclidean_mm", "surface_mm", "geodesic_mm"] {
+        for key in [
+            "name",
+            "from",
+            "to",
+            "euclidean_mm",
+            "surface_mm",
+            "geodesic_mm",
+        ] {
             assert!(d.get(key).is_some(), "{key} missing in {d}");
         }
     }
@@ -79,13 +106,7 @@ fn truncated_ply_is_a_clear_error() {
     let (scan, landmarks) = phantom(dir.path());
     let bytes = std::fs::read(&scan).unwrap();
     std::fs::write(&scan, &bytes[..bytes.len() / 2]).unwrap();
-    let output = mammaplan(&[
-        "measure",
-        "--scan",
-        scan.to_str().unwrap(),
-        "--landmarks",
-        landmarks.to_str().unwrap(),
-    ]);
+    let output = measure(&scan, &landmarks);
     assert_clean_failure(&output, "scan.ply");
     assert!(stderr(&output).contains("truncated"), "{}", stderr(&output));
 }
@@ -96,13 +117,7 @@ fn obj_face_index_out_of_range_names_the_line() {
     let (_, landmarks) = phantom(dir.path());
     let obj = dir.path().join("bad.obj");
     std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n").unwrap();
-    let output = mammaplan(&[
-        "measure",
-        "--scan",
-        obj.to_str().unwrap(),
-        "--landmarks",
-        landmarks.to_str().unwrap(),
-    ]);
+    let output = measure(&obj, &landmarks);
     assert_clean_failure(&output, "line 5");
 }
 
@@ -113,13 +128,7 @@ fn landmark_file_without_pj_names_it() {
     edit_landmarks(&landmarks, |json| {
         json["landmarks"].as_object_mut().unwrap().remove("Pj");
     });
-    let output = mammaplan(&[
-        "measure",
-        "--scan",
-        scan.to_str().unwrap(),
-        "--landmarks",
-        landmarks.to_str().unwrap(),
-    ]);
+    let output = measure(&scan, &landmarks);
     assert_clean_failure(&output, "missing required landmark Pj");
 }
 
@@ -132,13 +141,7 @@ fn landmark_20_mm_off_the_surface_is_rejected() {
         let z = json["landmarks"]["Pnl"][2].as_f64().unwrap();
         json["landmarks"]["Pnl"][2] = serde_json::json!(z + 20.0);
     });
-    let output = mammaplan(&[
-        "measure",
-        "--scan",
-        scan.to_str().unwrap(),
-        "--landmarks",
-        landmarks.to_str().unwrap(),
-    ]);
+    let output = measure(&scan, &landmarks);
     // The nearest surface point is a little less than 20 mm away (the nipple's normal is
     // not exactly +z).
     assert_clean_failure(&output, "landmark Pnl is 19.");
@@ -149,11 +152,25 @@ fn landmark_20_mm_off_the_surface_is_rejected() {
 fn bad_arguments_and_missing_files_fail_cleanly() {
     assert_clean_failure(&mammaplan(&["measure", "--bogus"]), "--bogus");
     assert_clean_failure(
-        &mammaplan(&["measure", "--scan", "/nonexistent/scan.ply", "--landmarks", "x.json"]),
+        &mammaplan(&[
+            "measure",
+            "--scan",
+            "/nonexistent/scan.ply",
+            "--landmarks",
+            "x.json",
+        ]),
         "/nonexistent/scan.ply",
     );
     assert_clean_failure(
-        &mammaplan(&["phantom", "--out", "a.ply", "--landmarks", "a.json", "--cup", "huge"]),
+        &mammaplan(&[
+            "phantom",
+            "--out",
+            "a.ply",
+            "--landmarks",
+            "a.json",
+            "--cup",
+            "huge",
+        ]),
         "huge",
     );
     assert_clean_failure(
