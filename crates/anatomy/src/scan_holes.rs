@@ -119,7 +119,13 @@ mod tests {
         assert_eq!(closed_topology.inconsistent_edge_count, 0);
         // Flat holes are filled flat: the area is the full grid's again.
         assert!((result.mesh.area() - area_before).abs() < 1e-9);
-        assert_eq!(&result.mesh.positions[..scan.vertex_count()], &scan.positions[..]);
-        assert_eq!(&result.mesh.triangles[..scan.triangle_count()], &scan.triangles[..]);
+        assert_eq!(
+            &result.mesh.positions[..scan.vertex_count()],
+            &scan.positions[..]
+        );
+        assert_eq!(
+            &result.mesh.triangles[..scan.triangle_count()],
+            &scan.triangles[..]
+        );
     }
 }

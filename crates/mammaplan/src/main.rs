@@ -11,7 +11,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "mammaplan", version, about = "Breast augmentation planning from 3D surface scans")]
+#[command(
+    name = "mammaplan",
+    version,
+    about = "Breast augmentation planning from 3D surface scans"
+)]
 struct Cli {
     /// No progress bars or warnings on stderr.
     #[arg(long, global = true)]
@@ -100,7 +104,11 @@ fn main() -> ExitCode {
 
 /// The error and its causes on one line, outermost first.
 fn one_line(error: &anyhow::Error) -> String {
-    error.chain().map(|e| e.to_string()).collect::<Vec<_>>().join(": ")
+    error
+        .chain()
+        .map(|e| e.to_string())
+        .collect::<Vec<_>>()
+        .join(": ")
 }
 
 fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
@@ -208,7 +216,9 @@ fn landmark_pair(text: &str) -> Result<(String, String), String> {
         Some((a, b)) if !a.trim().is_empty() && !b.trim().is_empty() => {
             Ok((a.trim().to_string(), b.trim().to_string()))
         }
-        _ => Err(format!("expected two point names separated by a comma, got {text:?}")),
+        _ => Err(format!(
+            "expected two point names separated by a comma, got {text:?}"
+        )),
     }
 }
 

@@ -23,7 +23,10 @@ pub fn distances(distances: &[Distance]) -> String {
             d.euclidean_mm,
             millimetres(d.surface_mm),
             millimetres(d.geodesic_mm),
-            d.note.as_ref().map(|n| format!("  ({n})")).unwrap_or_default()
+            d.note
+                .as_ref()
+                .map(|n| format!("  ({n})"))
+                .unwrap_or_default()
         );
     }
     out
@@ -33,7 +36,11 @@ pub fn distances(distances: &[Distance]) -> String {
 pub fn registration(report: &RegisterReport) -> String {
     let mut out = String::from("moving -> fixed (row-major 4x4):\n");
     for row in &report.matrix {
-        let _ = writeln!(out, "  {:>10.6} {:>10.6} {:>10.6} {:>10.3}", row[0], row[1], row[2], row[3]);
+        let _ = writeln!(
+            out,
+            "  {:>10.6} {:>10.6} {:>10.6} {:>10.3}",
+            row[0], row[1], row[2], row[3]
+        );
     }
     let _ = writeln!(
         out,
@@ -44,7 +51,11 @@ pub fn registration(report: &RegisterReport) -> String {
         report.surface_rms_mm,
         report.surface_points,
         report.surface_rms_landmarks_only_mm,
-        if report.icp { format!(", ICP {} iterations", report.icp_iterations) } else { String::new() }
+        if report.icp {
+            format!(", ICP {} iterations", report.icp_iterations)
+        } else {
+            String::new()
+        }
     );
     out
 }

@@ -14,7 +14,11 @@ use std::path::{Path, PathBuf};
 
 /// Generates a phantom and writes its scan and landmark file; the landmark file also
 /// carries the phantom's true breast volumes (`true_breast_volume_ml`).
-pub fn write_phantom(params: &PhantomParams, scan_path: &Path, landmarks_path: &Path) -> Result<Phantom> {
+pub fn write_phantom(
+    params: &PhantomParams,
+    scan_path: &Path,
+    landmarks_path: &Path,
+) -> Result<Phantom> {
     let phantom = phantom::generate(params);
     write_phantom_files(&phantom, params, scan_path, landmarks_path)?;
     Ok(phantom)
@@ -126,7 +130,10 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
         out_dir: out_dir.to_path_buf(),
         vertices: phantom.scan.vertex_count(),
         triangles: phantom.scan.triangle_count(),
-        true_breast_volume_ml: [phantom.breast_volume_ml.left, phantom.breast_volume_ml.right],
+        true_breast_volume_ml: [
+            phantom.breast_volume_ml.left,
+            phantom.breast_volume_ml.right,
+        ],
         measurements,
         registration,
         registration_error_deg: error.rotation_angle_deg(),

@@ -2,8 +2,8 @@
 
 use crate::MarkedScan;
 use anatomy::register::{
-    FixedSurface, IcpOptions, RigidTransform, icp_point_to_plane, landmark_rms_mm, matching_samples,
-    register_landmarks, surface_rms_mm,
+    FixedSurface, IcpOptions, RigidTransform, icp_point_to_plane, landmark_rms_mm,
+    matching_samples, register_landmarks, surface_rms_mm,
 };
 use anyhow::{Context, Result};
 use serde::Serialize;
@@ -47,7 +47,8 @@ pub fn register(
             fixed.scan.path.display()
         )
     };
-    let by_landmarks = register_landmarks(&moving.landmarks, &fixed.landmarks).with_context(context)?;
+    let by_landmarks =
+        register_landmarks(&moving.landmarks, &fixed.landmarks).with_context(context)?;
     let surface = FixedSurface::new(
         &fixed.scan.mesh,
         &fixed.scan.index,
@@ -55,7 +56,8 @@ pub fn register(
         &fixed.landmarks,
     );
     let samples = matching_samples(&moving.scan.mesh, &moving.landmarks, SURFACE_SAMPLES);
-    let (rms_landmarks_only, _) = surface_rms_mm(&surface, &samples, &by_landmarks, OVERLAP_DISTANCE_MM);
+    let (rms_landmarks_only, _) =
+        surface_rms_mm(&surface, &samples, &by_landmarks, OVERLAP_DISTANCE_MM);
     let (transform, iterations) = if icp {
         let result = icp_point_to_plane(&surface, &samples, by_landmarks, &IcpOptions::default())
             .with_context(context)?;
@@ -63,7 +65,8 @@ pub fn register(
     } else {
         (by_landmarks, 0)
     };
-    let (surface_rms, surface_points) = surface_rms_mm(&surface, &samples, &transform, OVERLAP_DISTANCE_MM);
+    let (surface_rms, surface_points) =
+        surface_rms_mm(&surface, &samples, &transform, OVERLAP_DISTANCE_MM);
     let report = RegisterReport {
         matrix: transform.to_row_major(),
         landmark_rms_mm: landmark_rms_mm(&moving.landmarks, &fixed.landmarks, &transform),
@@ -79,7 +82,11 @@ pub fn register(
 }
 
 /// Writes the moving scan moved onto the fixed scan (texture and colours kept).
-pub fn write_registered_mesh(path: &Path, moving: &MarkedScan, transform: &RigidTransform) -> Result<()> {
+pub fn write_registered_mesh(
+    path: &Path,
+    moving: &MarkedScan,
+    transform: &RigidTransform,
+) -> Result<()> {
     let mut mesh = moving.scan.mesh.clone();
     mesh.map_positions(|p| transform.apply(p));
     mesh::io::write_mesh(path, &mesh).with_context(|| format!("writing {}", path.display()))

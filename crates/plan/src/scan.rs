@@ -62,7 +62,11 @@ pub struct MarkedScan {
 impl MarkedScan {
     /// Loads a scan and its landmark file, snaps landmarks within 5 mm onto the surface
     /// (warning for each moved one) and rejects farther ones.
-    pub fn load(scan: &Path, landmarks: &Path, progress: &dyn crate::Progress) -> Result<MarkedScan> {
+    pub fn load(
+        scan: &Path,
+        landmarks: &Path,
+        progress: &dyn crate::Progress,
+    ) -> Result<MarkedScan> {
         let scan = Scan::load(scan, progress)?;
         let landmark_set = Landmarks::read(landmarks)?;
         MarkedScan::new(scan, landmark_set, landmarks, progress)

@@ -50,7 +50,10 @@ fn a_known_transform_is_recovered_on_noise_free_data() {
         let (degrees, worst_mm) = errors(&found, &motion.inverse(), &fixed);
         // The issue asks for 0.05 degrees and 0.05 mm; noise-free input is recovered to
         // round-off (the ICP tolerance is 1e-4 mm per step).
-        assert!(degrees < 0.05 && worst_mm < 0.05, "icp {icp}: {degrees} deg, {worst_mm} mm");
+        assert!(
+            degrees < 0.05 && worst_mm < 0.05,
+            "icp {icp}: {degrees} deg, {worst_mm} mm"
+        );
         assert!(report.landmark_rms_mm < 1e-3);
     }
 }
@@ -99,5 +102,8 @@ fn icp_lowers_the_surface_rms_on_noisy_data_with_imprecise_landmarks() {
     // but stays near it (sqrt(2) x 0.3 mm is the point-to-point bound, point-to-surface
     // is lower).
     assert!(after.surface_rms_mm < 0.45, "{}", after.surface_rms_mm);
-    assert!(degrees < 0.1 && worst_after < 0.3, "{degrees} deg, {worst_after} mm");
+    assert!(
+        degrees < 0.1 && worst_after < 0.3,
+        "{degrees} deg, {worst_after} mm"
+    );
 }

@@ -6,11 +6,17 @@ use plan::{MarkedScan, Silent};
 use std::path::PathBuf;
 
 fn shared_scans() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/scans"));
+    let dir = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/scans"
+    ));
     if dir.is_dir() {
         Some(dir)
     } else if std::env::var_os("CI").is_some() {
-        panic!("{} is missing: CI must run with ../shared beside the repository", dir.display());
+        panic!(
+            "{} is missing: CI must run with ../shared beside the repository",
+            dir.display()
+        );
     } else {
         eprintln!("skipped: {} not found", dir.display());
         None
@@ -33,8 +39,12 @@ fn clinical_distances_on_every_shared_scan_are_plausible_and_ordered() {
         let report = plan::measure::measure(&load(&dir, name), &[], &Silent).unwrap();
         assert_eq!(report.distances.len(), 11);
         for d in &report.distances {
-            let surface = d.surface_mm.unwrap_or_else(|| panic!("{name} {}: {:?}", d.name, d.note));
-            let geodesic = d.geodesic_mm.unwrap_or_else(|| panic!("{name} {}: {:?}", d.name, d.note));
+            let surface = d
+                .surface_mm
+                .unwrap_or_else(|| panic!("{name} {}: {:?}", d.name, d.note));
+            let geodesic = d
+                .geodesic_mm
+                .unwrap_or_else(|| panic!("{name} {}: {:?}", d.name, d.note));
             // The section curve and the geodesic are both paths on the surface; the
             // geodesic is the shortest, and no path is shorter than the straight line.
             assert!(
@@ -44,10 +54,18 @@ fn clinical_distances_on_every_shared_scan_are_plausible_and_ordered() {
                 d.euclidean_mm
             );
             if d.name.starts_with("Pj-") {
-                assert!((170.0..=260.0).contains(&surface), "{name} {}: {surface}", d.name);
+                assert!(
+                    (170.0..=260.0).contains(&surface),
+                    "{name} {}: {surface}",
+                    d.name
+                );
             }
             if d.name.ends_with("-PSMFl") || d.name.ends_with("-PSMFr") {
-                assert!((40.0..=110.0).contains(&surface), "{name} {}: {surface}", d.name);
+                assert!(
+                    (40.0..=110.0).contains(&surface),
+                    "{name} {}: {surface}",
+                    d.name
+                );
             }
         }
     }
