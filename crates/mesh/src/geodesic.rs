@@ -23,6 +23,15 @@
 //! stops when no window can beat the best path found: it explores roughly the ellipse of
 //! points whose distances to the two ends add up to at most the answer.
 //!
+//! A straight path through a vertex that is not a source (a flat one) bounds windows on
+//! both sides of it and is carried on only by their ends: along a chain of edges, say, or
+//! through a row of vertices of a regular grid, every later vertex and the end point lie
+//! exactly on a window's end line, and round-off in the unfolded source decides whether
+//! the window still sees them. So a window sees a vertex or the end point also within a
+//! relative 1e-9 beyond its ends (the path then passes through that end: a surface path,
+//! longer only by the square of the round-off); the exact comparison lost such paths and
+//! with them every point only they reach, returning detours up to several percent longer.
+//!
 //! The result is the shortest path on the polyhedral surface up to round-off, a polyline
 //! through source vertices and across edges with every segment inside one triangle. So
 //! its length is at least the Euclidean distance and at most that of any other surface
@@ -432,7 +441,9 @@ impl Search<'_, '_> {
             Parent::Window(index) => {
                 let window = self.scratch.windows[index as usize];
                 let frame = solver.frame(window.triangle, window.edge);
-                let x = edge_crossing(window.source, frame.flat[2]) / frame.flat[1].x;
+                // Where the path through the window crossed its edge.
+                let cut = edge_crossing(window.source, frame.flat[2]);
+                let x = cut.max(window.start).min(window.end) / frame.flat[1].x;
                 Some((
                     window.triangle,
                     frame.positions[0].lerp(frame.positions[1], x),
@@ -532,20 +543,14 @@ impl Search<'_, '_> {
         let apex = frame.flat[2];
         // Where the line from the source through the far corner crosses the window's edge.
         let apex_cut = edge_crossing(source, apex);
-        if (window.start..=window.end).contains(&apex_cut) {
-            self.reach_vertex(
-                frame.corners[2],
-                sigma + source.distance(apex),
-                Parent::Window(index),
-            );
+        if let Some(length) = window.length_to(apex, apex_cut, frame.flat[1].x) {
+            self.reach_vertex(frame.corners[2], length, Parent::Window(index));
         }
         if self.end.triangles.contains(&window.triangle) {
             let end = frame.flatten(self.end.point);
-            if (window.start..=window.end).contains(&edge_crossing(source, end)) {
-                let length = sigma + source.distance(end);
-                if length < self.best.0 {
-                    self.best = (length, Parent::Window(index));
-                }
+            let length = window.length_to(end, edge_crossing(source, end), frame.flat[1].x);
+            if let Some(length) = length.filter(|&length| length < self.best.0) {
+                self.best = (length, Parent::Window(index));
             }
         }
         // Where the lines through the window's ends meet the far edges.
@@ -1061,6 +1066,26 @@ impl Window {
     /// Distance from the start point to the point `x` of the window's edge through it.
     fn distance_at(&self, x: f64) -> f64 {
         self.sigma + self.source.distance(DVec2::new(x, 0.0))
+    }
+
+    /// Length of the path from the start point through the window to `point`, a point of
+    /// its triangle (flat coordinates) whose line from the source crosses the window's
+    /// edge (of length `length`) at `cut`; `None` unless the window sees the point.
+    ///
+    /// A straight path through a vertex bounds the windows on either side of it, so
+    /// where it goes on (past more vertices, along a chain of edges, say) the crossing
+    /// lands on a window's end only up to round-off in the unfolded source. A crossing
+    /// that far beyond an end (`ON_EDGE_TOLERANCE` of the frame's size) still counts, the
+    /// path then running through that end: a surface path, so never too short, and longer
+    /// only by the square of the round-off.
+    fn length_to(&self, point: DVec2, cut: f64, length: f64) -> Option<f64> {
+        if (self.start..=self.end).contains(&cut) {
+            return Some(self.sigma + self.source.distance(point));
+        }
+        let slack = ON_EDGE_TOLERANCE * (length + self.source.length());
+        let via = DVec2::new(cut.max(self.start).min(self.end), 0.0);
+        (via.x - slack <= cut && cut <= via.x + slack)
+            .then(|| self.sigma + self.source.distance(via) + via.distance(point))
     }
 
     /// Whether anything is left of it after trimming.
@@ -1789,6 +1814,355 @@ pub(crate) mod tests {
                 )
                 .unwrap();
             assert_eq!(alone.length_mm, length);
+        }
+    }
+
+    /// Deterministic numbers uniform in [0, 1) (xorshift).
+    struct Random(u64);
+
+    impl Random {
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+
+        fn below(&mut self, n: usize) -> usize {
+            ((self.next() * n as f64) as usize).min(n - 1)
+        }
+    }
+
+    /// The point at `fraction` of the way from vertex `a` to vertex `b` (an edge), on the
+    /// `side`-th (0 or 1) of the edge's triangles.
+    fn on_edge(
+        mesh: &TriMesh,
+        topology: &Topology,
+        (a, b): (usize, usize),
+        fraction: f64,
+        side: usize,
+    ) -> SurfacePoint {
+        let triangles: Vec<u32> = topology
+            .vertex_triangles(a)
+            .iter()
+            .copied()
+            .filter(|&t| mesh.triangles[t as usize].contains(&(b as u32)))
+            .collect();
+        SurfacePoint {
+            triangle: triangles[side.min(triangles.len() - 1)] as usize,
+            point: mesh.positions[a].lerp(mesh.positions[b], fraction),
+        }
+    }
+
+    /// Length of the shortest path along mesh edges, joined to the end points across their
+    /// triangles: a surface path, so never shorter than the geodesic.
+    fn edge_path_length(
+        mesh: &TriMesh,
+        topology: &Topology,
+        from: SurfacePoint,
+        to: SurfacePoint,
+    ) -> f64 {
+        // Dijkstra; non-negative floats order like their bit patterns.
+        let mut distance = vec![f64::INFINITY; mesh.vertex_count()];
+        let mut queue = BinaryHeap::new();
+        for &v in &mesh.triangles[from.triangle] {
+            distance[v as usize] = from.point.distance(mesh.positions[v as usize]);
+            queue.push((std::cmp::Reverse(distance[v as usize].to_bits()), v));
+        }
+        while let Some((std::cmp::Reverse(bits), v)) = queue.pop() {
+            if f64::from_bits(bits) > distance[v as usize] {
+                continue;
+            }
+            let here = mesh.positions[v as usize];
+            for w in topology.vertex_neighbors(mesh, v as usize) {
+                let d = distance[v as usize] + here.distance(mesh.positions[w as usize]);
+                if d < distance[w as usize] {
+                    distance[w as usize] = d;
+                    queue.push((std::cmp::Reverse(d.to_bits()), w));
+                }
+            }
+        }
+        mesh.triangles[to.triangle]
+            .iter()
+            .map(|&v| distance[v as usize] + mesh.positions[v as usize].distance(to.point))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Whether every segment of the path lies on the surface (sampled at seven points).
+    fn lies_on_the_surface(index: &SurfaceIndex, path: &SurfacePath) -> bool {
+        path.points.windows(2).all(|w| {
+            let tolerance = 1e-9 * (1.0 + w[0].distance(w[1]));
+            (1..8).all(|k| index.is_within(w[0].lerp(w[1], k as f64 / 8.0), tolerance))
+        })
+    }
+
+    /// The reported case and its kin: on a cylinder every vertex is flat and the ring edges
+    /// unroll to straight lines, so between two vertices of a ring the geodesic is the
+    /// polygon arc along the ring, a straight line through vertices that only round-off
+    /// separates from the windows' ends.
+    #[test]
+    fn geodesic_along_a_cylinder_ring_is_the_polygon_arc() {
+        let mut mesh = cylinder(100.0, 200.0, 512, 128);
+        // Axis along y, as in the anatomy crate's test (a proper rotation).
+        mesh.map_positions(|p| DVec3::new(p.x, p.z, -p.y));
+        let topology = Topology::new(&mesh);
+        let index = SurfaceIndex::new(&mesh).unwrap();
+        let solver = GeodesicSolver::new(&mesh, &topology).unwrap();
+        let step = TAU / 512.0;
+        let chord = 200.0 * (step / 2.0).sin();
+        let on_cylinder = |angle: f64, y: f64| {
+            let azimuth = angle - PI / 2.0;
+            DVec3::new(100.0 * azimuth.cos(), y, -100.0 * azimuth.sin())
+        };
+        for (first, segments, ring) in [
+            (-40, 80, 64),
+            (0, 1, 64),
+            (3, 2, 64),
+            (-7, 13, 10),
+            (250, 31, 100),
+            (-60, 120, 127),
+        ] {
+            let y = 200.0 * ring as f64 / 128.0;
+            // Located by the closest point, as the measurements do: on a vertex up to
+            // round-off, on whichever triangle of its fan the search found first.
+            let from = on_surface(&index, on_cylinder(first as f64 * step, y));
+            let to = on_surface(&index, on_cylinder((first + segments) as f64 * step, y));
+            let path = solver.shortest_path(from, to).unwrap();
+            let arc = segments as f64 * chord;
+            // Measured: within 1.1e-14 relative (was 0.8 % over for the first pair).
+            assert!(
+                (path.length_mm / arc - 1.0).abs() < 1e-12,
+                "{segments} segments: {} vs {arc}",
+                path.length_mm
+            );
+            assert_on_surface(&index, &path, 1e-9);
+            // The horizontal section through both runs along the ring too.
+            let section = plane_section_path(&mesh, &topology, from, to, DVec3::Y).unwrap();
+            assert!(
+                path.length_mm <= section.length_mm * (1.0 + 1e-12),
+                "{} vs section {}",
+                path.length_mm,
+                section.length_mm
+            );
+        }
+    }
+
+    /// A grid of 2.5 mm squares turned and moved away from the origin, so the unfolding
+    /// rounds (axis-aligned small integers would not).
+    fn turned_grid() -> (TriMesh, impl Fn(i64, i64) -> usize) {
+        let mut mesh = grid(60, 60, 2.5);
+        let (x, y) = (DVec3::new(0.6, 0.48, 0.64), DVec3::new(-0.8, 0.36, 0.48));
+        mesh.map_positions(|p| DVec3::new(412.7, -1033.1, 871.3) + x * p.x + y * p.y);
+        (mesh, |i: i64, j: i64| (j * 61 + i) as usize)
+    }
+
+    #[test]
+    fn geodesics_through_vertices_of_a_flat_grid_are_straight() {
+        let (mesh, vertex) = turned_grid();
+        let topology = Topology::new(&mesh);
+        let index = SurfaceIndex::new(&mesh).unwrap();
+        let solver = GeodesicSolver::new(&mesh, &topology).unwrap();
+        // Along a row, a column and the diagonal edges; against the diagonals and at a
+        // knight's move, through vertices between edges.
+        let cases = [
+            ((2, 5), (1, 0), 50),
+            ((7, 1), (0, 1), 57),
+            ((3, 4), (1, 1), 45),
+            ((55, 2), (-1, 1), 40),
+            ((1, 9), (2, 1), 25),
+            ((30, 30), (1, 0), 1),
+            ((30, 30), (1, 1), 2),
+        ];
+        for ((i, j), (di, dj), steps) in cases {
+            let (a, b) = (vertex(i, j), vertex(i + steps * di, j + steps * dj));
+            let path = solver
+                .shortest_path(
+                    at_vertex(&mesh, &topology, a),
+                    at_vertex(&mesh, &topology, b),
+                )
+                .unwrap();
+            let straight = mesh.positions[a].distance(mesh.positions[b]);
+            // Measured: within 7e-15 relative.
+            assert!(
+                (path.length_mm / straight - 1.0).abs() < 1e-12,
+                "({di}, {dj}) x {steps}: {} vs {straight}",
+                path.length_mm
+            );
+            assert_on_surface(&index, &path, 1e-9);
+        }
+    }
+
+    #[test]
+    fn geodesics_between_points_on_edges_run_along_the_edges() {
+        let (mesh, vertex) = turned_grid();
+        let topology = Topology::new(&mesh);
+        let index = SurfaceIndex::new(&mesh).unwrap();
+        let solver = GeodesicSolver::new(&mesh, &topology).unwrap();
+        let side = 2.5;
+        // (start edge, fraction along it), (end edge, fraction): on one line of edges.
+        let row = |i: i64| (vertex(i, 20), vertex(i + 1, 20));
+        let diagonal = |i: i64| (vertex(i, i), vertex(i + 1, i + 1));
+        let cases = [
+            ((row(3), 0.3), (row(40), 0.6), (37.0 + 0.3) * side),
+            ((row(3), 0.0), (row(40), 0.25), (37.0 + 0.25) * side),
+            ((row(3), 0.75), (row(40), 1.0), (37.0 + 0.25) * side),
+            ((row(10), 0.5), (row(11), 0.5), side),
+            (
+                (diagonal(2), 0.1),
+                (diagonal(50), 0.9),
+                48.8 * side * 2f64.sqrt(),
+            ),
+        ];
+        for ((from_edge, f), (to_edge, g), expected) in cases {
+            for (from_side, to_side) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                let from = on_edge(&mesh, &topology, from_edge, f, from_side);
+                let to = on_edge(&mesh, &topology, to_edge, g, to_side);
+                let path = solver.shortest_path(from, to).unwrap();
+                assert!(
+                    (path.length_mm / expected - 1.0).abs() < 1e-12,
+                    "{} vs {expected}",
+                    path.length_mm
+                );
+                assert_on_surface(&index, &path, 1e-9);
+            }
+        }
+        // The same on the cylinder, along a ring.
+        let (segments, rings) = (256, 32);
+        let mesh = cylinder(50.0, 100.0, segments, rings);
+        let topology = Topology::new(&mesh);
+        let index = SurfaceIndex::new(&mesh).unwrap();
+        let solver = GeodesicSolver::new(&mesh, &topology).unwrap();
+        let chord = 100.0 * (PI / segments as f64).sin();
+        let ring = |i: usize| {
+            (
+                12 * segments + i % segments,
+                12 * segments + (i + 1) % segments,
+            )
+        };
+        for (first, f, last, g) in [(250, 0.4, 290, 0.7), (5, 0.0, 40, 0.5), (9, 0.5, 10, 0.0)] {
+            for sides in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                let from = on_edge(&mesh, &topology, ring(first), f, sides.0);
+                let to = on_edge(&mesh, &topology, ring(last), g, sides.1);
+                let path = solver.shortest_path(from, to).unwrap();
+                let expected = ((last - first) as f64 + g - f) * chord;
+                assert!(
+                    (path.length_mm / expected - 1.0).abs() < 1e-12,
+                    "{} vs {expected}",
+                    path.length_mm
+                );
+                assert_on_surface(&index, &path, 1e-9);
+            }
+        }
+    }
+
+    /// Random pairs of vertices, of points inside triangles and of points on edges, and
+    /// of vertices on a common row, column or diagonal of a grid of vertices (`columns`
+    /// per row, `wraps` round as on a cylinder): the geodesic is never longer than the
+    /// path along mesh edges or a plane section through both points. Returns how many
+    /// sections were compared.
+    fn assert_never_beaten(
+        mesh: &TriMesh,
+        seed: u64,
+        pairs: usize,
+        columns: Option<(usize, bool)>,
+    ) -> usize {
+        let topology = Topology::new(mesh);
+        let index = SurfaceIndex::new(mesh).unwrap();
+        let solver = GeodesicSolver::new(mesh, &topology).unwrap();
+        let mut random = Random(seed);
+        let mut sections = 0;
+        for pair in 0..pairs {
+            let point = |random: &mut Random, kind: usize| {
+                let t = random.below(mesh.triangle_count());
+                let [a, b, c] = mesh.triangle_positions(t);
+                let (u, v) = (random.next(), random.next());
+                let point = match kind {
+                    0 => return at_vertex(mesh, &topology, random.below(mesh.vertex_count())),
+                    1 if u + v > 1.0 => a + (b - a) * (1.0 - u) + (c - a) * (1.0 - v),
+                    1 => a + (b - a) * u + (c - a) * v,
+                    _ => {
+                        let k = random.below(3);
+                        [a, b, c][k].lerp([b, c, a][k], u)
+                    }
+                };
+                SurfacePoint { triangle: t, point }
+            };
+            let (from, to) = match (pair % 4, columns) {
+                (3, Some((columns, wraps))) => {
+                    let rows = mesh.vertex_count() / columns;
+                    let (i, j) = (random.below(columns) as i64, random.below(rows) as i64);
+                    let (di, dj) = [(1, 0), (0, 1), (1, 1), (-1, 1), (2, 1)][random.below(5)];
+                    let steps = 1 + random.below(rows) as i64;
+                    let (mut i1, j1) = (i + steps * di, j + steps * dj);
+                    if wraps {
+                        i1 = i1.rem_euclid(columns as i64);
+                    }
+                    if j1 >= rows as i64 || !(0..columns as i64).contains(&i1) {
+                        continue;
+                    }
+                    let vertex = |i: i64, j: i64| {
+                        at_vertex(mesh, &topology, (j * columns as i64 + i) as usize)
+                    };
+                    (vertex(i, j), vertex(i1, j1))
+                }
+                (kind, _) => {
+                    let kind = kind.min(2);
+                    (point(&mut random, kind), point(&mut random, kind))
+                }
+            };
+            let geodesic = solver.shortest_path(from, to).unwrap().length_mm;
+            let along_edges = edge_path_length(mesh, &topology, from, to);
+            assert!(
+                geodesic <= along_edges * (1.0 + 1e-9),
+                "pair {pair}: {geodesic} vs {along_edges} along edges, {from:?} to {to:?}"
+            );
+            let normals = [mesh.triangle_normal(from.triangle) + mesh.triangle_normal(to.triangle)]
+                .into_iter()
+                .chain(
+                    (0..3).map(|_| DVec3::new(random.next(), random.next(), random.next()) - 0.5),
+                )
+                .map(|direction| (to.point - from.point).cross(direction));
+            for normal in normals {
+                // A section curve that misses the end point is finished straight to it
+                // within three triangle sizes (see `plane_section_path`): then it leaves
+                // the surface and bounds nothing.
+                let Ok(section) = plane_section_path(mesh, &topology, from, to, normal) else {
+                    continue;
+                };
+                if lies_on_the_surface(&index, &section) {
+                    sections += 1;
+                    assert!(
+                        geodesic <= section.length_mm * (1.0 + 1e-9),
+                        "pair {pair}: {geodesic} vs section {}, {from:?} to {to:?}",
+                        section.length_mm
+                    );
+                }
+            }
+        }
+        sections
+    }
+
+    #[test]
+    fn geodesics_are_never_beaten_by_edge_paths_or_plane_sections() {
+        let mut random = Random(0x9e37_79b9_7f4a_7c15);
+        let mut noisy_grid = grid(40, 40, 1.0);
+        for p in &mut noisy_grid.positions {
+            p.z = 0.3 * (2.0 * random.next() - 1.0);
+        }
+        let mut noisy_sphere = icosphere(50.0, 4);
+        for p in &mut noisy_sphere.positions {
+            *p *= 1.0 + 0.005 * (2.0 * random.next() - 1.0);
+        }
+        let (turned, _) = turned_grid();
+        let meshes = [
+            (noisy_grid, Some((41, false))),
+            (cylinder(50.0, 100.0, 128, 32), Some((128, true))),
+            (noisy_sphere, None),
+            (turned, Some((61, false))),
+        ];
+        for (seed, (mesh, columns)) in (1..).zip(meshes) {
+            let sections = assert_never_beaten(&mesh, seed, 200, columns);
+            assert!(sections > 400, "{sections}");
         }
     }
 }
