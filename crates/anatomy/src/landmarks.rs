@@ -321,7 +321,7 @@ impl Landmarks {
     }
 }
 
-fn parse_point(value: &Value) -> Result<DVec3, String> {
+pub(crate) fn parse_point(value: &Value) -> Result<DVec3, String> {
     let array = value
         .as_array()
         .filter(|a| a.len() == 3)

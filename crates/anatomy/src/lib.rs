@@ -3,6 +3,8 @@
 //!
 //! Works on [`mesh::TriMesh`]; knows nothing about finite elements or implants.
 
+pub mod breast;
+pub mod closed_surface;
 pub mod fill_in;
 pub mod frame;
 pub mod landmarks;
@@ -10,6 +12,14 @@ pub mod measure;
 pub mod register;
 pub mod scan_holes;
 
+pub use breast::{
+    Breast, BreastError, BreastModel, BreastOptions, ControlPoints, QuadrantVolumes, Side,
+    build_breast_model,
+};
+pub use closed_surface::{
+    ClipBox, ClosedSurface, ClosedSurfaceError, ClosedSurfaceOptions, SurfaceRole,
+    build_closed_surface, build_closed_surface_in_box,
+};
 pub use fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
 pub use frame::{AnatomicalFrame, FrameError};
 pub use landmarks::{LandmarkError, LandmarkName, Landmarks, SnapWarning};

@@ -328,6 +328,56 @@ impl SurfaceCurve {
         Ok(curve)
     }
 
+    /// The curve with the points that would leave sliver triangles in a cut moved onto
+    /// mesh vertices or dropped: an edge crossing within `fraction` (of the edge's length)
+    /// of a corner moves onto that corner, a point inside a triangle within `fraction`
+    /// (barycentric) of an edge is dropped (its neighbours share its triangle, so the
+    /// curve stays on the surface); repeated vertices are merged. Each point moves by at
+    /// most `fraction` of an edge. If the result is not a valid simple curve (points so
+    /// merged that it touches itself), the curve is returned unchanged.
+    pub fn snapped_to_vertices(
+        self,
+        mesh: &TriMesh,
+        topology: &Topology,
+        fraction: f64,
+    ) -> SurfaceCurve {
+        let mut points: Vec<CurvePoint> = Vec::with_capacity(self.points.len());
+        for point in &self.points {
+            let location = match point.location {
+                CurveLocation::OnEdge { triangle, edge, t } if t < fraction => {
+                    CurveLocation::OnVertex(mesh.triangles[triangle][edge])
+                }
+                CurveLocation::OnEdge { triangle, edge, t } if t > 1.0 - fraction => {
+                    CurveLocation::OnVertex(mesh.triangles[triangle][(edge + 1) % 3])
+                }
+                CurveLocation::InTriangle { barycentric, .. }
+                    if barycentric.iter().any(|&x| x < fraction) =>
+                {
+                    continue;
+                }
+                location => location,
+            };
+            let position = match location {
+                CurveLocation::OnVertex(vertex) => mesh.positions[vertex as usize],
+                _ => point.position,
+            };
+            if points.last().is_none_or(|last| last.location != location) {
+                points.push(CurvePoint { position, location });
+            }
+        }
+        while points.len() > 1
+            && points.first().map(|p| p.location) == points.last().map(|p| p.location)
+        {
+            points.pop();
+        }
+        let snapped = SurfaceCurve { points };
+        if snapped.check(mesh, topology).is_ok() {
+            snapped
+        } else {
+            self
+        }
+    }
+
     /// Total length of the closed polyline (mm).
     pub fn length_mm(&self) -> f64 {
         let n = self.points.len();

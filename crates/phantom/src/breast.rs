@@ -17,8 +17,10 @@ const ROW_FULLNESS: f64 = 2.0;
 /// straight, slightly concave slope from the chest down to the nipple.
 const UPPER_POLE_FULLNESS: f64 = 1.0;
 /// How much the upper pole's reach shrinks towards the medial and lateral ends,
-/// `reach ∝ (1 - x²)^e` (0.5 would be an ellipse).
-const UPPER_EDGE_ROUNDNESS: f64 = 0.25;
+/// `reach ∝ (1 - x²)^e` (0.5 would be an ellipse): 2 gives a rounded-diamond upper
+/// edge, the outline a surgeon's cut curve through the upper and the lateral landmarks
+/// traces (paper IV-B), so the breast and the region the landmarks delimit agree.
+const UPPER_EDGE_ROUNDNESS: f64 = 2.0;
 /// Exponent of the lower pole's vertical profile `(1 - v² + ε)^p - ε^p`: below 1 the
 /// lower pole is round and full and meets the chest wall steeply, forming the fold
 /// crease.
@@ -102,8 +104,8 @@ impl BreastShape {
             return 0.0;
         }
         let across = row * row * row * (1.0 + ROW_FULLNESS * x * x);
-        // The fold follows the footprint ellipse; the upper pole reaches nearly as high
-        // over its whole width, so it fades into the chest without an outline.
+        // The fold follows the footprint ellipse; the upper pole's edge narrows towards
+        // the sides, and the pole fades into the chest without an outline.
         let reach = if t >= 0.0 {
             self.upper_mm * row.powf(UPPER_EDGE_ROUNDNESS)
         } else {

@@ -4,7 +4,7 @@
 
 use crate::breast::Breast;
 use crate::shape::{Warp, smoothstep};
-use crate::surface::{THETA_MAX, TorsoSurface};
+use crate::surface::{SurfaceSample, THETA_MAX, TorsoSurface};
 use crate::torso::{BOTTOM_HEIGHT_MM, TOP_HEIGHT_MM, base_point};
 use glam::DVec3;
 use mesh::TriMesh;
@@ -68,15 +68,21 @@ impl Grid {
         nearest_line(&self.heights, h) * self.thetas.len() + nearest_line(&self.thetas, theta)
     }
 
-    /// The scan mesh: the skin at every grid point, shifted by `-origin`, two triangles
-    /// per cell split along the shorter diagonal, oriented outwards.
-    pub fn mesh(&self, surface: &TorsoSurface, origin: DVec3) -> TriMesh {
+    /// A mesh of one layer of the surface (`layer` picks the skin or the chest wall of
+    /// each sample) at every grid point, shifted by `-origin`, two triangles per cell
+    /// split along the shorter diagonal, oriented outwards.
+    pub fn mesh(
+        &self,
+        surface: &TorsoSurface,
+        origin: DVec3,
+        layer: fn(&SurfaceSample) -> DVec3,
+    ) -> TriMesh {
         let columns = self.thetas.len();
         let positions: Vec<DVec3> = self
             .heights
             .iter()
             .flat_map(|&h| self.thetas.iter().map(move |&theta| (theta, h)))
-            .map(|(theta, h)| surface.sample(theta, h).skin - origin)
+            .map(|(theta, h)| layer(&surface.sample(theta, h)) - origin)
             .collect();
         let mut triangles = Vec::with_capacity(2 * (columns - 1) * (self.heights.len() - 1));
         for j in 0..self.heights.len() - 1 {

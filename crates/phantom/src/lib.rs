@@ -38,12 +38,12 @@ use torso::{MID_CLAVICLE_X_MM, XIPHOID_HEIGHT_MM, base_point, clavicle_height};
 /// Breast size.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 pub enum Cup {
-    /// About 275 ml per breast.
+    /// About 210 ml per breast.
     Small,
-    /// About 455 ml per breast.
+    /// About 340 ml per breast.
     #[default]
     Medium,
-    /// About 785 ml per breast.
+    /// About 565 ml per breast.
     Large,
 }
 
@@ -81,28 +81,28 @@ impl Cup {
     fn shape(self) -> BreastShape {
         match self {
             Cup::Small => BreastShape {
-                projection_mm: 32.0,
+                projection_mm: 36.0,
                 medial_mm: 56.0,
-                lateral_mm: 104.0,
-                upper_mm: 100.0,
+                lateral_mm: 76.0,
+                upper_mm: 88.0,
                 lower_mm: 54.0,
                 areola_radius_mm: 17.0,
                 nipple_height_mm: 5.5,
             },
             Cup::Medium => BreastShape {
-                projection_mm: 41.0,
+                projection_mm: 46.0,
                 medial_mm: 62.0,
-                lateral_mm: 116.0,
-                upper_mm: 110.0,
+                lateral_mm: 82.0,
+                upper_mm: 92.0,
                 lower_mm: 62.0,
                 areola_radius_mm: 20.0,
                 nipple_height_mm: 6.5,
             },
             Cup::Large => BreastShape {
-                projection_mm: 54.0,
+                projection_mm: 60.0,
                 medial_mm: 70.0,
-                lateral_mm: 128.0,
-                upper_mm: 120.0,
+                lateral_mm: 88.0,
+                upper_mm: 96.0,
                 lower_mm: 72.0,
                 areola_radius_mm: 24.0,
                 nipple_height_mm: 7.5,
@@ -163,6 +163,10 @@ pub struct BreastVolumes {
 pub struct Phantom {
     /// The scan surface (mm), open, outward oriented.
     pub scan: TriMesh,
+    /// The surface beneath the breasts, without them and without noise: the truth a
+    /// fill-in should reproduce (mm). Same vertices and triangles as `scan`, equal to it
+    /// away from the breasts but for the noise.
+    pub chest_wall: TriMesh,
     /// The twelve landmarks, each exactly at a vertex of `scan` (mm).
     pub landmarks: Landmarks,
     /// Volume between each breast's skin and the chest wall beneath it (ml).
@@ -184,8 +188,11 @@ const ASYMMETRY_DROP_MM: f64 = 6.0;
 /// Where the fold's medial end is taken, as a fraction of the footprint's medial extent:
 /// beyond it the crease has faded out.
 const FOLD_MEDIAL_END: f64 = -0.8;
-/// Where the fold's lateral end is taken, as a fraction of the lateral extent.
-const FOLD_LATERAL_END: f64 = 0.75;
+/// Where the fold's lateral end is taken, as a fraction of the lateral extent: at the
+/// footprint's lateral edge, level with the nipple, where the breast meets the chest
+/// wall at the side (a surgeon's PSMFll), so the cut curve through it runs round the
+/// whole breast.
+const FOLD_LATERAL_END: f64 = 1.0;
 /// Cells per side of the integration grid of the true breast volume (about 0.8 mm by
 /// 0.9 mm for a medium cup; the error is below 0.01%).
 const VOLUME_CELLS: usize = 200;
@@ -199,7 +206,8 @@ pub fn generate(params: &PhantomParams) -> Phantom {
     let landmark_parameters = landmark_parameters(&surface);
     let grid = Grid::new(&surface, &landmark_parameters);
     let origin = surface.sample(0.0, 0.0).skin;
-    let mut scan = grid.mesh(&surface, origin);
+    let mut scan = grid.mesh(&surface, origin, |sample| sample.skin);
+    let chest_wall = grid.mesh(&surface, origin, |sample| sample.wall);
 
     let noise_mm = if params.noise_mm > 0.0 && params.noise_mm.is_finite() {
         params.noise_mm
@@ -225,6 +233,7 @@ pub fn generate(params: &PhantomParams) -> Phantom {
         .map(|b| breast_volume_ml(&surface, &b, VOLUME_CELLS));
     Phantom {
         scan,
+        chest_wall,
         landmarks,
         breast_volume_ml: BreastVolumes { left, right },
     }

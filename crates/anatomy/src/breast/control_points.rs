@@ -1,0 +1,294 @@
+//! The control points of the cut curves (paper IV-B): the defaults derived from the
+//! landmarks, and the control-point file users edit,
+//! `{"units":"mm","left":[[x,y,z],...],"right":[[x,y,z],...]}` (file frame, in order
+//! around each breast, at least three per side).
+
+use super::{BreastError, Side};
+use crate::frame::AnatomicalFrame;
+use crate::landmarks::{Landmarks, parse_point};
+use crate::measure::MeasuredSurface;
+use glam::DVec3;
+use mesh::{SurfacePath, SurfacePoint, plane_section_path};
+use serde_json::{Value, json};
+use std::io::Write;
+use std::path::Path;
+
+/// Default position of the upper control point, as a fraction of the on-surface line
+/// from the mid-clavicular point Pc to the nipple Pn. The paper leaves the ratio open;
+/// the breast's upper border (where the upper pole's slope fades into the chest) lies
+/// about a third of the way down from the clavicle to the nipple on our phantom and on
+/// the shared scans, so a third encloses the upper pole without reaching the clavicle.
+pub const DEFAULT_PC_RATIO: f64 = 1.0 / 3.0;
+
+/// How far in front of (and behind) a default control point's target the ray that puts
+/// it on the surface starts (mm): beyond any breast's projection.
+const RAY_START_MM: f64 = 400.0;
+
+/// How far below PSMFm and PSMF (mm, along the frame's down direction) the default curve
+/// runs: on the chest wall rather than in the fold's crease, whose walls would give the
+/// fill-in the tangents of the crease instead of the chest's. PSMFl is kept: on real
+/// scans it often sits on the rim of the hole where the scanner missed the lateral fold.
+const FOLD_CLEARANCE_MM: f64 = 8.0;
+
+/// Cut-curve control points of both breasts (mm, file frame), in order around each.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControlPoints {
+    pub left: Vec<DVec3>,
+    pub right: Vec<DVec3>,
+}
+
+impl ControlPoints {
+    /// The control points of one side.
+    pub fn side(&self, side: Side) -> &[DVec3] {
+        match side {
+            Side::Left => &self.left,
+            Side::Right => &self.right,
+        }
+    }
+
+    /// Default control points per side, in order around the breast: PSMFm, PSMF, PSMFl,
+    /// a lateral point, the upper point and a medial point. The upper point lies
+    /// `pc_ratio` (0..1) of the way along the on-surface line from Pc to Pn (a plane
+    /// section orthogonal to the coronal plane, as for the measurements).
+    ///
+    /// The paper's fifth point, the middle of the on-surface line from the upper point to
+    /// PSMFl, lies on the breast itself (that line crosses the upper outer quadrant), so
+    /// the curve through it cuts off breast tissue until a user moves it. Instead, seen
+    /// from the front with the nipple Pn at the centre, the lateral point lies on the
+    /// bisector of the directions to the upper point and PSMFl (through the lateral side),
+    /// as far out as the farther of the two, since the breast reaches farthest towards the
+    /// axilla; the medial point lies likewise between the upper point and PSMFm, at the
+    /// mean of their distances, as the breasts approach each other over the sternum. Both
+    /// are put on the surface by a ray from the front. Landmarks are expected on the
+    /// surface.
+    pub fn from_landmarks(
+        surface: &MeasuredSurface<'_>,
+        frame: &AnatomicalFrame,
+        landmarks: &Landmarks,
+        pc_ratio: f64,
+    ) -> Result<ControlPoints, BreastError> {
+        if !(pc_ratio > 0.0 && pc_ratio < 1.0) {
+            return Err(BreastError::InvalidPcRatio(pc_ratio));
+        }
+        let side_points = |side: Side| -> Result<Vec<DVec3>, BreastError> {
+            let names = side.landmark_names();
+            let at = |name: crate::LandmarkName| landmarks.get(name);
+            let clavicle_to_nipple =
+                section_path(surface, frame, at(names.clavicle), at(names.nipple)).map_err(
+                    |source| BreastError::Section {
+                        side,
+                        from: names.clavicle.as_str().to_string(),
+                        to: names.nipple.as_str().to_string(),
+                        source,
+                    },
+                )?;
+            let upper = point_along(&clavicle_to_nipple, pc_ratio);
+            let lateral_direction = match side {
+                Side::Left => frame.left(),
+                Side::Right => -frame.left(),
+            };
+            let around = AroundNipple {
+                surface,
+                frame,
+                nipple: at(names.nipple),
+            };
+            let below_fold =
+                |name| around.seen_from_front(at(name) - frame.up() * FOLD_CLEARANCE_MM);
+            Ok(vec![
+                below_fold(names.fold_medial),
+                below_fold(names.fold_lowest),
+                at(names.fold_lateral),
+                around.between(upper, at(names.fold_lateral), lateral_direction, |a, b| {
+                    0.5 * (a + b)
+                }),
+                upper,
+                around.between(upper, at(names.fold_medial), -lateral_direction, |a, b| {
+                    0.5 * (a + b)
+                }),
+            ])
+        };
+        Ok(ControlPoints {
+            left: side_points(Side::Left)?,
+            right: side_points(Side::Right)?,
+        })
+    }
+
+    /// Parses a control-point file's text; `path` is only for messages.
+    pub fn from_json(text: &str, path: &Path) -> Result<ControlPoints, BreastError> {
+        let error = |message: String| BreastError::ControlPointFile {
+            path: path.to_path_buf(),
+            message,
+        };
+        let root: Value =
+            serde_json::from_str(text).map_err(|e| error(format!("not valid JSON: {e}")))?;
+        match root.get("units").and_then(Value::as_str) {
+            Some("mm") => {}
+            other => {
+                return Err(error(format!(
+                    "\"units\" must be \"mm\", found {}",
+                    other.map_or("nothing".to_string(), |u| format!("\"{u}\""))
+                )));
+            }
+        }
+        let side_points = |side: Side| -> Result<Vec<DVec3>, BreastError> {
+            let key = side.name();
+            let list = root
+                .get(key)
+                .and_then(Value::as_array)
+                .ok_or_else(|| error(format!("\"{key}\" must be a list of [x, y, z] points")))?;
+            if list.len() < 3 {
+                return Err(error(format!(
+                    "\"{key}\" has {} control points; a closed curve needs at least 3",
+                    list.len()
+                )));
+            }
+            list.iter()
+                .enumerate()
+                .map(|(index, value)| {
+                    parse_point(value)
+                        .map_err(|reason| error(format!("\"{key}\" point {index}: {reason}")))
+                })
+                .collect()
+        };
+        Ok(ControlPoints {
+            left: side_points(Side::Left)?,
+            right: side_points(Side::Right)?,
+        })
+    }
+
+    /// Reads a control-point file.
+    pub fn read(path: &Path) -> Result<ControlPoints, BreastError> {
+        let text = std::fs::read_to_string(path).map_err(|e| BreastError::ControlPointFile {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        ControlPoints::from_json(&text, path)
+    }
+
+    /// The file's JSON.
+    pub fn to_json(&self) -> Value {
+        let points = |list: &[DVec3]| list.iter().map(|p| p.to_array()).collect::<Vec<_>>();
+        json!({"units": "mm", "left": points(&self.left), "right": points(&self.right)})
+    }
+
+    /// Writes the file (atomically: a temporary file renamed into place).
+    pub fn write(&self, path: &Path) -> Result<(), BreastError> {
+        let json = self.to_json();
+        mesh::io::write_atomically(path, |w| {
+            serde_json::to_writer_pretty(&mut *w, &json)?;
+            writeln!(w)
+        })
+        .map_err(|e| BreastError::ControlPointFile {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })
+    }
+}
+
+/// Directions and distances in the coronal plane, seen from the front, about a nipple.
+struct AroundNipple<'a> {
+    surface: &'a MeasuredSurface<'a>,
+    frame: &'a AnatomicalFrame,
+    nipple: DVec3,
+}
+
+impl AroundNipple<'_> {
+    /// The surface point seen from the front on the bisector of the directions from the
+    /// nipple to `a` and `b` that points towards `side` (a coronal direction), at the
+    /// distance `radius(|a|, |b|)` from the nipple (distances in the coronal plane).
+    fn between(&self, a: DVec3, b: DVec3, side: DVec3, radius: impl Fn(f64, f64) -> f64) -> DVec3 {
+        let anterior = self.frame.anterior();
+        let coronal = |p: DVec3| {
+            let d = p - self.nipple;
+            d - anterior * d.dot(anterior)
+        };
+        let (a, b) = (coronal(a), coronal(b));
+        let bisector = (a.normalize_or_zero() + b.normalize_or_zero())
+            .try_normalize()
+            .unwrap_or(side);
+        let bisector = if bisector.dot(side) < 0.0 {
+            -bisector
+        } else {
+            bisector
+        };
+        self.seen_from_front(self.nipple + bisector * radius(a.length(), b.length()))
+    }
+
+    /// The first surface point on the ray along the posterior direction through `target`
+    /// (or, if that misses the surface, the point nearest to `target`).
+    fn seen_from_front(&self, target: DVec3) -> DVec3 {
+        let anterior = self.frame.anterior();
+        self.surface
+            .index
+            .cast_ray(
+                target + anterior * RAY_START_MM,
+                -anterior,
+                2.0 * RAY_START_MM,
+            )
+            .map_or_else(
+                || self.surface.index.closest_point(target).point,
+                |hit| hit.point,
+            )
+    }
+}
+
+/// The on-surface line from `from` to `to` (both near the surface): the section with the
+/// plane through them orthogonal to the coronal plane.
+fn section_path(
+    surface: &MeasuredSurface<'_>,
+    frame: &AnatomicalFrame,
+    from: DVec3,
+    to: DVec3,
+) -> Result<SurfacePath, mesh::PathError> {
+    let locate = |p: DVec3| SurfacePoint::from(surface.index.closest_point(p));
+    let (from, to) = (locate(from), locate(to));
+    let normal = (to.point - from.point).cross(frame.anterior());
+    plane_section_path(surface.mesh, surface.topology, from, to, normal)
+}
+
+/// The point `fraction` (0..=1) of the way along `path` by arc length.
+fn point_along(path: &SurfacePath, fraction: f64) -> DVec3 {
+    let mut remaining = fraction * path.length_mm;
+    for segment in path.points.windows(2) {
+        let length = segment[0].distance(segment[1]);
+        if remaining <= length && length > 0.0 {
+            return segment[0].lerp(segment[1], remaining / length);
+        }
+        remaining -= length;
+    }
+    path.points.last().copied().unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_file_round_trips() {
+        let points = ControlPoints {
+            left: vec![DVec3::new(1.0, 2.0, 3.0), DVec3::X, DVec3::Y, DVec3::Z],
+            right: vec![DVec3::new(-1.5, 2.25, 1e-3), DVec3::X, DVec3::Y],
+        };
+        let directory = tempfile::tempdir().unwrap();
+        let path = directory.path().join("control_points.json");
+        points.write(&path).unwrap();
+        assert_eq!(ControlPoints::read(&path).unwrap(), points);
+    }
+
+    #[test]
+    fn bad_files_name_the_problem() {
+        let path = Path::new("cp.json");
+        let message = |text: &str| {
+            ControlPoints::from_json(text, path)
+                .unwrap_err()
+                .to_string()
+        };
+        assert!(message("{").contains("cp.json: not valid JSON"));
+        assert!(message(r#"{"left":[],"right":[]}"#).contains("\"units\" must be \"mm\""));
+        let two = r#"{"units":"mm","left":[[0,0,0],[1,0,0]],"right":[]}"#;
+        assert!(message(two).contains("\"left\" has 2 control points"));
+        let bad =
+            r#"{"units":"mm","left":[[0,0,0],[1,0,0],[0,1,0]],"right":[[0,0],[1,0,0],[0,1,0]]}"#;
+        assert!(message(bad).contains("\"right\" point 0: expected [x, y, z]"));
+    }
+}

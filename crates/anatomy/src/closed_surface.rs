@@ -1,0 +1,1050 @@
+//! The closed surface (paper IV-C, Fig. 4 d-e): the scan and the filled base clipped by
+//! four planes around the breasts, the base shifted posteriorly to the chest wall, and
+//! the two clipped borders stitched by a band of triangles. The result bounds the volume
+//! the finite elements fill.
+//!
+//! # Algorithm
+//! 1. The clip box ([`ClipBox::around_breasts`]): four planes orthogonal to the frame's
+//!    x and y axes, placed from the landmarks with margins, then moved inwards where
+//!    the scan's outer border comes closer than a clearance, so the clip never runs
+//!    off the scan.
+//! 2. Clipping, in frame coordinates: each plane in turn splits the triangles it
+//!    crosses exactly at the plane (the split vertex gets the plane's coordinate
+//!    exactly, a vertex within a small snap distance is moved onto it, so no slivers),
+//!    keeping the inside. Only the largest connected piece is kept (drops specks).
+//!    Its border must be a single loop lying on the planes, with one corner vertex on
+//!    each of the four plane intersections; a loop off the planes means the box reaches
+//!    beyond the surface's border, a further loop a hole inside the box.
+//! 3. The clipped base is translated by the rear-wall offset along the posterior axis
+//!    (`-z` of the frame). A translation keeps its border on the same four planes and
+//!    cannot fold or self-intersect the wall; it is the paper's "shifted towards the
+//!    back". Its orientation is reversed (if needed, judged by the winding of its border
+//!    against the scan's) so it faces posteriorly.
+//! 4. Stitching: both borders are split at their corners into four sides; each side of
+//!    the scan and the same side of the wall lie in one plane and, with the two corner
+//!    edges, bound a planar polygon, triangulated by a constrained Delaunay
+//!    triangulation (spade) of its vertices. Unlike a two-chain zipper this stays
+//!    correct where a cut curve is not monotone along the side (over a ptotic breast's
+//!    lower pole, cut by a lateral plane). The band adds no vertices.
+//!    The scan is turned to face anteriorly first if it faces the other way.
+//! 5. Checks: watertight and 2-manifold ([`mesh::manifold_report`]), no self-intersections
+//!    ([`mesh::self_intersections`]), and a positive volume (else the wall lies in front
+//!    of the scan).
+//!
+//! The result is in the scan's (file) coordinates.
+//!
+//! # Limitations
+//! - On each plane the scan's cut curve must lie anterior to the shifted wall's; where
+//!   they cross, the build fails rather than repairs.
+//! - The wall is a translated copy, so where the chest is steep (the lateral planes)
+//!   its distance from the scan along the normal is less than the offset.
+
+use crate::frame::AnatomicalFrame;
+use crate::landmarks::{LandmarkName, Landmarks};
+use glam::{DVec2, DVec3};
+use mesh::{ManifoldReport, MeshError, Topology, TriMesh, manifold_report, self_intersections};
+use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
+use std::collections::HashMap;
+use std::ops::Range;
+
+/// Default rear-wall offset (mm): skin (about 2 mm) plus pectoralis major (about 10 to
+/// 13 mm in adult women by ultrasound), the layers the paper shifts the base back by so
+/// the wall lies at the chest wall (ribs); the implant sits on this wall.
+pub const DEFAULT_REAR_WALL_OFFSET_MM: f64 = 15.0;
+/// A clip box needs at least this many triangles of each surface inside it; fewer means
+/// the box misses the surface.
+const MIN_CLIPPED_TRIANGLES: usize = 16;
+/// Vertices closer to a clip plane than this fraction of the mean edge length are moved
+/// onto it (at most 2% of an edge, about 0.05 mm on a scan), so clipping leaves no
+/// sliver triangles.
+const SNAP_FRACTION: f64 = 0.02;
+
+/// Where the clip planes go relative to the landmarks (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClosedSurfaceOptions {
+    /// Top plane this far above the higher clavicle point Pc. Default 0: the clavicle
+    /// level, above the upper pole of both breasts (which starts some 20 to 40 mm below
+    /// it) and below the neck, where scans end.
+    pub top_margin_mm: f64,
+    /// Bottom plane this far below the lower fold point PSMF. Default 40: room below the
+    /// fold for the tissue an implant pushes down.
+    pub bottom_margin_mm: f64,
+    /// Left and right planes this far beyond the lateral fold ends PSMFll and PSMFlr.
+    /// Default 40: the breast reaches some 25 to 30 mm beyond the fold's lateral end.
+    pub lateral_margin_mm: f64,
+    /// The planes keep at least this distance from the scan's outer border (measured in
+    /// the coronal plane); planes closer are moved inwards. Default 10: clear of the
+    /// ragged, noisy triangles at a scan's edge.
+    pub border_clearance_mm: f64,
+    /// How far the filled base is shifted posteriorly (mm); default
+    /// [`DEFAULT_REAR_WALL_OFFSET_MM`].
+    pub rear_wall_offset_mm: f64,
+}
+
+impl Default for ClosedSurfaceOptions {
+    fn default() -> ClosedSurfaceOptions {
+        ClosedSurfaceOptions {
+            top_margin_mm: 0.0,
+            bottom_margin_mm: 40.0,
+            lateral_margin_mm: 40.0,
+            border_clearance_mm: 10.0,
+            rear_wall_offset_mm: DEFAULT_REAR_WALL_OFFSET_MM,
+        }
+    }
+}
+
+/// The four clip planes, as coordinates in the anatomical frame (mm): the part kept is
+/// `x_min <= x <= x_max`, `y_min <= y <= y_max`. `x_min` is the patient's right plane,
+/// `x_max` the left one, `y_min` the bottom, `y_max` the top.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClipBox {
+    pub x_min_mm: f64,
+    pub x_max_mm: f64,
+    pub y_min_mm: f64,
+    pub y_max_mm: f64,
+}
+
+/// Which input surface an error is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SurfaceRole {
+    Scan,
+    FilledBase,
+}
+
+impl std::fmt::Display for SurfaceRole {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SurfaceRole::Scan => "scan",
+            SurfaceRole::FilledBase => "filled base",
+        })
+    }
+}
+
+/// Why no closed surface could be built.
+#[derive(Debug, thiserror::Error)]
+pub enum ClosedSurfaceError {
+    #[error("closed surface: {0}")]
+    InvalidInput(String),
+    #[error("closed surface: the {role} is not a valid mesh: {source}")]
+    InvalidMesh {
+        role: SurfaceRole,
+        source: MeshError,
+    },
+    #[error(
+        "closed surface: only {count} triangles of the {role} lie inside the clip box \
+         (at least {MIN_CLIPPED_TRIANGLES} needed): the box misses the surface"
+    )]
+    TooFewTriangles { role: SurfaceRole, count: usize },
+    #[error(
+        "closed surface: the {role} has a hole inside the clip box (a border loop of \
+         {vertices} vertices around ({:.1}, {:.1}, {:.1}) mm); close it first",
+        center_mm[0], center_mm[1], center_mm[2]
+    )]
+    HoleInsideBox {
+        role: SurfaceRole,
+        vertices: usize,
+        center_mm: [f64; 3],
+    },
+    #[error(
+        "closed surface: the clip box reaches beyond the {role}'s border near \
+         ({:.1}, {:.1}, {:.1}) mm, so the clipped border is not a closed loop on the \
+         four planes; move the planes inwards",
+        near_mm[0], near_mm[1], near_mm[2]
+    )]
+    RunsOffBorder {
+        role: SurfaceRole,
+        near_mm: [f64; 3],
+    },
+    #[error(
+        "closed surface: the clipped {role}'s border meets the plane intersections in \
+         {corners} corners instead of one on each of the four"
+    )]
+    MissingCorners { role: SurfaceRole, corners: usize },
+    #[error("closed surface: the scan's and the filled base's borders cannot be stitched: {0}")]
+    Stitch(String),
+    #[error("closed surface: the result is not watertight and 2-manifold: {0}")]
+    NotWatertight(ManifoldReport),
+    #[error(
+        "closed surface: the shifted filled base lies in front of the scan (signed volume \
+         {volume_ml:.1} ml); check that the base is the scan with the breasts filled in"
+    )]
+    WallInFront { volume_ml: f64 },
+    #[error(
+        "closed surface: the result intersects itself ({count} pairs of triangles, the first \
+         {} and {}): the shifted base crosses the scan; use a smaller rear-wall offset or \
+         check the fill-ins", first.0, first.1
+    )]
+    SelfIntersecting { count: usize, first: (usize, usize) },
+}
+
+/// A closed, outward-oriented surface around the breast region.
+#[derive(Debug, Clone)]
+pub struct ClosedSurface {
+    /// Watertight, 2-manifold, outward, without self-intersections (mm, file frame).
+    pub mesh: TriMesh,
+    /// Enclosed volume (ml).
+    pub volume_ml: f64,
+    /// Triangles of the clipped scan.
+    pub front: Range<usize>,
+    /// Triangles of the clipped, shifted filled base (facing posteriorly): the wall the
+    /// implant sits on.
+    pub back_wall: Range<usize>,
+    /// Triangles of the band joining the two.
+    pub band: Range<usize>,
+    /// The planes used.
+    pub clip_box: ClipBox,
+    /// The shift of the base (mm).
+    pub rear_wall_offset_mm: f64,
+}
+
+impl ClipBox {
+    /// The planes from the landmarks and margins of `options`, moved inwards so that
+    /// they stay the clearance inside the scan's extent: each lateral plane inside the
+    /// scan's widest point at every height of the box (a torso scanned round to the back
+    /// is then cut on its front; the strips behind fall off as separate pieces), then
+    /// top and bottom inside its highest and lowest point at every x of the box. An error
+    /// if a nipple or a fold's lowest point or medial end ends up outside.
+    pub fn around_breasts(
+        scan: &TriMesh,
+        frame: &AnatomicalFrame,
+        landmarks: &Landmarks,
+        options: &ClosedSurfaceOptions,
+    ) -> Result<ClipBox, ClosedSurfaceError> {
+        let margins = [
+            ("top_margin_mm", options.top_margin_mm),
+            ("bottom_margin_mm", options.bottom_margin_mm),
+            ("lateral_margin_mm", options.lateral_margin_mm),
+            ("border_clearance_mm", options.border_clearance_mm),
+        ];
+        if let Some((name, value)) = margins.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(ClosedSurfaceError::InvalidInput(format!(
+                "{name} must be a finite number, got {value}"
+            )));
+        }
+        let local = |name: LandmarkName| frame.to_local(landmarks.get(name));
+        let mut clip_box = ClipBox {
+            x_min_mm: local(LandmarkName::PSMFlr).x - options.lateral_margin_mm,
+            x_max_mm: local(LandmarkName::PSMFll).x + options.lateral_margin_mm,
+            y_min_mm: local(LandmarkName::PSMFl)
+                .y
+                .min(local(LandmarkName::PSMFr).y)
+                - options.bottom_margin_mm,
+            y_max_mm: local(LandmarkName::Pcl).y.max(local(LandmarkName::Pcr).y)
+                + options.top_margin_mm,
+        };
+        clip_box.check()?;
+
+        let clearance = options.border_clearance_mm.max(0.0);
+        let local_scan: Vec<DVec3> = scan.positions.iter().map(|&p| frame.to_local(p)).collect();
+        // Lateral planes inside the scan's width at every height of the box, then top
+        // and bottom inside its height at every x of the narrowed box.
+        let (x_min, x_max) = extent_limits(&local_scan, 1, clip_box.y_min_mm, clip_box.y_max_mm, 0);
+        let lateral: f64 = std::env::var("CS_LAT").ok().and_then(|v| v.parse().ok()).unwrap_or(clearance);
+        clip_box.x_min_mm = clip_box.x_min_mm.max(x_min + lateral);
+        clip_box.x_max_mm = clip_box.x_max_mm.min(x_max - lateral);
+        let (y_min, y_max) = extent_limits(&local_scan, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
+        clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
+        clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
+
+        // The breast landmarks the box must keep (the lateral fold ends may lie beyond
+        // the scan's silhouette on a torso scanned round to the back).
+        let breast_landmarks = [
+            LandmarkName::Pnl,
+            LandmarkName::Pnr,
+            LandmarkName::PSMFl,
+            LandmarkName::PSMFr,
+            LandmarkName::PSMFml,
+            LandmarkName::PSMFmr,
+        ];
+        if let Some(name) = breast_landmarks
+            .into_iter()
+            .find(|&name| !clip_box.contains(local(name)))
+        {
+            return Err(ClosedSurfaceError::InvalidInput(format!(
+                "the scan does not extend {clearance} mm beyond the breasts: kept clear of \
+                 its border, the clip box (x {:.1} to {:.1} mm, y {:.1} to {:.1} mm in the \
+                 anatomical frame) leaves out landmark {}",
+                clip_box.x_min_mm,
+                clip_box.x_max_mm,
+                clip_box.y_min_mm,
+                clip_box.y_max_mm,
+                name.as_str()
+            )));
+        }
+        Ok(clip_box)
+    }
+
+    fn check(&self) -> Result<(), ClosedSurfaceError> {
+        let ordered = self.x_min_mm < self.x_max_mm && self.y_min_mm < self.y_max_mm;
+        let finite = [self.x_min_mm, self.x_max_mm, self.y_min_mm, self.y_max_mm]
+            .iter()
+            .all(|v| v.is_finite());
+        if ordered && finite {
+            Ok(())
+        } else {
+            Err(ClosedSurfaceError::InvalidInput(format!(
+                "empty clip box: x {} to {} mm, y {} to {} mm in the anatomical frame",
+                self.x_min_mm, self.x_max_mm, self.y_min_mm, self.y_max_mm
+            )))
+        }
+    }
+
+    fn contains(&self, local: DVec3) -> bool {
+        (self.x_min_mm..=self.x_max_mm).contains(&local.x)
+            && (self.y_min_mm..=self.y_max_mm).contains(&local.y)
+    }
+
+    /// The four planes as (axis, coordinate, keep-the-side-above).
+    fn planes(&self) -> [ClipPlane; 4] {
+        [
+            ClipPlane {
+                axis: 0,
+                value: self.x_min_mm,
+                keep_above: true,
+            },
+            ClipPlane {
+                axis: 0,
+                value: self.x_max_mm,
+                keep_above: false,
+            },
+            ClipPlane {
+                axis: 1,
+                value: self.y_min_mm,
+                keep_above: true,
+            },
+            ClipPlane {
+                axis: 1,
+                value: self.y_max_mm,
+                keep_above: false,
+            },
+        ]
+    }
+}
+
+/// The clip box from the landmarks ([`ClipBox::around_breasts`]), then
+/// [`build_closed_surface_in_box`].
+pub fn build_closed_surface(
+    scan: &TriMesh,
+    filled_base: &TriMesh,
+    frame: &AnatomicalFrame,
+    landmarks: &Landmarks,
+    options: &ClosedSurfaceOptions,
+) -> Result<ClosedSurface, ClosedSurfaceError> {
+    let clip_box = ClipBox::around_breasts(scan, frame, landmarks, options)?;
+    build_closed_surface_in_box(
+        scan,
+        filled_base,
+        frame,
+        &clip_box,
+        options.rear_wall_offset_mm,
+    )
+}
+
+/// Clips `scan` and `filled_base` (both open, with the same outer border region) by
+/// `clip_box`, shifts the base back by `rear_wall_offset_mm` along the frame's posterior
+/// axis and stitches the two into a closed surface (see the module docs).
+pub fn build_closed_surface_in_box(
+    scan: &TriMesh,
+    filled_base: &TriMesh,
+    frame: &AnatomicalFrame,
+    clip_box: &ClipBox,
+    rear_wall_offset_mm: f64,
+) -> Result<ClosedSurface, ClosedSurfaceError> {
+    clip_box.check()?;
+    if !(rear_wall_offset_mm > 0.0 && rear_wall_offset_mm.is_finite()) {
+        return Err(ClosedSurfaceError::InvalidInput(format!(
+            "the rear-wall offset must be a positive number of mm, got {rear_wall_offset_mm}"
+        )));
+    }
+    let mut front = ClippedPart::new(scan, SurfaceRole::Scan, frame, clip_box)?;
+    let mut back = ClippedPart::new(filled_base, SurfaceRole::FilledBase, frame, clip_box)?;
+    for p in &mut back.positions {
+        p.z -= rear_wall_offset_mm;
+    }
+    if front.anterior_area() < 0.0 {
+        front.reverse();
+    }
+    // The wall's border must run against the scan's around the box; then walk the
+    // wall's border in the scan's direction.
+    if (front.winding() > 0.0) == (back.winding() > 0.0) {
+        back.reverse();
+    }
+    back.border.reverse();
+    let front_sides = front.sides()?;
+    let back_sides = back.sides()?;
+
+    let offset = front.positions.len() as u32;
+    let mut positions = front.positions;
+    positions.extend(&back.positions);
+    let mut triangles = front.triangles;
+    let front_range = 0..triangles.len();
+    triangles.extend(back.triangles.iter().map(|t| t.map(|v| v + offset)));
+    let back_range = front_range.end..triangles.len();
+    for (front_side, back_side) in front_sides.iter().zip(&back_sides) {
+        let back_chain: Vec<u32> = back_side.chain.iter().map(|&v| v + offset).collect();
+        let same_corner = |f: Option<&u32>, b: Option<&u32>| match (f, b) {
+            (Some(&f), Some(&b)) => {
+                let (p, q) = (positions[f as usize], positions[b as usize]);
+                p.x == q.x && p.y == q.y
+            }
+            _ => false,
+        };
+        if !same_corner(front_side.chain.first(), back_chain.first())
+            || !same_corner(front_side.chain.last(), back_chain.last())
+        {
+            return Err(ClosedSurfaceError::Stitch(format!(
+                "the corners of the scan's and the wall's border differ on the {} plane",
+                PLANE_NAMES[front_side.plane]
+            )));
+        }
+        triangles.extend(band_on_side(
+            &positions,
+            front_side.plane,
+            &front_side.chain,
+            &back_chain,
+        )?);
+    }
+    let band_range = back_range.end..triangles.len();
+
+    let mesh = TriMesh::new(
+        positions.iter().map(|&p| frame.to_file(p)).collect(),
+        triangles,
+    );
+    let topology = Topology::new(&mesh);
+    let report = manifold_report(&mesh, &topology);
+    if !report.is_watertight_manifold() {
+        return Err(ClosedSurfaceError::NotWatertight(report));
+    }
+    let crossings = self_intersections(&mesh);
+    if let Some(&first) = crossings.first() {
+        return Err(ClosedSurfaceError::SelfIntersecting {
+            count: crossings.len(),
+            first,
+        });
+    }
+    let volume_ml = mesh.signed_volume() / 1000.0;
+    if volume_ml <= 0.0 {
+        return Err(ClosedSurfaceError::WallInFront { volume_ml });
+    }
+    Ok(ClosedSurface {
+        mesh,
+        volume_ml,
+        front: front_range,
+        back_wall: back_range,
+        band: band_range,
+        clip_box: *clip_box,
+        rear_wall_offset_mm,
+    })
+}
+
+/// A plane of the clip box: `axis` 0 (x) or 1 (y) of the frame; the kept side is
+/// `coordinate >= value` if `keep_above`, else `<=`.
+#[derive(Debug, Clone, Copy)]
+struct ClipPlane {
+    axis: usize,
+    value: f64,
+    keep_above: bool,
+}
+
+impl ClipPlane {
+    /// Signed distance, positive on the kept side.
+    fn distance(&self, p: DVec3) -> f64 {
+        let d = p[self.axis] - self.value;
+        if self.keep_above { d } else { -d }
+    }
+}
+
+/// One side of a clipped border: the plane index into [`ClipBox::planes`] and the
+/// border vertices on it from corner to corner, in the scan's border direction.
+struct Side {
+    plane: usize,
+    chain: Vec<u32>,
+}
+
+/// A surface clipped to the box, in frame coordinates, with its single border loop.
+struct ClippedPart {
+    role: SurfaceRole,
+    planes: [ClipPlane; 4],
+    frame: AnatomicalFrame,
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
+    /// Border vertices in the direction of the triangles' edges.
+    border: Vec<u32>,
+}
+
+impl ClippedPart {
+    fn new(
+        surface: &TriMesh,
+        role: SurfaceRole,
+        frame: &AnatomicalFrame,
+        clip_box: &ClipBox,
+    ) -> Result<ClippedPart, ClosedSurfaceError> {
+        surface
+            .validate()
+            .map_err(|source| ClosedSurfaceError::InvalidMesh { role, source })?;
+        let mut positions: Vec<DVec3> = surface
+            .positions
+            .iter()
+            .map(|&p| frame.to_local(p))
+            .collect();
+        let mut triangles = surface.triangles.clone();
+        let snap = SNAP_FRACTION * surface.mean_edge_length();
+        let planes = clip_box.planes();
+        for plane in &planes {
+            triangles = clip_by_plane(&mut positions, &triangles, plane, snap);
+        }
+        let (positions, triangles) = largest_piece(&positions, &triangles);
+        if triangles.len() < MIN_CLIPPED_TRIANGLES {
+            return Err(ClosedSurfaceError::TooFewTriangles {
+                role,
+                count: triangles.len(),
+            });
+        }
+        let mut part = ClippedPart {
+            role,
+            planes,
+            frame: *frame,
+            positions,
+            triangles,
+            border: Vec::new(),
+        };
+        part.border = part.single_border_loop()?;
+        Ok(part)
+    }
+
+    fn to_file(&self, local: DVec3) -> [f64; 3] {
+        self.frame.to_file(local).to_array()
+    }
+
+    /// Bit `i` set if vertex `v` lies on plane `i`.
+    fn plane_mask(&self, v: u32) -> u8 {
+        let p = self.positions[v as usize];
+        self.planes
+            .iter()
+            .enumerate()
+            .filter(|(_, plane)| p[plane.axis] == plane.value)
+            .fold(0, |mask, (i, _)| mask | (1 << i))
+    }
+
+    /// The border loop, which must be the only one and lie on the planes.
+    fn single_border_loop(&self) -> Result<Vec<u32>, ClosedSurfaceError> {
+        let mesh = TriMesh::new(self.positions.clone(), self.triangles.clone());
+        let loops = Topology::new(&mesh).boundary_loops(&mesh);
+        let role = self.role;
+        if let Some(hole) = loops
+            .iter()
+            .find(|l| l.iter().all(|&v| self.plane_mask(v) == 0))
+        {
+            let center = hole
+                .iter()
+                .map(|&v| self.positions[v as usize])
+                .sum::<DVec3>()
+                / hole.len() as f64;
+            return Err(ClosedSurfaceError::HoleInsideBox {
+                role,
+                vertices: hole.len(),
+                center_mm: self.to_file(center),
+            });
+        }
+        // Every border edge must lie on one plane.
+        for border in &loops {
+            for (k, &a) in border.iter().enumerate() {
+                let b = border[(k + 1) % border.len()];
+                if self.plane_mask(a) & self.plane_mask(b) == 0 {
+                    let middle = 0.5 * (self.positions[a as usize] + self.positions[b as usize]);
+                    return Err(ClosedSurfaceError::RunsOffBorder {
+                        role,
+                        near_mm: self.to_file(middle),
+                    });
+                }
+            }
+        }
+        if std::env::var_os("CS_DEBUG").is_some() {
+            for l in &loops {
+                let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+                for &v in l { lo = lo.min(self.positions[v as usize]); hi = hi.max(self.positions[v as usize]); }
+                let masks: std::collections::BTreeMap<u8, usize> = l.iter().fold(Default::default(), |mut m, &v| { *m.entry(self.plane_mask(v)).or_default() += 1; m });
+                eprintln!("{role} loop {} vertices, bounds {lo:.1} {hi:.1}, masks {masks:?}", l.len());
+            }
+        }
+        match <[Vec<u32>; 1]>::try_from(loops) {
+            Ok([border]) => Ok(border),
+            Err(loops) => Err(ClosedSurfaceError::Stitch(format!(
+                "the clipped {role} has {} border loops on the planes instead of one",
+                loops.len()
+            ))),
+        }
+    }
+
+    /// Reverses the orientation of the triangles and of the border.
+    fn reverse(&mut self) {
+        for tri in &mut self.triangles {
+            tri.swap(1, 2);
+        }
+        self.border.reverse();
+    }
+
+    /// Twice the area of the surface projected on the coronal plane, signed positive
+    /// where the triangles face anteriorly (mm²).
+    fn anterior_area(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|tri| {
+                let [a, b, c] = tri.map(|v| self.positions[v as usize]);
+                (b - a).cross(c - a).z
+            })
+            .sum()
+    }
+
+    /// Twice the signed area of the border projected on the coronal plane.
+    fn winding(&self) -> f64 {
+        let n = self.border.len();
+        (0..n)
+            .map(|k| {
+                let a = self.positions[self.border[k] as usize];
+                let b = self.positions[self.border[(k + 1) % n] as usize];
+                a.x * b.y - b.x * a.y
+            })
+            .sum()
+    }
+
+    /// The border split at its four corners, in [`ClipBox::planes`] order.
+    fn sides(&self) -> Result<[Side; 4], ClosedSurfaceError> {
+        let is_corner = |v: u32| self.plane_mask(v).count_ones() == 2;
+        let corners = self.border.iter().filter(|&&v| is_corner(v)).count();
+        let missing = ClosedSurfaceError::MissingCorners {
+            role: self.role,
+            corners,
+        };
+        let Some(start) = self.border.iter().position(|&v| is_corner(v)) else {
+            return Err(missing);
+        };
+        if corners != 4 {
+            return Err(missing);
+        }
+        let n = self.border.len();
+        let mut sides: [Option<Side>; 4] = Default::default();
+        let mut chain = vec![self.border[start]];
+        for k in 1..=n {
+            let v = self.border[(start + k) % n];
+            chain.push(v);
+            if is_corner(v) {
+                let common = self.plane_mask(chain[0]) & self.plane_mask(chain[1]);
+                let plane = common.trailing_zeros() as usize;
+                if chain
+                    .windows(2)
+                    .any(|w| self.plane_mask(w[0]) & self.plane_mask(w[1]) & common == 0)
+                    || plane >= 4
+                    || sides[plane].is_some()
+                {
+                    return Err(missing);
+                }
+                sides[plane] = Some(Side {
+                    plane,
+                    chain: std::mem::replace(&mut chain, vec![v]),
+                });
+            }
+        }
+        let [Some(a), Some(b), Some(c), Some(d)] = sides else {
+            return Err(missing);
+        };
+        Ok([a, b, c, d])
+    }
+}
+
+/// Triangles of `triangles` clipped to the kept side of `plane`. Vertices within `snap`
+/// of the plane are moved onto it; crossed edges are split at the plane, each edge once
+/// (new vertices are appended to `positions`), so the result stays connected.
+fn clip_by_plane(
+    positions: &mut Vec<DVec3>,
+    triangles: &[[u32; 3]],
+    plane: &ClipPlane,
+    snap: f64,
+) -> Vec<[u32; 3]> {
+    for p in positions.iter_mut() {
+        if plane.distance(*p).abs() <= snap {
+            p[plane.axis] = plane.value;
+        }
+    }
+    let mut split_vertices: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut clipped = Vec::with_capacity(triangles.len());
+    for tri in triangles {
+        let d = tri.map(|v| plane.distance(positions[v as usize]));
+        if d.iter().all(|&x| x >= 0.0) {
+            if d.iter().any(|&x| x > 0.0) {
+                clipped.push(*tri);
+            }
+            continue;
+        }
+        if d.iter().all(|&x| x <= 0.0) {
+            continue;
+        }
+        // Sutherland-Hodgman on one triangle: three or four corners, orientation kept.
+        let mut polygon: Vec<u32> = Vec::with_capacity(4);
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            let (da, db) = (d[k], d[(k + 1) % 3]);
+            if da >= 0.0 {
+                polygon.push(a);
+            }
+            if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
+                let key = (a.min(b), a.max(b));
+                let v = *split_vertices.entry(key).or_insert_with(|| {
+                    let (p, q) = (positions[key.0 as usize], positions[key.1 as usize]);
+                    let (dp, dq) = (plane.distance(p), plane.distance(q));
+                    let mut split = p + (q - p) * (dp / (dp - dq));
+                    split[plane.axis] = plane.value;
+                    positions.push(split);
+                    (positions.len() - 1) as u32
+                });
+                polygon.push(v);
+            }
+        }
+        match polygon[..] {
+            [a, b, c] => clipped.push([a, b, c]),
+            [a, b, c, e] => {
+                let at = |v: u32| positions[v as usize];
+                // The shorter diagonal gives the better pair of triangles.
+                if at(a).distance_squared(at(c)) <= at(b).distance_squared(at(e)) {
+                    clipped.extend([[a, b, c], [a, c, e]]);
+                } else {
+                    clipped.extend([[a, b, e], [b, c, e]]);
+                }
+            }
+            _ => {}
+        }
+    }
+    clipped
+}
+
+/// The connected piece (through edges) with the most triangles, its vertices renumbered
+/// without unused ones.
+fn largest_piece(positions: &[DVec3], triangles: &[[u32; 3]]) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let mesh = TriMesh::new(positions.to_vec(), triangles.to_vec());
+    let (component, count) = Topology::new(&mesh).triangle_components();
+    let mut sizes = vec![0usize; count];
+    for &c in &component {
+        sizes[c as usize] += 1;
+    }
+    let largest = (0..count).max_by_key(|&c| sizes[c]).unwrap_or(0) as u32;
+    let mut new_index = vec![u32::MAX; positions.len()];
+    let mut kept_positions = Vec::new();
+    let kept_triangles = triangles
+        .iter()
+        .zip(&component)
+        .filter(|&(_, &c)| c == largest)
+        .map(|(tri, _)| {
+            tri.map(|v| {
+                if new_index[v as usize] == u32::MAX {
+                    new_index[v as usize] = kept_positions.len() as u32;
+                    kept_positions.push(positions[v as usize]);
+                }
+                new_index[v as usize]
+            })
+        })
+        .collect();
+    (kept_positions, kept_triangles)
+}
+
+/// Names of the planes in [`ClipBox::planes`] order, for messages.
+const PLANE_NAMES: [&str; 4] = ["right", "left", "bottom", "top"];
+
+/// The band on `plane` (an index into [`ClipBox::planes`]) between one side of the scan
+/// (`front`, in the scan's border direction) and the same side of the wall (`back`, same
+/// direction, same first and last corner in the plane): a constrained Delaunay
+/// triangulation of the planar polygon the two chains bound, oriented against the
+/// polygon so the triangles run against the scan's border edges and the wall's.
+fn band_on_side(
+    positions: &[DVec3],
+    plane: usize,
+    front: &[u32],
+    back: &[u32],
+) -> Result<Vec<[u32; 3]>, ClosedSurfaceError> {
+    let name = PLANE_NAMES[plane];
+    let polygon: Vec<u32> = front.iter().chain(back.iter().rev()).copied().collect();
+    // In-plane coordinates: along the side, and anterior.
+    let along = 1 - [0, 0, 1, 1][plane];
+    let flat: Vec<DVec2> = polygon
+        .iter()
+        .map(|&v| {
+            let p = positions[v as usize];
+            DVec2::new(p[along], p.z)
+        })
+        .collect();
+    let n = flat.len();
+    let twice_area: f64 = (0..n).map(|k| flat[k].perp_dot(flat[(k + 1) % n])).sum();
+    let counter_clockwise = twice_area > 0.0;
+    // Spade refuses nonzero coordinates below its minimum; they are zero to any purpose.
+    let flush = |x: f64| {
+        if x.abs() < spade::MIN_ALLOWED_VALUE {
+            0.0
+        } else {
+            x
+        }
+    };
+    let vertices: Vec<Point2<f64>> = flat
+        .iter()
+        .map(|p| Point2::new(flush(p.x), flush(p.y)))
+        .collect();
+    let edges = (0..n).map(|k| [k, (k + 1) % n]).collect();
+    let mut conflict = false;
+    let cdt =
+        ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(vertices, edges, |_| {
+            conflict = true
+        })
+        .map_err(|error| {
+            ClosedSurfaceError::Stitch(format!("invalid coordinate on the {name} plane ({error})"))
+        })?;
+    if conflict {
+        return Err(ClosedSurfaceError::Stitch(format!(
+            "on the {name} plane the scan's cut curve and the shifted wall's cross"
+        )));
+    }
+    if cdt.num_vertices() != n {
+        return Err(ClosedSurfaceError::Stitch(format!(
+            "on the {name} plane a point of the scan's cut curve coincides with one of the wall's"
+        )));
+    }
+    Ok(cdt
+        .inner_faces()
+        .filter_map(|face| {
+            // Spade lists corners counter-clockwise. A triangle of polygon corners is
+            // inside exactly if it lists them in the polygon's cyclic order and sense: no
+            // geometry, so slivers along straight runs are classified reliably.
+            let corners = face.vertices().map(|v| v.fix().index());
+            let ascents = (0..3)
+                .filter(|&k| corners[k] < corners[(k + 1) % 3])
+                .count();
+            let inside = (ascents == 2) == counter_clockwise;
+            // Against the polygon's sense: clockwise if the polygon runs counter-clockwise.
+            let [a, b, c] = corners.map(|k| polygon[k]);
+            inside.then_some(if counter_clockwise {
+                [a, c, b]
+            } else {
+                [a, b, c]
+            })
+        })
+        .collect())
+}
+
+/// Height of the bins [`extent_limits`] scans the surface in (mm): a few vertex
+/// spacings, so no bin of a scan is empty, fine enough to follow the body's outline.
+const EXTENT_BIN_MM: f64 = 5.0;
+
+/// Over the points whose coordinate `across` lies in `[lo, hi]`, binned by it: the
+/// largest per-bin minimum and the smallest per-bin maximum of coordinate `along`,
+/// i.e. the range of `along` that the surface spans in every bin (mm). Empty bins
+/// (a gap across the whole surface) are skipped; no points give an unbounded range.
+fn extent_limits(points: &[DVec3], across: usize, lo: f64, hi: f64, along: usize) -> (f64, f64) {
+    let bins = ((hi - lo) / EXTENT_BIN_MM).ceil().clamp(1.0, 1e6) as usize;
+    let mut ranges = vec![(f64::INFINITY, f64::NEG_INFINITY); bins];
+    for p in points.iter().filter(|p| (lo..=hi).contains(&p[across])) {
+        let bin = (((p[across] - lo) / EXTENT_BIN_MM) as usize).min(bins - 1);
+        let range = &mut ranges[bin];
+        *range = (range.0.min(p[along]), range.1.max(p[along]));
+    }
+    ranges
+        .iter()
+        .filter(|r| r.0 <= r.1)
+        .fold((f64::NEG_INFINITY, f64::INFINITY), |(low, high), r| {
+            (low.max(r.0), high.min(r.1))
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DMat3;
+    use mesh::shapes::grid;
+
+    /// Radius of the synthetic chest (mm).
+    const RADIUS_MM: f64 = 150.0;
+
+    /// The frame equal to the file frame.
+    fn identity_frame() -> AnatomicalFrame {
+        AnatomicalFrame {
+            origin: DVec3::ZERO,
+            axes: DMat3::IDENTITY,
+        }
+    }
+
+    /// Part of a cylinder of radius 150 mm about the y axis, facing +z (anterior):
+    /// x from -120 to 120 mm, y from -150 to 50 mm, 2 mm grid.
+    fn cylinder_patch() -> TriMesh {
+        let mut patch = grid(120, 100, 2.0);
+        patch.map_positions(|p| {
+            let x = p.x - 120.0;
+            DVec3::new(
+                x,
+                p.y - 150.0,
+                (RADIUS_MM * RADIUS_MM - x * x).sqrt() - RADIUS_MM,
+            )
+        });
+        patch
+    }
+
+    /// Planes off the grid lines, so clipping splits triangles.
+    fn clip_box() -> ClipBox {
+        ClipBox {
+            x_min_mm: -80.3,
+            x_max_mm: 79.1,
+            y_min_mm: -120.7,
+            y_max_mm: 10.2,
+        }
+    }
+
+    fn assert_closed(surface: &ClosedSurface) {
+        let topology = Topology::new(&surface.mesh);
+        assert!(manifold_report(&surface.mesh, &topology).is_watertight_manifold());
+        assert!(self_intersections(&surface.mesh).is_empty());
+        assert!(surface.volume_ml > 0.0);
+        assert_eq!(surface.band.end, surface.mesh.triangles.len());
+        assert!(!surface.front.is_empty() && !surface.back_wall.is_empty());
+    }
+
+    #[test]
+    fn a_translated_cylinder_patch_closes_to_the_analytic_slab_volume() {
+        let patch = cylinder_patch();
+        let offset_mm = 15.0;
+        let clip = clip_box();
+        let surface =
+            build_closed_surface_in_box(&patch, &patch, &identity_frame(), &clip, offset_mm)
+                .unwrap();
+        assert_closed(&surface);
+        // Front and wall are the same clipped surface, one translated by the offset
+        // along z, and the band lies in the planes: the solid is a slab of constant
+        // height over the box, whatever the surface's shape, so its volume is the box
+        // area times the offset up to round-off.
+        let area_mm2 = (clip.x_max_mm - clip.x_min_mm) * (clip.y_max_mm - clip.y_min_mm);
+        let expected_ml = area_mm2 * offset_mm / 1000.0;
+        assert!(
+            (surface.volume_ml - expected_ml).abs() < 1e-9 * expected_ml,
+            "{} vs {expected_ml} ml",
+            surface.volume_ml
+        );
+        // The band lies in the planes; the front faces anteriorly.
+        let on_plane = |p: DVec3| {
+            [clip.x_min_mm, clip.x_max_mm].contains(&p.x)
+                || [clip.y_min_mm, clip.y_max_mm].contains(&p.y)
+        };
+        for t in surface.band.clone() {
+            let [a, b, c] = surface.mesh.triangle_positions(t);
+            let centroid = (a + b + c) / 3.0;
+            assert!(on_plane(a) && on_plane(b) && on_plane(c), "{a} {b} {c}");
+            assert!((clip.x_min_mm..=clip.x_max_mm).contains(&centroid.x));
+        }
+        let front_normal_z: f64 = surface
+            .front
+            .clone()
+            .map(|t| surface.mesh.triangle_normal(t).z)
+            .sum();
+        assert!(front_normal_z > 0.0);
+    }
+
+    #[test]
+    fn an_inward_base_or_scan_gives_the_same_outward_surface() {
+        let patch = cylinder_patch();
+        let mut flipped = patch.clone();
+        for tri in &mut flipped.triangles {
+            tri.swap(1, 2);
+        }
+        let frame = identity_frame();
+        let reference = build_closed_surface_in_box(&patch, &patch, &frame, &clip_box(), 15.0)
+            .unwrap()
+            .volume_ml;
+        for (scan, base) in [(&patch, &flipped), (&flipped, &patch), (&flipped, &flipped)] {
+            let surface =
+                build_closed_surface_in_box(scan, base, &frame, &clip_box(), 15.0).unwrap();
+            assert_closed(&surface);
+            assert!((surface.volume_ml - reference).abs() < 1e-9 * reference);
+        }
+    }
+
+    #[test]
+    fn a_hole_inside_the_box_is_an_error() {
+        let mut patch = cylinder_patch();
+        // Remove the triangles around the vertex at x = 0, y = -50.
+        let centre = (50 * 121 + 60) as u32;
+        patch.triangles.retain(|tri| !tri.contains(&centre));
+        let error = build_closed_surface_in_box(
+            &patch,
+            &cylinder_patch(),
+            &identity_frame(),
+            &clip_box(),
+            15.0,
+        )
+        .unwrap_err();
+        assert!(
+            matches!(
+                error,
+                ClosedSurfaceError::HoleInsideBox {
+                    role: SurfaceRole::Scan,
+                    vertices: 6,
+                    ..
+                }
+            ),
+            "{error}"
+        );
+        assert!(error.to_string().contains("hole"), "{error}");
+    }
+
+    #[test]
+    fn a_plane_beyond_the_border_is_an_error() {
+        let patch = cylinder_patch();
+        let beyond = ClipBox {
+            x_max_mm: 130.0,
+            ..clip_box()
+        };
+        let error = build_closed_surface_in_box(&patch, &patch, &identity_frame(), &beyond, 15.0)
+            .unwrap_err();
+        assert!(
+            matches!(
+                error,
+                ClosedSurfaceError::RunsOffBorder {
+                    role: SurfaceRole::Scan,
+                    ..
+                }
+            ),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn a_base_in_front_of_the_scan_and_bad_options_are_errors() {
+        let patch = cylinder_patch();
+        let mut in_front = patch.clone();
+        in_front.map_positions(|p| p + DVec3::Z * 30.0);
+        let frame = identity_frame();
+        let error =
+            build_closed_surface_in_box(&patch, &in_front, &frame, &clip_box(), 15.0).unwrap_err();
+        assert!(
+            matches!(error, ClosedSurfaceError::WallInFront { .. }),
+            "{error}"
+        );
+
+        for offset in [0.0, -5.0, f64::NAN] {
+            assert!(matches!(
+                build_closed_surface_in_box(&patch, &patch, &frame, &clip_box(), offset),
+                Err(ClosedSurfaceError::InvalidInput(_))
+            ));
+        }
+        let empty = ClipBox {
+            x_min_mm: 10.0,
+            x_max_mm: -10.0,
+            ..clip_box()
+        };
+        assert!(matches!(
+            build_closed_surface_in_box(&patch, &patch, &frame, &empty, 15.0),
+            Err(ClosedSurfaceError::InvalidInput(_))
+        ));
+        let missing = ClipBox {
+            x_min_mm: 500.0,
+            x_max_mm: 600.0,
+            ..clip_box()
+        };
+        assert!(matches!(
+            build_closed_surface_in_box(&patch, &patch, &frame, &missing, 15.0),
+            Err(ClosedSurfaceError::TooFewTriangles { .. })
+        ));
+    }
+}
