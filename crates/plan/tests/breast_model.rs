@@ -163,8 +163,18 @@ fn load(dir: &Path, name: &str) -> MarkedScan {
     .unwrap()
 }
 
+/// The volume added between pair1_pre and pair1_post per side (ml), from
+/// pair1_transform.json (`volume_change_ml`): the generator's own figure. Its absolute
+/// volumes (165 and 350 ml) rest on its own definition of where a breast ends, the
+/// change does not.
+const PAIR1_VOLUME_CHANGE_ML: f64 = 184.4;
+
+/// How far the measured change may be from the generator's: the two scans' cut curves
+/// are drawn through each scan's own landmarks (PSMFll moves 11 mm between them), and the
+/// right breast of the post scan has two scanner holes closed inside it.
+const VOLUME_CHANGE_TOLERANCE: f64 = 0.15;
+
 #[test]
-#[ignore = "fails: the fill-in bulges forward, volumes come out too small (see the report of issue 3)"]
 fn shared_scans_give_plausible_volumes_and_the_larger_cup_the_larger_breasts() {
     let Some(dir) = shared_scans() else { return };
     let mut volumes = Vec::new();
@@ -206,7 +216,8 @@ fn shared_scans_give_plausible_volumes_and_the_larger_cup_the_larger_breasts() {
         check_model(name, &model);
         for side in Side::BOTH {
             let volume = model.breast(side).volume_ml;
-            if !(100.0..=1200.0).contains(&volume) {
+            // pair1_pre is a small breast (about 60 ml by the cut curve).
+            if !(40.0..=1200.0).contains(&volume) {
                 failures.push(format!("{name} {side}: {volume:.1} ml"));
             }
         }
@@ -216,7 +227,18 @@ fn shared_scans_give_plausible_volumes_and_the_larger_cup_the_larger_breasts() {
     // (post) per side, by its own definition of the breast.
     let (pre, post) = (volumes[1], volumes[2]);
     println!("pair1 pre {pre:.1?} ml, post {post:.1?} ml (generator: 165 and 350 ml)");
-    assert!(post[0] > pre[0] && post[1] > pre[1]);
+    for (side, change_ml) in ["left", "right"]
+        .into_iter()
+        .zip([post[0] - pre[0], post[1] - pre[1]])
+    {
+        println!(
+            "pair1 {side}: {change_ml:.1} ml added, generator {PAIR1_VOLUME_CHANGE_ML} ml ({:+.1}%)",
+            100.0 * (change_ml / PAIR1_VOLUME_CHANGE_ML - 1.0)
+        );
+        if (change_ml / PAIR1_VOLUME_CHANGE_ML - 1.0).abs() > VOLUME_CHANGE_TOLERANCE {
+            failures.push(format!("pair1 {side}: {change_ml:.1} ml added"));
+        }
+    }
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
