@@ -7,12 +7,15 @@
 //! 1. The clip box ([`ClipBox::around_breasts`]): four planes orthogonal to the frame's
 //!    x and y axes, placed from the landmarks with margins, then moved inwards where
 //!    the scan's outer border comes closer than a clearance, so the clip never runs
-//!    off the scan.
+//!    off the scan. A lateral plane that would then cut through a nipple or a fold's
+//!    lowest point or medial end moves back out for it, down to a smaller clearance.
 //! 2. Clipping, in frame coordinates: each plane in turn splits the triangles it
 //!    crosses exactly at the plane (the split vertex gets the plane's coordinate
 //!    exactly, a vertex within a small snap distance is moved onto it, so no slivers),
 //!    keeping the inside. Only the largest connected piece is kept (drops specks).
-//!    Its border must be a single loop lying on the planes, with one corner vertex on
+//!    Where a plane grazes a bump (a breast's lateral side), the bump's cut-off tip
+//!    leaves a small border cycle entirely on that plane; it is closed by a flat cap.
+//!    The border must then be a single loop lying on the planes, with one corner vertex on
 //!    each of the four plane intersections; a loop off the planes means the box reaches
 //!    beyond the surface's border, a further loop a hole inside the box.
 //! 3. The clipped base is translated by the rear-wall offset along the posterior axis
@@ -30,6 +33,8 @@
 //! 5. Checks: watertight and 2-manifold ([`mesh::manifold_report`]), no self-intersections
 //!    ([`mesh::self_intersections`]), and a positive volume (else the wall lies in front
 //!    of the scan).
+//! 6. If clipping or stitching fails, [`build_closed_surface`] retries with the lateral
+//!    planes a millimetre further in, a few times (see there).
 //!
 //! The result is in the scan's (file) coordinates.
 //!
@@ -38,6 +43,11 @@
 //!   they cross, the build fails rather than repairs.
 //! - The wall is a translated copy, so where the chest is steep (the lateral planes)
 //!   its distance from the scan along the normal is less than the offset.
+//! - The planes are orthogonal to the frame's axes and stay inside the scan at every
+//!   height of the box. On a torso narrower at the waist than across the breasts (all
+//!   shared scans), the lateral planes therefore cut through the lateral part of the
+//!   breasts, beyond the nipples but well inside the lateral fold ends (PSMFll, PSMFlr),
+//!   which the box does not keep.
 
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks};
@@ -54,6 +64,25 @@ pub const DEFAULT_REAR_WALL_OFFSET_MM: f64 = 15.0;
 /// A clip box needs at least this many triangles of each surface inside it; fewer means
 /// the box misses the surface.
 const MIN_CLIPPED_TRIANGLES: usize = 16;
+/// The landmarks the clip box must contain. The lateral fold ends PSMFll and PSMFlr are
+/// not among them: on a torso scanned round to the side they may lie beyond the scan's
+/// silhouette at the waist, so no lateral plane inside the scan can keep them.
+const BREAST_LANDMARKS: [LandmarkName; 6] = [
+    LandmarkName::Pnl,
+    LandmarkName::Pnr,
+    LandmarkName::PSMFl,
+    LandmarkName::PSMFr,
+    LandmarkName::PSMFml,
+    LandmarkName::PSMFmr,
+];
+/// Further attempts of [`build_closed_surface`] after a failed clip or stitch, each with
+/// the lateral planes [`RETRY_STEP_MM`] further in.
+const LATERAL_RETRIES: usize = 4;
+/// See [`LATERAL_RETRIES`] (mm).
+const RETRY_STEP_MM: f64 = 1.0;
+/// How far inside a lateral plane the breast landmarks should lie (mm); see
+/// [`ClosedSurfaceOptions::min_border_clearance_mm`].
+pub const LANDMARK_MARGIN_MM: f64 = 5.0;
 /// Vertices closer to a clip plane than this fraction of the mean edge length are moved
 /// onto it (at most 2% of an edge, about 0.05 mm on a scan), so clipping leaves no
 /// sliver triangles.
@@ -74,8 +103,17 @@ pub struct ClosedSurfaceOptions {
     pub lateral_margin_mm: f64,
     /// The planes keep at least this distance from the scan's outer border (measured in
     /// the coronal plane); planes closer are moved inwards. Default 10: clear of the
-    /// ragged, noisy triangles at a scan's edge.
+    /// ragged, noisy triangles at a scan's edge, and (for the lateral planes) where the
+    /// surface still faces forward enough for the shifted wall to stay behind it.
     pub border_clearance_mm: f64,
+    /// Where the border clearance would leave a nipple or a fold's lowest point or
+    /// medial end less than [`LANDMARK_MARGIN_MM`] inside a lateral plane, that plane
+    /// moves outwards as far as the landmark needs, but keeps at least this clearance.
+    /// Default 5: on a torso narrower at the waist than across the breasts (the shared
+    /// `pair1_post`), the bottom of the box would otherwise pull the lateral planes in
+    /// through the nipples. Closer to the scan's widest point, a lateral plane meets the
+    /// side of the chest almost tangentially and the shifted wall runs into the scan.
+    pub min_border_clearance_mm: f64,
     /// How far the filled base is shifted posteriorly (mm); default
     /// [`DEFAULT_REAR_WALL_OFFSET_MM`].
     pub rear_wall_offset_mm: f64,
@@ -88,6 +126,7 @@ impl Default for ClosedSurfaceOptions {
             bottom_margin_mm: 40.0,
             lateral_margin_mm: 40.0,
             border_clearance_mm: 10.0,
+            min_border_clearance_mm: 5.0,
             rear_wall_offset_mm: DEFAULT_REAR_WALL_OFFSET_MM,
         }
     }
@@ -199,7 +238,8 @@ pub struct ClosedSurface {
 
 impl ClipBox {
     /// The planes from the landmarks and margins of `options`, moved inwards so that
-    /// they stay the clearance inside the scan's extent: each lateral plane inside the
+    /// they stay the clearance inside the scan's extent (the lateral planes down to the
+    /// minimum clearance where the breast landmarks need it): each lateral plane inside the
     /// scan's widest point at every height of the box (a torso scanned round to the back
     /// is then cut on its front; the strips behind fall off as separate pieces), then
     /// top and bottom inside its highest and lowest point at every x of the box. An error
@@ -215,6 +255,7 @@ impl ClipBox {
             ("bottom_margin_mm", options.bottom_margin_mm),
             ("lateral_margin_mm", options.lateral_margin_mm),
             ("border_clearance_mm", options.border_clearance_mm),
+            ("min_border_clearance_mm", options.min_border_clearance_mm),
         ];
         if let Some((name, value)) = margins.iter().find(|(_, v)| !v.is_finite()) {
             return Err(ClosedSurfaceError::InvalidInput(format!(
@@ -235,33 +276,32 @@ impl ClipBox {
         clip_box.check()?;
 
         let clearance = options.border_clearance_mm.max(0.0);
+        let min_clearance = options.min_border_clearance_mm.clamp(0.0, clearance);
+        let landmark_x = BREAST_LANDMARKS.map(|name| local(name).x);
+        let needed_x_min =
+            landmark_x.iter().fold(f64::INFINITY, |a, &b| a.min(b)) - LANDMARK_MARGIN_MM;
+        let needed_x_max =
+            landmark_x.iter().fold(f64::NEG_INFINITY, |a, &b| a.max(b)) + LANDMARK_MARGIN_MM;
         let local_scan: Vec<DVec3> = scan.positions.iter().map(|&p| frame.to_local(p)).collect();
-        // Lateral planes inside the scan's width at every height of the box, then top
-        // and bottom inside its height at every x of the narrowed box.
+        // Lateral planes inside the scan's width at every height of the box (by the
+        // clearance, less where the landmarks need it), then top and bottom inside its
+        // height at every x of the narrowed box.
         let (x_min, x_max) = extent_limits(&local_scan, 1, clip_box.y_min_mm, clip_box.y_max_mm, 0);
-        let lateral: f64 = std::env::var("CS_LAT").ok().and_then(|v| v.parse().ok()).unwrap_or(clearance);
-        clip_box.x_min_mm = clip_box.x_min_mm.max(x_min + lateral);
-        clip_box.x_max_mm = clip_box.x_max_mm.min(x_max - lateral);
+        clip_box.x_min_mm = clip_box
+            .x_min_mm
+            .max((x_min + clearance).min(needed_x_min))
+            .max(x_min + min_clearance);
+        clip_box.x_max_mm = clip_box
+            .x_max_mm
+            .min((x_max - clearance).max(needed_x_max))
+            .min(x_max - min_clearance);
         let (y_min, y_max) = extent_limits(&local_scan, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
         clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
         clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
 
-        // The breast landmarks the box must keep (the lateral fold ends may lie beyond
-        // the scan's silhouette on a torso scanned round to the back).
-        let breast_landmarks = [
-            LandmarkName::Pnl,
-            LandmarkName::Pnr,
-            LandmarkName::PSMFl,
-            LandmarkName::PSMFr,
-            LandmarkName::PSMFml,
-            LandmarkName::PSMFmr,
-        ];
-        if let Some(name) = breast_landmarks
-            .into_iter()
-            .find(|&name| !clip_box.contains(local(name)))
-        {
+        if let Some(name) = clip_box.left_out(frame, landmarks) {
             return Err(ClosedSurfaceError::InvalidInput(format!(
-                "the scan does not extend {clearance} mm beyond the breasts: kept clear of \
+                "the scan does not extend {min_clearance} mm beyond the breasts: kept clear of \
                  its border, the clip box (x {:.1} to {:.1} mm, y {:.1} to {:.1} mm in the \
                  anatomical frame) leaves out landmark {}",
                 clip_box.x_min_mm,
@@ -272,6 +312,13 @@ impl ClipBox {
             )));
         }
         Ok(clip_box)
+    }
+
+    /// The first of [`BREAST_LANDMARKS`] outside the box, if any.
+    fn left_out(&self, frame: &AnatomicalFrame, landmarks: &Landmarks) -> Option<LandmarkName> {
+        BREAST_LANDMARKS
+            .into_iter()
+            .find(|&name| !self.contains(frame.to_local(landmarks.get(name))))
     }
 
     fn check(&self) -> Result<(), ClosedSurfaceError> {
@@ -323,6 +370,14 @@ impl ClipBox {
 
 /// The clip box from the landmarks ([`ClipBox::around_breasts`]), then
 /// [`build_closed_surface_in_box`].
+///
+/// A lateral plane that meets the side of the chest almost tangentially (below a large
+/// breast, where the surface runs nearly along the plane) can leave the shifted wall
+/// touching the band or the scan's cut curve crossing the wall's; a millimetre further
+/// in, the same surface usually closes. So if the clip or the stitch fails, the build is
+/// tried again with both lateral planes [`RETRY_STEP_MM`] further in, up to
+/// [`LATERAL_RETRIES`] times while the box keeps the breast landmarks; the error is the
+/// first attempt's.
 pub fn build_closed_surface(
     scan: &TriMesh,
     filled_base: &TriMesh,
@@ -330,14 +385,40 @@ pub fn build_closed_surface(
     landmarks: &Landmarks,
     options: &ClosedSurfaceOptions,
 ) -> Result<ClosedSurface, ClosedSurfaceError> {
-    let clip_box = ClipBox::around_breasts(scan, frame, landmarks, options)?;
-    build_closed_surface_in_box(
-        scan,
-        filled_base,
-        frame,
-        &clip_box,
-        options.rear_wall_offset_mm,
-    )
+    let mut clip_box = ClipBox::around_breasts(scan, frame, landmarks, options)?;
+    let mut first_error = None;
+    for _ in 0..=LATERAL_RETRIES {
+        let error = match build_closed_surface_in_box(
+            scan,
+            filled_base,
+            frame,
+            &clip_box,
+            options.rear_wall_offset_mm,
+        ) {
+            Ok(surface) => return Ok(surface),
+            Err(error) => error,
+        };
+        let retry = matches!(
+            error,
+            ClosedSurfaceError::RunsOffBorder { .. }
+                | ClosedSurfaceError::MissingCorners { .. }
+                | ClosedSurfaceError::Stitch(_)
+                | ClosedSurfaceError::NotWatertight(_)
+                | ClosedSurfaceError::SelfIntersecting { .. }
+        );
+        if first_error.is_none() {
+            first_error = Some(error);
+        }
+        if !retry {
+            break;
+        }
+        clip_box.x_min_mm += RETRY_STEP_MM;
+        clip_box.x_max_mm -= RETRY_STEP_MM;
+        if clip_box.left_out(frame, landmarks).is_some() || clip_box.check().is_err() {
+            break;
+        }
+    }
+    Err(first_error.expect("at least one attempt"))
 }
 
 /// Clips `scan` and `filled_base` (both open, with the same outer border region) by
@@ -508,6 +589,7 @@ impl ClippedPart {
             triangles,
             border: Vec::new(),
         };
+        part.cap_islands()?;
         part.border = part.single_border_loop()?;
         Ok(part)
     }
@@ -524,6 +606,70 @@ impl ClippedPart {
             .enumerate()
             .filter(|(_, plane)| p[plane.axis] == plane.value)
             .fold(0, |mask, (i, _)| mask | (1 << i))
+    }
+
+    /// Closes the holes a plane leaves where it grazes the surface: where a bump (a
+    /// breast's lateral side, say) pokes through a plane by a little, clipping cuts its
+    /// tip off and leaves a small border cycle lying entirely on that plane, apart from
+    /// the main border or touching it at a vertex. The tip is replaced by its section, a
+    /// flat cap on the plane (a constrained Delaunay triangulation of the cycle), as
+    /// clipping a solid does. The cycle must enclose material (the skin's inside, behind
+    /// the scan or in front of the filled base), so the cap faces out of the box; a
+    /// cycle around air (a pocket) is an error.
+    fn cap_islands(&mut self) -> Result<(), ClosedSurfaceError> {
+        let mesh = TriMesh::new(self.positions.clone(), self.triangles.clone());
+        let loops = Topology::new(&mesh).boundary_loops(&mesh);
+        // +1 if the triangles face away from the material: an anterior-facing scan, or
+        // a posterior-facing base.
+        let faces_anteriorly = self.anterior_area() > 0.0;
+        let away_from_material = match (self.role, faces_anteriorly) {
+            (SurfaceRole::Scan, true) | (SurfaceRole::FilledBase, false) => 1.0,
+            _ => -1.0,
+        };
+        let mut caps = Vec::new();
+        for island in loops.iter().flat_map(|walk| simple_cycles(walk)) {
+            let on_all = island
+                .iter()
+                .fold(0b1111u8, |mask, &v| mask & self.plane_mask(v));
+            if on_all == 0 || island.len() < 3 {
+                continue;
+            }
+            let plane = on_all.trailing_zeros() as usize;
+            let name = PLANE_NAMES[plane];
+            let cap = triangulate_in_plane(&self.positions, plane, &island).map_err(|defect| {
+                ClosedSurfaceError::Stitch(format!(
+                    "where the {} grazes the {name} plane, its section {}",
+                    self.role,
+                    defect.describe("crosses itself", "touches itself")
+                ))
+            })?;
+            let clip = self.planes[plane];
+            let normal: f64 = cap
+                .iter()
+                .map(|tri| {
+                    let [a, b, c] = tri.map(|v| self.positions[v as usize]);
+                    (b - a).cross(c - a)[clip.axis]
+                })
+                .sum();
+            // Towards the clipped-away side, as the triangles face.
+            let out_of_box = if clip.keep_above { -normal } else { normal };
+            if out_of_box * away_from_material <= 0.0 {
+                let center = island
+                    .iter()
+                    .map(|&v| self.positions[v as usize])
+                    .sum::<DVec3>()
+                    / island.len() as f64;
+                let [x, y, z] = self.to_file(center);
+                return Err(ClosedSurfaceError::Stitch(format!(
+                    "the {} passes through the {name} plane around a pocket of air near \
+                     ({x:.1}, {y:.1}, {z:.1}) mm; move the plane",
+                    self.role
+                )));
+            }
+            caps.extend(cap);
+        }
+        self.triangles.extend(caps);
+        Ok(())
     }
 
     /// The border loop, which must be the only one and lie on the planes.
@@ -557,14 +703,6 @@ impl ClippedPart {
                         near_mm: self.to_file(middle),
                     });
                 }
-            }
-        }
-        if std::env::var_os("CS_DEBUG").is_some() {
-            for l in &loops {
-                let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-                for &v in l { lo = lo.min(self.positions[v as usize]); hi = hi.max(self.positions[v as usize]); }
-                let masks: std::collections::BTreeMap<u8, usize> = l.iter().fold(Default::default(), |mut m, &v| { *m.entry(self.plane_mask(v)).or_default() += 1; m });
-                eprintln!("{role} loop {} vertices, bounds {lo:.1} {hi:.1}, masks {masks:?}", l.len());
             }
         }
         match <[Vec<u32>; 1]>::try_from(loops) {
@@ -650,6 +788,30 @@ impl ClippedPart {
         };
         Ok([a, b, c, d])
     }
+}
+
+/// A closed walk (the last vertex followed by the first) split at its repeated
+/// vertices into simple cycles, each in walk order: `[a, b, c, d, b, e]` gives
+/// `[b, c, d]` and `[a, b, e]`.
+fn simple_cycles(walk: &[u32]) -> Vec<Vec<u32>> {
+    let mut cycles = Vec::new();
+    let mut stack: Vec<u32> = Vec::with_capacity(walk.len());
+    let mut position: HashMap<u32, usize> = HashMap::new();
+    for &v in walk {
+        if let Some(&at) = position.get(&v) {
+            let cycle: Vec<u32> = stack.drain(at..).collect();
+            for u in &cycle {
+                position.remove(u);
+            }
+            cycles.push(cycle);
+        }
+        position.insert(v, stack.len());
+        stack.push(v);
+    }
+    if !stack.is_empty() {
+        cycles.push(stack);
+    }
+    cycles
 }
 
 /// Triangles of `triangles` clipped to the kept side of `plane`. Vertices within `snap`
@@ -760,9 +922,49 @@ fn band_on_side(
     front: &[u32],
     back: &[u32],
 ) -> Result<Vec<[u32; 3]>, ClosedSurfaceError> {
-    let name = PLANE_NAMES[plane];
     let polygon: Vec<u32> = front.iter().chain(back.iter().rev()).copied().collect();
-    // In-plane coordinates: along the side, and anterior.
+    triangulate_in_plane(positions, plane, &polygon).map_err(|defect| {
+        ClosedSurfaceError::Stitch(format!(
+            "on the {} plane {}",
+            PLANE_NAMES[plane],
+            defect.describe(
+                "the scan's cut curve and the shifted wall's cross",
+                "a point of the scan's cut curve coincides with one of the wall's"
+            )
+        ))
+    })
+}
+
+/// Why a polygon on a clip plane could not be triangulated.
+enum PolygonDefect {
+    /// A coordinate spade refuses.
+    Invalid(String),
+    /// Two edges cross.
+    Crossing,
+    /// Two corners coincide.
+    Coincident,
+}
+
+impl PolygonDefect {
+    fn describe(&self, crossing: &str, coincident: &str) -> String {
+        match self {
+            PolygonDefect::Invalid(error) => format!("has an invalid coordinate ({error})"),
+            PolygonDefect::Crossing => crossing.to_string(),
+            PolygonDefect::Coincident => coincident.to_string(),
+        }
+    }
+}
+
+/// The triangles of the simple polygon `polygon` (vertex indices into `positions`, all
+/// on `plane`, an index into [`ClipBox::planes`]): a constrained Delaunay triangulation
+/// of its corners without new vertices, oriented against the polygon's sense, so the
+/// triangles run against the polygon's edges.
+fn triangulate_in_plane(
+    positions: &[DVec3],
+    plane: usize,
+    polygon: &[u32],
+) -> Result<Vec<[u32; 3]>, PolygonDefect> {
+    // In-plane coordinates: along the plane's side of the box, and anterior.
     let along = 1 - [0, 0, 1, 1][plane];
     let flat: Vec<DVec2> = polygon
         .iter()
@@ -792,18 +994,12 @@ fn band_on_side(
         ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(vertices, edges, |_| {
             conflict = true
         })
-        .map_err(|error| {
-            ClosedSurfaceError::Stitch(format!("invalid coordinate on the {name} plane ({error})"))
-        })?;
+        .map_err(|error| PolygonDefect::Invalid(error.to_string()))?;
     if conflict {
-        return Err(ClosedSurfaceError::Stitch(format!(
-            "on the {name} plane the scan's cut curve and the shifted wall's cross"
-        )));
+        return Err(PolygonDefect::Crossing);
     }
     if cdt.num_vertices() != n {
-        return Err(ClosedSurfaceError::Stitch(format!(
-            "on the {name} plane a point of the scan's cut curve coincides with one of the wall's"
-        )));
+        return Err(PolygonDefect::Coincident);
     }
     Ok(cdt
         .inner_faces()
@@ -986,6 +1182,61 @@ mod tests {
             "{error}"
         );
         assert!(error.to_string().contains("hole"), "{error}");
+    }
+
+    #[test]
+    fn walks_split_into_simple_cycles() {
+        assert_eq!(simple_cycles(&[1, 2, 3]), vec![vec![1, 2, 3]]);
+        assert_eq!(
+            simple_cycles(&[1, 2, 3, 4, 2, 5]),
+            vec![vec![2, 3, 4], vec![1, 2, 5]]
+        );
+        // Pinched at the first vertex, and nested.
+        assert_eq!(
+            simple_cycles(&[1, 2, 3, 1, 4, 5, 6, 5, 7]),
+            vec![vec![1, 2, 3], vec![5, 6], vec![1, 4, 5, 7]]
+        );
+    }
+
+    #[test]
+    fn a_bump_grazing_a_plane_is_capped_flat() {
+        // One vertex of the scan (at x = 76 mm, 3.1 mm inside the left plane) pushed
+        // 3.5 mm out, past the plane: its tip is cut off, leaving a small hole on the
+        // plane, apart from the border, that the cap closes.
+        let mut scan = cylinder_patch();
+        let bump = (50 * 121 + 98) as usize;
+        assert_eq!(scan.positions[bump].x, 76.0);
+        scan.positions[bump].x += 3.5;
+        let clip = clip_box();
+        let frame = identity_frame();
+        let surface =
+            build_closed_surface_in_box(&scan, &cylinder_patch(), &frame, &clip, 15.0).unwrap();
+        assert_closed(&surface);
+        // Triangles lying in the left plane off the band: the cap.
+        let cap: Vec<usize> = surface
+            .front
+            .clone()
+            .filter(|&t| {
+                surface
+                    .mesh
+                    .triangle_positions(t)
+                    .iter()
+                    .all(|p| p.x == clip.x_max_mm)
+            })
+            .collect();
+        assert!(!cap.is_empty());
+        for &t in &cap {
+            assert!(
+                surface.mesh.triangle_normal(t).x > 0.99,
+                "the cap faces out"
+            );
+        }
+        // The bump adds a sliver of volume to the slab.
+        let reference =
+            build_closed_surface_in_box(&cylinder_patch(), &cylinder_patch(), &frame, &clip, 15.0)
+                .unwrap();
+        let added = surface.volume_ml - reference.volume_ml;
+        assert!(added > 0.0 && added < 0.01, "{added} ml");
     }
 
     #[test]

@@ -87,6 +87,30 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Build the breast model (cut curves, breast patches, fill-ins, breast and quadrant
+    /// volumes) and the closed surface, and write them to MODEL_DIR.
+    Model {
+        #[arg(long, value_name = "SCAN")]
+        scan: PathBuf,
+        #[arg(long, value_name = "JSON")]
+        landmarks: PathBuf,
+        /// The model folder (created if needed).
+        #[arg(long, value_name = "MODEL_DIR")]
+        out: PathBuf,
+        /// Cut-curve control points to use instead of the defaults from the landmarks
+        /// (the format of MODEL_DIR/control_points.json).
+        #[arg(long, value_name = "JSON")]
+        control_points: Option<PathBuf>,
+        /// Where the upper control point lies on the on-surface line from Pc to Pn
+        /// (between 0 and 1).
+        #[arg(long, value_name = "R", default_value_t = plan::model::DEFAULT_PC_RATIO, value_parser = open_unit_interval)]
+        pc_ratio: f64,
+        /// How far the filled base is shifted back to form the rear wall (mm).
+        #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REAR_WALL_OFFSET_MM, value_parser = positive)]
+        rear_wall_offset_mm: f64,
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 fn main() -> ExitCode {
@@ -102,13 +126,21 @@ fn main() -> ExitCode {
     }
 }
 
-/// The error and its causes on one line, outermost first.
+/// The error and its causes on one line, outermost first. A cause whose message the
+/// previous one already ends with (errors that print their source) is not repeated.
 fn one_line(error: &anyhow::Error) -> String {
-    error
-        .chain()
-        .map(|e| e.to_string())
-        .collect::<Vec<_>>()
-        .join(": ")
+    let mut line = String::new();
+    for cause in error.chain() {
+        let message = cause.to_string();
+        if line.ends_with(&message) {
+            continue;
+        }
+        if !line.is_empty() {
+            line += ": ";
+        }
+        line += &message;
+    }
+    line
 }
 
 fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
@@ -189,6 +221,32 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 Ok(())
             }
         }
+        Command::Model {
+            scan,
+            landmarks,
+            out,
+            control_points,
+            pc_ratio,
+            rear_wall_offset_mm,
+            json,
+        } => {
+            let marked = plan::MarkedScan::load(&scan, &landmarks, progress)?;
+            let mut options = plan::model::ModelOptions {
+                control_points_file: control_points,
+                ..Default::default()
+            };
+            options.breast.pc_ratio = pc_ratio;
+            options.closed_surface.rear_wall_offset_mm = rear_wall_offset_mm;
+            let model = plan::model::build_model(&marked, &options, progress)?;
+            let report = plan::model::write_model(&out, &model, progress)?;
+            progress.finish();
+            if json {
+                print_json(&report)
+            } else {
+                print!("{}", summary::model(&report));
+                Ok(())
+            }
+        }
     }
 }
 
@@ -201,6 +259,22 @@ fn unit_interval(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(x) if (0.0..=1.0).contains(&x) => Ok(x),
         _ => Err(format!("expected a number from 0 to 1, got {text:?}")),
+    }
+}
+
+fn open_unit_interval(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if x > 0.0 && x < 1.0 => Ok(x),
+        _ => Err(format!(
+            "expected a number between 0 and 1 (exclusive), got {text:?}"
+        )),
+    }
+}
+
+fn positive(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if x > 0.0 && x.is_finite() => Ok(x),
+        _ => Err(format!("expected a number > 0, got {text:?}")),
     }
 }
 

@@ -2,6 +2,7 @@
 
 use plan::Distance;
 use plan::demo::DemoReport;
+use plan::model::ModelReport;
 use plan::register::RegisterReport;
 use std::fmt::Write;
 
@@ -79,11 +80,73 @@ pub fn demo(report: &DemoReport) -> String {
     out += &registration(&report.registration);
     let _ = writeln!(
         out,
-        "error against the known motion: {:.4} deg, {:.3} mm\n\nfiles:",
+        "error against the known motion: {:.4} deg, {:.3} mm\n",
         report.registration_error_deg, report.registration_error_mm
+    );
+    out += "breast model:\n";
+    out += &model_figures(&report.model);
+    let _ = writeln!(
+        out,
+        "breast volume against the phantom's truth: left {:+.1}%, right {:+.1}%\n\nfiles:",
+        report.breast_volume_error_percent.left, report.breast_volume_error_percent.right
     );
     for file in &report.files {
         let _ = writeln!(out, "  {}", file.display());
+    }
+    out
+}
+
+/// The breast and closed-surface figures of a model.
+fn model_figures(report: &ModelReport) -> String {
+    let mut out = format!(
+        "{:<6} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}\n",
+        "breast", "volume ml", "UO ml", "UI ml", "LI ml", "LO ml", "stitch deg"
+    );
+    for (side, volume, quadrants, stitch) in [
+        (
+            "left",
+            report.breast_volume_ml.left,
+            &report.quadrant_volume_ml.left,
+            report.max_stitch_angle_deg.left,
+        ),
+        (
+            "right",
+            report.breast_volume_ml.right,
+            &report.quadrant_volume_ml.right,
+            report.max_stitch_angle_deg.right,
+        ),
+    ] {
+        let _ = writeln!(
+            out,
+            "{side:<6} {volume:>10.1} {:>10.1} {:>10.1} {:>10.1} {:>10.1} {stitch:>10.1}",
+            quadrants.upper_outer,
+            quadrants.upper_inner,
+            quadrants.lower_inner,
+            quadrants.lower_outer,
+        );
+    }
+    let counts = &report.counts;
+    let _ = writeln!(
+        out,
+        "closed surface: {:.1} ml, {} triangles, rear wall = filled base shifted {:.1} mm back\n\
+         scan holes closed: {}; built in {:.0} ms (breast model {:.0} ms, closed surface {:.0} ms)",
+        report.closed_surface_volume_ml,
+        counts.closed_surface_triangles,
+        report.rear_wall_offset_mm,
+        report.holes_closed.len(),
+        report.timings.total_ms,
+        report.timings.breast_model_ms,
+        report.timings.closed_surface_ms,
+    );
+    out
+}
+
+/// What `model` built and where the files are.
+pub fn model(report: &ModelReport) -> String {
+    let mut out = model_figures(report);
+    let _ = writeln!(out, "\nfiles in {}:", report.out_dir.display());
+    for file in &report.files {
+        let _ = writeln!(out, "  {file}");
     }
     out
 }

@@ -214,3 +214,184 @@ fn register_writes_the_registered_scan_and_reports_json() {
         .collect();
     assert!(leftovers.is_empty());
 }
+
+/// The files `model` writes into its folder.
+const MODEL_FILES: [&str; 10] = [
+    "closed_surface.ply",
+    "breast_left.ply",
+    "breast_right.ply",
+    "fill_left.ply",
+    "fill_right.ply",
+    "filled_base.ply",
+    "cut_curve_left.obj",
+    "cut_curve_right.obj",
+    "control_points.json",
+    "model.json",
+];
+
+/// `mammaplan model --json` with extra arguments.
+fn model(scan: &Path, landmarks: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "model",
+        "--scan",
+        scan.to_str().unwrap(),
+        "--landmarks",
+        landmarks.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ];
+    args.extend(extra);
+    mammaplan(&args)
+}
+
+#[test]
+fn model_writes_every_file_and_the_volumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scan, landmarks) = phantom(dir.path());
+    let out = dir.path().join("model");
+    let output = model(&scan, &landmarks, &out, &[]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("stdout is JSON");
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("model.json")).unwrap()).unwrap();
+    assert_eq!(json, written, "model.json holds what --json prints");
+    for side in ["left", "right"] {
+        let volume = json["breast_volume_ml"][side].as_f64().unwrap();
+        assert!(volume > 50.0, "{side}: {volume} ml");
+        let quadrants = &json["quadrant_volume_ml"][side];
+        let sum: f64 = ["upper_outer", "upper_inner", "lower_inner", "lower_outer"]
+            .iter()
+            .map(|q| quadrants[q].as_f64().unwrap())
+            .sum();
+        assert!(
+            (sum - volume).abs() < 0.005 * volume,
+            "{side}: {sum} vs {volume}"
+        );
+        assert!(json["max_stitch_angle_deg"][side].as_f64().is_some());
+    }
+    let closed = json["closed_surface_volume_ml"].as_f64().unwrap();
+    assert!(closed > json["breast_volume_ml"]["left"].as_f64().unwrap());
+    for key in [
+        "clip_box",
+        "rear_wall_offset_mm",
+        "holes_closed",
+        "counts",
+        "timings",
+    ] {
+        assert!(json.get(key).is_some(), "{key} missing");
+    }
+    for file in MODEL_FILES {
+        assert!(out.join(file).is_file(), "{file} missing");
+    }
+    let files: Vec<&str> = json["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    assert_eq!(files, MODEL_FILES);
+    let leftovers: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+        .collect();
+    assert!(leftovers.is_empty());
+    // A cut curve: one vertex per point and one closed line through them.
+    let curve = std::fs::read_to_string(out.join("cut_curve_left.obj")).unwrap();
+    let points = curve.lines().filter(|l| l.starts_with("v ")).count();
+    let line: Vec<&str> = curve.lines().filter(|l| l.starts_with("l ")).collect();
+    assert_eq!(
+        points,
+        json["counts"]["cut_curve_points"]["left"].as_u64().unwrap() as usize
+    );
+    assert_eq!(line.len(), 1);
+    assert_eq!(line[0].split_whitespace().count(), points + 2);
+
+    // The control points written back give the same model.
+    let again = dir.path().join("again");
+    let control_points = out.join("control_points.json");
+    let output = model(
+        &scan,
+        &landmarks,
+        &again,
+        &["--control-points", control_points.to_str().unwrap()],
+    );
+    assert!(output.status.success(), "{}", stderr(&output));
+    let json_again: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    for side in ["left", "right"] {
+        let (a, b) = (
+            json["breast_volume_ml"][side].as_f64().unwrap(),
+            json_again["breast_volume_ml"][side].as_f64().unwrap(),
+        );
+        assert!((a - b).abs() < 1e-3 * a, "{side}: {a} vs {b} ml");
+    }
+}
+
+#[test]
+fn bad_model_input_fails_cleanly_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scan, landmarks) = phantom(dir.path());
+    let out = dir.path().join("model");
+
+    let control_points = dir.path().join("cp.json");
+    std::fs::write(&control_points, "{\"units\":\"mm\",\"left\":[[0,0,0]]").unwrap();
+    let output = model(
+        &scan,
+        &landmarks,
+        &out,
+        &["--control-points", control_points.to_str().unwrap()],
+    );
+    assert_clean_failure(&output, "control point file");
+    assert!(stderr(&output).contains("cp.json: not valid JSON"));
+    assert!(output.stdout.is_empty());
+    assert!(!out.exists());
+
+    // PSMFml and PSMFll swapped: the left cut curve runs back across itself.
+    let swapped = dir.path().join("swapped.json");
+    std::fs::copy(&landmarks, &swapped).unwrap();
+    edit_landmarks(&swapped, |json| {
+        let landmarks = &mut json["landmarks"];
+        let medial = landmarks["PSMFml"].take();
+        landmarks["PSMFml"] = landmarks["PSMFll"].take();
+        landmarks["PSMFll"] = medial;
+    });
+    let output = model(&scan, &swapped, &out, &[]);
+    assert_clean_failure(
+        &output,
+        "left breast: the cut curve cannot be laid on the scan: the curve crosses or touches itself",
+    );
+    assert!(!out.exists());
+
+    edit_landmarks(&landmarks, |json| {
+        json["landmarks"].as_object_mut().unwrap().remove("PSMFll");
+    });
+    let output = model(&scan, &landmarks, &out, &[]);
+    assert_clean_failure(&output, "missing required landmark PSMFll");
+    assert!(!out.exists());
+
+    assert_clean_failure(
+        &model(&scan, &landmarks, &out, &["--pc-ratio", "1.5"]),
+        "expected a number between 0 and 1",
+    );
+    assert_clean_failure(
+        &model(&scan, &landmarks, &out, &["--rear-wall-offset-mm", "0"]),
+        "expected a number > 0",
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn demo_builds_the_model_and_compares_it_with_the_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = mammaplan(&["demo", "--out", dir.path().to_str().unwrap(), "--json"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    for side in ["left", "right"] {
+        let error = json["breast_volume_error_percent"][side].as_f64().unwrap();
+        assert!(error.abs() < 25.0, "{side}: {error}%");
+    }
+    for file in MODEL_FILES {
+        assert!(dir.path().join("model").join(file).is_file(), "{file}");
+    }
+}

@@ -2,6 +2,7 @@
 //! the pipeline run end to end on it.
 
 use crate::measure::{MeasureReport, measure};
+use crate::model::{ModelOptions, ModelReport, PerSide, build_model, write_model};
 use crate::register::{RegisterReport, register, write_registered_mesh};
 use crate::{MarkedScan, Progress, Scan};
 use anatomy::register::RigidTransform;
@@ -53,6 +54,10 @@ pub struct DemoReport {
     /// Error of the recovered transform against the known one.
     pub registration_error_deg: f64,
     pub registration_error_mm: f64,
+    /// The breast model of the phantom, written to `model/`.
+    pub model: ModelReport,
+    /// Its breast volumes against the phantom's truth (per cent, signed).
+    pub breast_volume_error_percent: PerSide<f64>,
     pub files: Vec<PathBuf>,
 }
 
@@ -69,7 +74,8 @@ fn follow_up_motion() -> RigidTransform {
 }
 
 /// Runs the pipeline on the phantom into `out_dir`: phantom scan, measurements, a second
-/// noisy scan in a moved frame, and its registration back onto the first.
+/// noisy scan in a moved frame and its registration back onto the first, and the breast
+/// model of the first (in `out_dir/model`).
 pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let path = |name: &str| out_dir.join(name);
@@ -125,6 +131,15 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
     files.extend([path("followup_registered.ply"), path("registration.json")]);
     progress.step();
 
+    let model = build_model(&fixed, &ModelOptions::default(), progress)?;
+    let model = write_model(&path("model"), &model, progress)?;
+    files.extend(model.files.iter().map(|name| path("model").join(name)));
+    let truth = phantom.breast_volume_ml;
+    let breast_volume_error_percent = PerSide {
+        left: 100.0 * (model.breast_volume_ml.left / truth.left - 1.0),
+        right: 100.0 * (model.breast_volume_ml.right / truth.right - 1.0),
+    };
+
     let error = transform.after(&motion);
     Ok(DemoReport {
         out_dir: out_dir.to_path_buf(),
@@ -138,6 +153,8 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
         registration,
         registration_error_deg: error.rotation_angle_deg(),
         registration_error_mm: error.translation.length(),
+        model,
+        breast_volume_error_percent,
         files,
     })
 }

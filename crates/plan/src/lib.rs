@@ -1,9 +1,10 @@
-//! The orchestration layer: loading scans and landmarks, measuring, registering and the
-//! demo pipeline. Both front ends (CLI, GUI) call only this crate; it holds the glue, the
-//! algorithms live in the stage crates below it.
+//! The orchestration layer: loading scans and landmarks, measuring, registering, the
+//! breast model and the demo pipeline. Both front ends (CLI, GUI) call only this crate;
+//! it holds the glue, the algorithms live in the stage crates below it.
 
 pub mod demo;
 pub mod measure;
+pub mod model;
 pub mod register;
 pub mod scan;
 

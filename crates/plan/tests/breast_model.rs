@@ -315,7 +315,9 @@ fn user_control_points_move_the_curve() {
     assert_eq!(model.left.control_points.len(), defaults.left.len() + 1);
     // The curve bulges out there: the breast patch grows.
     assert!(model.left.patch.mesh.area() > default_model.left.patch.mesh.area() + 100.0);
-    assert_eq!(model.right.volume_ml, default_model.right.volume_ml);
+    // The right breast barely notices: its fill-in's chest cylinder is fitted to the base
+    // within 40 mm around its hole, which reaches the left curve's medial end.
+    assert!((model.right.volume_ml / default_model.right.volume_ml - 1.0).abs() < 1e-3);
     // The defaults are what `build_breast_model` uses without control points.
     let plain = build(&phantom.scan, &phantom.landmarks, &BreastOptions::default()).unwrap();
     assert_eq!(plain.left.volume_ml, default_model.left.volume_ml);

@@ -1,0 +1,385 @@
+//! `mammaplan model`: the breast model of a scan (cut curves, breast patches, fill-ins,
+//! breast and quadrant volumes) and the closed surface around the breasts, and the model
+//! folder a researcher opens.
+//!
+//! The model folder holds:
+//! - `closed_surface.ply`: the watertight surface the finite elements will fill;
+//! - `breast_left.ply`, `breast_right.ply`: the breast patches (skin inside each curve);
+//! - `fill_left.ply`, `fill_right.ply`: the fill-ins behind the breasts (rear wall);
+//! - `filled_base.ply`: the scan without the breasts, with both fill-ins stitched in;
+//! - `cut_curve_left.obj`, `cut_curve_right.obj`: each cut curve as a closed polyline
+//!   (OBJ `v` and `l` records; ParaView, MeshLab and Blender open them as lines);
+//! - `control_points.json`: the control points used, snapped to the surface, in the
+//!   control-point file format, so a user can move some and pass the file back with
+//!   `--control-points`;
+//! - `model.json`: the figures ([`ModelReport`]), written last.
+//!
+//! Every file is written to a temporary name and renamed; the folder is only created
+//! once the model is built, so a failed build writes nothing.
+
+use crate::measure::HoleSummary;
+use crate::{MarkedScan, Progress};
+use anatomy::breast::{BreastModel, QuadrantVolumes, Side};
+use anatomy::closed_surface::{ClosedSurface, ClosedSurfaceOptions, build_closed_surface};
+use anatomy::{BreastOptions, ControlPoints, build_breast_model};
+use anyhow::{Context, Result};
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub use anatomy::breast::DEFAULT_PC_RATIO;
+pub use anatomy::closed_surface::DEFAULT_REAR_WALL_OFFSET_MM;
+
+/// Settings of [`build_model`].
+#[derive(Debug, Clone, Default)]
+pub struct ModelOptions {
+    /// Cut curves, fill-ins, volumes. Its `control_points` are replaced by the file's
+    /// when `control_points_file` is set.
+    pub breast: BreastOptions,
+    /// Clip planes and rear-wall offset of the closed surface.
+    pub closed_surface: ClosedSurfaceOptions,
+    /// A control-point file (`{"units":"mm","left":[[x,y,z],...],"right":[...]}`, the
+    /// format of `control_points.json` in a model folder).
+    pub control_points_file: Option<PathBuf>,
+}
+
+/// A patient's model: both breasts with the rear wall, and the closed surface.
+pub struct PatientModel {
+    pub scan_path: PathBuf,
+    pub landmarks_path: PathBuf,
+    pub control_points_file: Option<PathBuf>,
+    /// The upper control point ratio used (unless the control points came from a file).
+    pub pc_ratio: f64,
+    pub breasts: BreastModel,
+    pub closed_surface: ClosedSurface,
+    pub scan_vertices: usize,
+    pub scan_triangles: usize,
+    pub timings: ModelTimings,
+}
+
+/// Wall-clock time of the steps (ms).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ModelTimings {
+    /// Cut curves, cutting, fill-ins, volumes.
+    pub breast_model_ms: f64,
+    /// Clipping, shifting, stitching and the watertightness checks.
+    pub closed_surface_ms: f64,
+    pub total_ms: f64,
+}
+
+/// Left and right values.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct PerSide<T> {
+    pub left: T,
+    pub right: T,
+}
+
+impl<T> PerSide<T> {
+    fn from_fn(mut f: impl FnMut(Side) -> T) -> PerSide<T> {
+        PerSide {
+            left: f(Side::Left),
+            right: f(Side::Right),
+        }
+    }
+}
+
+/// The clip planes of the closed surface, as coordinates in the anatomical frame (mm):
+/// `x` towards the patient's left, `y` up.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ClipBoxReport {
+    pub x_min_mm: f64,
+    pub x_max_mm: f64,
+    pub y_min_mm: f64,
+    pub y_max_mm: f64,
+}
+
+/// A scanner hole inside a breast region, closed by the fill-in.
+#[derive(Debug, Clone, Serialize)]
+pub struct BreastHoleSummary {
+    pub side: &'static str,
+    pub perimeter_mm: f64,
+    pub centre_mm: [f64; 3],
+}
+
+/// Sizes of the meshes.
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelCounts {
+    pub scan_vertices: usize,
+    pub scan_triangles: usize,
+    pub control_points: PerSide<usize>,
+    pub cut_curve_points: PerSide<usize>,
+    pub breast_triangles: PerSide<usize>,
+    pub fill_triangles: PerSide<usize>,
+    pub filled_base_triangles: usize,
+    pub closed_surface_vertices: usize,
+    pub closed_surface_triangles: usize,
+    /// Of the closed surface's triangles: the clipped scan, the shifted wall, the band.
+    pub closed_surface_front_triangles: usize,
+    pub closed_surface_back_wall_triangles: usize,
+    pub closed_surface_band_triangles: usize,
+}
+
+/// The JSON of `model` and the content of `model.json` (GUIDE section 5; the keys
+/// `levels` and `min_dihedral_deg` come with the tetrahedral meshes).
+#[derive(Debug, Clone, Serialize)]
+pub struct ModelReport {
+    pub scan: String,
+    pub landmarks: String,
+    /// The control-point file given, if any.
+    pub control_points_file: Option<String>,
+    pub breast_volume_ml: PerSide<f64>,
+    pub quadrant_volume_ml: PerSide<QuadrantVolumes>,
+    pub closed_surface_volume_ml: f64,
+    /// The largest angle between neighbouring face normals across each fill-in's stitch
+    /// to the base (degrees): how smoothly the rear wall continues the chest.
+    pub max_stitch_angle_deg: PerSide<f64>,
+    pub cut_curve_length_mm: PerSide<f64>,
+    /// The upper control point's ratio along Pc-Pn (unused with a control-point file).
+    pub pc_ratio: f64,
+    pub rear_wall_offset_mm: f64,
+    pub clip_box: ClipBoxReport,
+    /// Scanner holes closed before cutting.
+    pub holes_closed: Vec<HoleSummary>,
+    /// Of those, the ones inside a breast region (small dropouts, closed by the fill-in).
+    pub holes_in_breasts: Vec<BreastHoleSummary>,
+    /// Holes away from the breasts that stay open.
+    pub holes_left_open: Vec<HoleSummary>,
+    pub counts: ModelCounts,
+    pub timings: ModelTimings,
+    /// The model folder and the files written into it (names).
+    pub out_dir: PathBuf,
+    pub files: Vec<String>,
+}
+
+/// Builds the breast model and the closed surface of a scan with its landmarks.
+/// Errors about one breast start with its name ("left breast: ...").
+pub fn build_model(
+    marked: &MarkedScan,
+    options: &ModelOptions,
+    progress: &dyn Progress,
+) -> Result<PatientModel> {
+    let start = Instant::now();
+    let scan = &marked.scan;
+    let mut breast_options = options.breast.clone();
+    if let Some(path) = &options.control_points_file {
+        breast_options.control_points = Some(ControlPoints::read(path)?);
+    }
+    progress.stage("model", 2);
+    let breasts = build_breast_model(
+        &scan.mesh,
+        &scan.topology,
+        &scan.index,
+        &marked.frame,
+        &marked.landmarks,
+        &breast_options,
+    )
+    .with_context(|| {
+        format!(
+            "{} with {}",
+            scan.path.display(),
+            marked.landmarks_path.display()
+        )
+    })?;
+    let breast_model_ms = elapsed_ms(start);
+    progress.step();
+    for hole in &breasts.holes_left_open {
+        progress.warn(&format!(
+            "{}: a hole of {:.0} mm perimeter near {:.0?} stays open ({})",
+            scan.path.display(),
+            hole.perimeter_mm,
+            hole.centre,
+            hole.reason
+        ));
+    }
+    for hole in &breasts.holes_in_breasts {
+        progress.warn(&format!(
+            "{}: a scanner hole of {:.0} mm perimeter inside the {} breast near {:.0?} was closed by the fill-in",
+            scan.path.display(),
+            hole.perimeter_mm,
+            hole.side,
+            hole.centre
+        ));
+    }
+
+    let closed_start = Instant::now();
+    let closed_surface = build_closed_surface(
+        &breasts.surface,
+        &breasts.filled_base,
+        &marked.frame,
+        &marked.landmarks,
+        &options.closed_surface,
+    )
+    .with_context(|| scan.path.display().to_string())?;
+    let closed_surface_ms = elapsed_ms(closed_start);
+    progress.step();
+
+    Ok(PatientModel {
+        scan_path: scan.path.clone(),
+        landmarks_path: marked.landmarks_path.clone(),
+        control_points_file: options.control_points_file.clone(),
+        pc_ratio: breast_options.pc_ratio,
+        breasts,
+        closed_surface,
+        scan_vertices: scan.mesh.vertex_count(),
+        scan_triangles: scan.mesh.triangle_count(),
+        timings: ModelTimings {
+            breast_model_ms,
+            closed_surface_ms,
+            total_ms: elapsed_ms(start),
+        },
+    })
+}
+
+fn elapsed_ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
+
+impl PatientModel {
+    /// The control points used (snapped to the surface), as a control-point file holds
+    /// them.
+    pub fn control_points(&self) -> ControlPoints {
+        ControlPoints {
+            left: self.breasts.left.control_points.clone(),
+            right: self.breasts.right.control_points.clone(),
+        }
+    }
+
+    /// The figures of the model; `out_dir` and `files` say where it is written.
+    pub fn report(&self, out_dir: &Path, files: Vec<String>) -> ModelReport {
+        let model = &self.breasts;
+        let closed = &self.closed_surface;
+        let clip = closed.clip_box;
+        let hole = |perimeter_mm: f64, centre_mm: [f64; 3]| HoleSummary {
+            perimeter_mm,
+            centre_mm,
+        };
+        ModelReport {
+            scan: self.scan_path.display().to_string(),
+            landmarks: self.landmarks_path.display().to_string(),
+            control_points_file: self
+                .control_points_file
+                .as_ref()
+                .map(|p| p.display().to_string()),
+            breast_volume_ml: PerSide::from_fn(|side| model.breast(side).volume_ml),
+            quadrant_volume_ml: PerSide::from_fn(|side| model.breast(side).quadrant_volume_ml),
+            closed_surface_volume_ml: closed.volume_ml,
+            max_stitch_angle_deg: PerSide::from_fn(|side| model.max_stitch_angle_deg(side)),
+            cut_curve_length_mm: PerSide::from_fn(|side| model.breast(side).curve.length_mm()),
+            pc_ratio: self.pc_ratio,
+            rear_wall_offset_mm: closed.rear_wall_offset_mm,
+            clip_box: ClipBoxReport {
+                x_min_mm: clip.x_min_mm,
+                x_max_mm: clip.x_max_mm,
+                y_min_mm: clip.y_min_mm,
+                y_max_mm: clip.y_max_mm,
+            },
+            holes_closed: model.holes_closed.iter().map(HoleSummary::from).collect(),
+            holes_in_breasts: model
+                .holes_in_breasts
+                .iter()
+                .map(|h| BreastHoleSummary {
+                    side: h.side.name(),
+                    perimeter_mm: h.perimeter_mm,
+                    centre_mm: h.centre,
+                })
+                .collect(),
+            holes_left_open: model
+                .holes_left_open
+                .iter()
+                .map(|h| hole(h.perimeter_mm, h.centre))
+                .collect(),
+            counts: ModelCounts {
+                scan_vertices: self.scan_vertices,
+                scan_triangles: self.scan_triangles,
+                control_points: PerSide::from_fn(|side| model.breast(side).control_points.len()),
+                cut_curve_points: PerSide::from_fn(|side| model.breast(side).curve.points.len()),
+                breast_triangles: PerSide::from_fn(|side| {
+                    model.breast(side).patch.mesh.triangle_count()
+                }),
+                fill_triangles: PerSide::from_fn(|side| {
+                    model.breast(side).fill.mesh.triangle_count()
+                }),
+                filled_base_triangles: model.filled_base.triangle_count(),
+                closed_surface_vertices: closed.mesh.vertex_count(),
+                closed_surface_triangles: closed.mesh.triangle_count(),
+                closed_surface_front_triangles: closed.front.len(),
+                closed_surface_back_wall_triangles: closed.back_wall.len(),
+                closed_surface_band_triangles: closed.band.len(),
+            },
+            timings: self.timings,
+            out_dir: out_dir.to_path_buf(),
+            files,
+        }
+    }
+}
+
+/// Writes the model folder (see the module documentation), creating it if needed, and
+/// returns the report that `model.json` holds. Every file is written atomically;
+/// `model.json` comes last.
+pub fn write_model(
+    out_dir: &Path,
+    model: &PatientModel,
+    progress: &dyn Progress,
+) -> Result<ModelReport> {
+    std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let breasts = &model.breasts;
+    let meshes = [
+        ("closed_surface.ply", &model.closed_surface.mesh),
+        ("breast_left.ply", &breasts.left.patch.mesh),
+        ("breast_right.ply", &breasts.right.patch.mesh),
+        ("fill_left.ply", &breasts.left.fill.mesh),
+        ("fill_right.ply", &breasts.right.fill.mesh),
+        ("filled_base.ply", &breasts.filled_base),
+    ];
+    progress.stage("write", meshes.len() as u64 + 4);
+    let mut files = Vec::new();
+    for (name, mesh) in meshes {
+        mesh::io::write_mesh(&out_dir.join(name), mesh)?;
+        files.push(name.to_string());
+        progress.step();
+    }
+    for side in Side::BOTH {
+        let name = format!("cut_curve_{side}.obj");
+        let points: Vec<_> = breasts
+            .breast(side)
+            .curve
+            .points
+            .iter()
+            .map(|p| p.position)
+            .collect();
+        write_closed_polyline(&out_dir.join(&name), &points)?;
+        files.push(name);
+        progress.step();
+    }
+    model
+        .control_points()
+        .write(&out_dir.join("control_points.json"))?;
+    files.push("control_points.json".into());
+    progress.step();
+    files.push("model.json".into());
+    let report = model.report(out_dir, files);
+    crate::demo::write_json(&out_dir.join("model.json"), &report)?;
+    progress.step();
+    Ok(report)
+}
+
+/// Writes a closed polyline as an OBJ file: one `v` per point and one `l` record
+/// through all of them back to the first.
+pub fn write_closed_polyline(path: &Path, points: &[mesh::DVec3]) -> Result<()> {
+    mesh::io::write_atomically(path, |w| {
+        writeln!(w, "# mammaplan cut curve, {} points (mm)", points.len())?;
+        for p in points {
+            writeln!(w, "v {} {} {}", p.x, p.y, p.z)?;
+        }
+        if !points.is_empty() {
+            write!(w, "l")?;
+            for k in (1..=points.len()).chain([1]) {
+                write!(w, " {k}")?;
+            }
+            writeln!(w)?;
+        }
+        Ok(())
+    })?;
+    Ok(())
+}

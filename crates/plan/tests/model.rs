@@ -1,0 +1,101 @@
+//! `plan::model`: the model folder of the phantom and of every shared scan, with the
+//! closed surface read back from `closed_surface.ply` and checked to be watertight,
+//! 2-manifold, outward and free of self-intersections.
+//!
+//! Run with `cargo test --release -p plan --test model -- --nocapture` for the figures.
+
+use mesh::{Topology, manifold_report, self_intersections};
+use phantom::PhantomParams;
+use plan::model::{ModelOptions, ModelReport, build_model, write_model};
+use plan::{MarkedScan, Scan, Silent};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Builds and writes the model, checks the closed surface as written, prints the figures.
+fn build_write_check(name: &str, marked: &MarkedScan, out: &Path) -> ModelReport {
+    let model = build_model(marked, &ModelOptions::default(), &Silent)
+        .unwrap_or_else(|e| panic!("{name}: {e:#}"));
+    let report = write_model(out, &model, &Silent).unwrap();
+    let closed = mesh::io::read_mesh(&out.join("closed_surface.ply")).unwrap();
+    let start = Instant::now();
+    let manifold = manifold_report(&closed, &Topology::new(&closed));
+    let crossings = self_intersections(&closed);
+    let check_ms = start.elapsed().as_secs_f64() * 1e3;
+    let volume_ml = closed.signed_volume() / 1000.0;
+    println!(
+        "{name}: breasts left {:.1} ml, right {:.1} ml; closed surface {:.1} ml \
+         ({} triangles, box x {:.1}..{:.1} y {:.1}..{:.1} mm); {manifold}; \
+         {} self-intersecting pairs; stitch angles {:.1}° / {:.1}°; \
+         built in {:.0} ms (breasts {:.0}, closed surface {:.0}); checked in {check_ms:.0} ms",
+        report.breast_volume_ml.left,
+        report.breast_volume_ml.right,
+        report.closed_surface_volume_ml,
+        closed.triangle_count(),
+        report.clip_box.x_min_mm,
+        report.clip_box.x_max_mm,
+        report.clip_box.y_min_mm,
+        report.clip_box.y_max_mm,
+        crossings.len(),
+        report.max_stitch_angle_deg.left,
+        report.max_stitch_angle_deg.right,
+        report.timings.total_ms,
+        report.timings.breast_model_ms,
+        report.timings.closed_surface_ms,
+    );
+    assert!(manifold.is_watertight_manifold(), "{name}: {manifold}");
+    assert!(crossings.is_empty(), "{name}: {crossings:?}");
+    assert!(volume_ml > 0.0, "{name}: {volume_ml} ml");
+    assert!(
+        (volume_ml - report.closed_surface_volume_ml).abs() < 1e-6 * volume_ml,
+        "{name}: the file's volume {volume_ml} ml"
+    );
+    report
+}
+
+#[test]
+fn phantom_model_folder() {
+    let phantom = phantom::generate(&PhantomParams::default());
+    let dir = tempfile::tempdir().unwrap();
+    let marked = MarkedScan::new(
+        Scan::from_mesh(phantom.scan.clone(), Path::new("phantom.ply")).unwrap(),
+        phantom.landmarks.clone(),
+        Path::new("phantom.json"),
+        &Silent,
+    )
+    .unwrap();
+    let report = build_write_check("phantom", &marked, dir.path());
+    for file in &report.files {
+        assert!(dir.path().join(file).is_file(), "{file}");
+    }
+    // The control points come back from their file unchanged.
+    let points = anatomy::ControlPoints::read(&dir.path().join("control_points.json")).unwrap();
+    assert_eq!(points.left.len(), report.counts.control_points.left);
+}
+
+fn shared_scans() -> Option<PathBuf> {
+    let dir = PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/scans"
+    ));
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!("skipped: {} not found", dir.display());
+        None
+    }
+}
+
+#[test]
+fn every_shared_scan_gives_a_watertight_closed_surface() {
+    let Some(dir) = shared_scans() else { return };
+    let out = tempfile::tempdir().unwrap();
+    for name in ["v02_average", "pair1_pre", "pair1_post"] {
+        let marked = MarkedScan::load(
+            &dir.join(format!("{name}.ply")),
+            &dir.join(format!("{name}_landmarks.json")),
+            &Silent,
+        )
+        .unwrap();
+        build_write_check(name, &marked, &out.path().join(name));
+    }
+}
