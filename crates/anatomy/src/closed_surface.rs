@@ -504,7 +504,8 @@ pub fn build_closed_surface_in_box(
         });
     }
     let volume_ml = mesh.signed_volume() / 1000.0;
-    if volume_ml <= 0.0 {
+    let wall_behind_scan = volume_ml > 0.0;
+    if !wall_behind_scan {
         return Err(ClosedSurfaceError::WallInFront { volume_ml });
     }
     Ok(ClosedSurface {

@@ -76,7 +76,7 @@ pub fn close_scan_holes(scan: &TriMesh, topology: &Topology) -> ClosedScan {
     }
 }
 
-fn loop_length(mesh: &TriMesh, boundary: &[u32]) -> f64 {
+pub(crate) fn loop_length(mesh: &TriMesh, boundary: &[u32]) -> f64 {
     (0..boundary.len())
         .map(|i| {
             let next = boundary[(i + 1) % boundary.len()];

@@ -102,8 +102,8 @@ enum Command {
         #[arg(long, value_name = "JSON")]
         control_points: Option<PathBuf>,
         /// Where the upper control point lies on the on-surface line from Pc to Pn
-        /// (between 0 and 1).
-        #[arg(long, value_name = "R", default_value_t = plan::model::DEFAULT_PC_RATIO, value_parser = open_unit_interval)]
+        /// (between 0 and 1); not with --control-points.
+        #[arg(long, value_name = "R", default_value_t = plan::model::DEFAULT_PC_RATIO, value_parser = open_unit_interval, conflicts_with = "control_points")]
         pc_ratio: f64,
         /// How far the filled base is shifted back to form the rear wall (mm).
         #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REAR_WALL_OFFSET_MM, value_parser = positive)]

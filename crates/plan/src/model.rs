@@ -131,12 +131,17 @@ pub struct ModelReport {
     pub breast_volume_ml: PerSide<f64>,
     pub quadrant_volume_ml: PerSide<QuadrantVolumes>,
     pub closed_surface_volume_ml: f64,
-    /// The largest angle between neighbouring face normals across each fill-in's stitch
-    /// to the base (degrees): how smoothly the rear wall continues the chest.
+    /// The largest angle across each fill-in's stitch to the base between the base's and
+    /// the fill-in's normals, each averaged over 3 mm (degrees): how smoothly the rear
+    /// wall continues the chest.
     pub max_stitch_angle_deg: PerSide<f64>,
+    /// The same between the two single triangles at each stitch edge (degrees); on a
+    /// noisy scan this is the scan's own roughness.
+    pub max_stitch_angle_single_triangles_deg: PerSide<f64>,
     pub cut_curve_length_mm: PerSide<f64>,
-    /// The upper control point's ratio along Pc-Pn (unused with a control-point file).
-    pub pc_ratio: f64,
+    /// The upper control point's ratio along Pc-Pn; `None` when the control points
+    /// came from a file.
+    pub pc_ratio: Option<f64>,
     pub rear_wall_offset_mm: f64,
     pub clip_box: ClipBoxReport,
     /// Scanner holes closed before cutting.
@@ -265,8 +270,11 @@ impl PatientModel {
             quadrant_volume_ml: PerSide::from_fn(|side| model.breast(side).quadrant_volume_ml),
             closed_surface_volume_ml: closed.volume_ml,
             max_stitch_angle_deg: PerSide::from_fn(|side| model.max_stitch_angle_deg(side)),
+            max_stitch_angle_single_triangles_deg: PerSide::from_fn(|side| {
+                model.max_stitch_angle_raw_deg(side)
+            }),
             cut_curve_length_mm: PerSide::from_fn(|side| model.breast(side).curve.length_mm()),
-            pc_ratio: self.pc_ratio,
+            pc_ratio: self.control_points_file.is_none().then_some(self.pc_ratio),
             rear_wall_offset_mm: closed.rear_wall_offset_mm,
             clip_box: ClipBoxReport {
                 x_min_mm: clip.x_min_mm,
@@ -323,6 +331,14 @@ pub fn write_model(
     progress: &dyn Progress,
 ) -> Result<ModelReport> {
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    // An old model.json would vouch for a folder this write may leave half replaced.
+    let report_path = out_dir.join("model.json");
+    match std::fs::remove_file(&report_path) {
+        Err(error) if error.kind() != std::io::ErrorKind::NotFound => {
+            return Err(error).with_context(|| format!("removing {}", report_path.display()));
+        }
+        _ => {}
+    }
     let breasts = &model.breasts;
     let meshes = [
         ("closed_surface.ply", &model.closed_surface.mesh),
@@ -359,7 +375,7 @@ pub fn write_model(
     progress.step();
     files.push("model.json".into());
     let report = model.report(out_dir, files);
-    crate::demo::write_json(&out_dir.join("model.json"), &report)?;
+    crate::demo::write_json(&report_path, &report)?;
     progress.step();
     Ok(report)
 }

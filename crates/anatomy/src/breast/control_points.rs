@@ -56,9 +56,8 @@ impl ControlPoints {
     /// the curve through it cuts off breast tissue until a user moves it. Instead, seen
     /// from the front with the nipple Pn at the centre, the lateral point lies on the
     /// bisector of the directions to the upper point and PSMFl (through the lateral side),
-    /// as far out as the farther of the two, since the breast reaches farthest towards the
-    /// axilla; the medial point lies likewise between the upper point and PSMFm, at the
-    /// mean of their distances, as the breasts approach each other over the sternum. Both
+    /// at the mean of their distances from Pn; the medial point lies likewise between the
+    /// upper point and PSMFm, as the breasts approach each other over the sternum. Both
     /// are put on the surface by a ray from the front. Landmarks are expected on the
     /// surface.
     pub fn from_landmarks(
@@ -98,13 +97,9 @@ impl ControlPoints {
                 below_fold(names.fold_medial),
                 below_fold(names.fold_lowest),
                 at(names.fold_lateral),
-                around.between(upper, at(names.fold_lateral), lateral_direction, |a, b| {
-                    0.5 * (a + b)
-                }),
+                around.between(upper, at(names.fold_lateral), lateral_direction),
                 upper,
-                around.between(upper, at(names.fold_medial), -lateral_direction, |a, b| {
-                    0.5 * (a + b)
-                }),
+                around.between(upper, at(names.fold_medial), -lateral_direction),
             ])
         };
         Ok(ControlPoints {
@@ -195,8 +190,8 @@ struct AroundNipple<'a> {
 impl AroundNipple<'_> {
     /// The surface point seen from the front on the bisector of the directions from the
     /// nipple to `a` and `b` that points towards `side` (a coronal direction), at the
-    /// distance `radius(|a|, |b|)` from the nipple (distances in the coronal plane).
-    fn between(&self, a: DVec3, b: DVec3, side: DVec3, radius: impl Fn(f64, f64) -> f64) -> DVec3 {
+    /// mean of their distances from the nipple (in the coronal plane).
+    fn between(&self, a: DVec3, b: DVec3, side: DVec3) -> DVec3 {
         let anterior = self.frame.anterior();
         let coronal = |p: DVec3| {
             let d = p - self.nipple;
@@ -211,7 +206,7 @@ impl AroundNipple<'_> {
         } else {
             bisector
         };
-        self.seen_from_front(self.nipple + bisector * radius(a.length(), b.length()))
+        self.seen_from_front(self.nipple + bisector * 0.5 * (a.length() + b.length()))
     }
 
     /// The first surface point on the ray along the posterior direction through `target`

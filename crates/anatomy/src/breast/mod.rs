@@ -36,7 +36,7 @@ use crate::fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks, MAX_SNAP_DISTANCE_MM};
 use crate::measure::MeasuredSurface;
-use crate::scan_holes::{ClosedHole, OpenHole, close_scan_holes};
+use crate::scan_holes::{ClosedHole, OpenHole, close_scan_holes, loop_length};
 use glam::DVec3;
 use mesh::{
     CurveError, CutError, CutMesh, MeshPart, PathError, Region, SurfaceCurve, SurfaceIndex,
@@ -293,6 +293,10 @@ pub enum BreastError {
         source: FillInError,
     },
     #[error(
+        "{side} breast: the breast surface is not closed ({open_edges} open edges): a scanner hole inside the breast could not be filled; rescan or move the cut curve"
+    )]
+    BreastOpen { side: Side, open_edges: usize },
+    #[error(
         "{side} breast: the closed breast surface encloses {volume_ml:.1} ml; the cut curve does not enclose the breast"
     )]
     NotEnclosed { side: Side, volume_ml: f64 },
@@ -377,9 +381,21 @@ pub fn build_breast_model(
             .map_err(|source| BreastError::FillIn { side, source })?;
         let patch = cut_mesh.part(Region::Inside(curve_index));
         let to_patch = inverse_map(&patch.vertex_map, cut_mesh.mesh.vertex_count());
+        if let Some(&v) = cut_loop
+            .iter()
+            .find(|&&v| to_patch[v as usize] == NOT_IN_PART)
+        {
+            let position = cut_mesh.mesh.positions[v as usize].to_array();
+            return Err(BreastError::CurveOnBorder { side, position });
+        }
         let closed = close_patch(&patch.mesh, &fill, cut_loop, &to_patch);
+        let open_edges = Topology::new(&closed).boundary_edge_count;
+        if open_edges > 0 {
+            return Err(BreastError::BreastOpen { side, open_edges });
+        }
         let volume_ml = closed.signed_volume() / 1000.0;
-        if volume_ml.is_nan() || volume_ml <= 0.0 {
+        let encloses = volume_ml > 0.0;
+        if !encloses {
             return Err(BreastError::NotEnclosed { side, volume_ml });
         }
         let names = side.landmark_names();
@@ -594,7 +610,7 @@ fn holes_in_breasts(scan: &TriMesh, topology: &Topology, cut: &CutMesh) -> Vec<B
     let mut loops: Vec<(f64, Vec<u32>)> = topology
         .boundary_loops(scan)
         .into_iter()
-        .map(|l| (loop_perimeter_mm(scan, &l), l))
+        .map(|l| (loop_length(scan, &l), l))
         .collect();
     if loops.len() < 2 {
         return Vec::new();
@@ -632,17 +648,6 @@ fn holes_in_breasts(scan: &TriMesh, topology: &Topology, cut: &CutMesh) -> Vec<B
         }
     }
     holes
-}
-
-/// Length (mm) of a closed loop of vertices.
-fn loop_perimeter_mm(mesh: &TriMesh, vertices: &[u32]) -> f64 {
-    let n = vertices.len();
-    (0..n)
-        .map(|i| {
-            mesh.positions[vertices[i] as usize]
-                .distance(mesh.positions[vertices[(i + 1) % n] as usize])
-        })
-        .sum()
 }
 
 /// The breast error of a failed cut.

@@ -61,13 +61,13 @@ enum Quadrant {
 pub struct QuadrantLines {
     /// The nipple Pn, start of every line and apex of the cones.
     pub nipple: DVec3,
-    /// Pc: the line up.
+    /// Pc (Pcl or Pcr): the line up, through the upper control point.
     pub upper: DVec3,
-    /// PSMFl: the line to the lower lateral side.
+    /// The fold's lateral end (PSMFll or PSMFlr): the line to the lower lateral side.
     pub lateral: DVec3,
-    /// PSMF: the line down.
+    /// The fold's lowest point (PSMFl or PSMFr): the line down.
     pub lower: DVec3,
-    /// PSMFm: the line to the lower medial side.
+    /// The fold's medial end (PSMFml or PSMFmr): the line to the lower medial side.
     pub medial: DVec3,
 }
 
@@ -77,7 +77,7 @@ pub enum QuadrantError {
     #[error("{0} lies on the nipple's anterior axis: the line to it has no direction")]
     OnAxis(&'static str),
     #[error(
-        "the lines from the nipple to Pc, PSMFl, PSMF and PSMFm do not run around it in that order (seen from the front)"
+        "the lines from the nipple to the clavicle point, the fold's lateral end, its lowest point and its medial end do not run around it in that order (seen from the front)"
     )]
     OutOfOrder,
 }
@@ -108,10 +108,10 @@ pub fn quadrant_volumes_ml(
             .ok_or(QuadrantError::OnAxis(name))
     };
     let ends = [
-        direction(lines.upper, "Pc")?,
-        direction(lines.lateral, "PSMFl")?,
-        direction(lines.lower, "PSMF")?,
-        direction(lines.medial, "PSMFm")?,
+        direction(lines.upper, "the clavicle point")?,
+        direction(lines.lateral, "the fold's lateral end")?,
+        direction(lines.lower, "the fold's lowest point")?,
+        direction(lines.medial, "the fold's medial end")?,
     ];
     let boundaries = wedge_boundaries(ends)?;
     // The full plane through the axis and each line end; a piece of a triangle on one
@@ -306,7 +306,7 @@ mod tests {
         lines.upper = lines.nipple + DVec3::Z;
         assert_eq!(
             quadrant_volumes_ml(&sphere, &lines, DVec3::Z),
-            Err(QuadrantError::OnAxis("Pc"))
+            Err(QuadrantError::OnAxis("the clavicle point"))
         );
     }
 }
