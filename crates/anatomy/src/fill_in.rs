@@ -32,7 +32,7 @@
 //!   loop's plane. Over the plane, rows ending there need near-vertical end tangents and
 //!   the fill-in bulged forward (on the phantom up to 13 mm in front of the true chest
 //!   wall, the breast volume 26% low); over the fitted cylinder the same rows are gentle
-//!   (phantom: within 1.4 to 3.7 mm of the true wall, volumes within 3%).
+//!   (phantom: within 0.7 to 3.4 mm of the true wall, volumes within 2.3%).
 //! - Each spline is the paper's 3D Hermite curve (in the lattice line's vertical plane,
 //!   unit base tangents scaled by the chord), but a lattice point takes the curve's height
 //!   where the curve passes over it rather than at its parameter value. Lattice points
