@@ -108,6 +108,9 @@ enum Command {
         /// How far the filled base is shifted back to form the rear wall (mm).
         #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REAR_WALL_OFFSET_MM, value_parser = positive)]
         rear_wall_offset_mm: f64,
+        /// About how many tetrahedra the finest mesh level has (within about 20%).
+        #[arg(long, value_name = "N", default_value_t = plan::model::DEFAULT_ELEMENTS, value_parser = positive_integer)]
+        elements: usize,
         #[arg(long)]
         json: bool,
     },
@@ -228,11 +231,13 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             control_points,
             pc_ratio,
             rear_wall_offset_mm,
+            elements,
             json,
         } => {
             let marked = plan::MarkedScan::load(&scan, &landmarks, progress)?;
             let mut options = plan::model::ModelOptions {
                 control_points_file: control_points,
+                elements,
                 ..Default::default()
             };
             options.breast.pc_ratio = pc_ratio;
@@ -275,6 +280,13 @@ fn positive(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(x) if x > 0.0 && x.is_finite() => Ok(x),
         _ => Err(format!("expected a number > 0, got {text:?}")),
+    }
+}
+
+fn positive_integer(text: &str) -> Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if n > 0 => Ok(n),
+        _ => Err(format!("expected a whole number > 0, got {text:?}")),
     }
 }
 

@@ -129,7 +129,8 @@ fn model_figures(report: &ModelReport) -> String {
     let _ = writeln!(
         out,
         "closed surface: {:.1} ml, {} triangles, rear wall = filled base shifted {:.1} mm back\n\
-         scan holes closed: {}; built in {:.0} ms (breast model {:.0} ms, closed surface {:.0} ms)",
+         scan holes closed: {}; built in {:.0} ms (breast model {:.0} ms, closed surface {:.0} ms, \
+         tetrahedra {:.0} ms)",
         report.closed_surface_volume_ml,
         counts.closed_surface_triangles,
         report.rear_wall_offset_mm,
@@ -137,7 +138,25 @@ fn model_figures(report: &ModelReport) -> String {
         report.timings.total_ms,
         report.timings.breast_model_ms,
         report.timings.closed_surface_ms,
+        report.timings.tetrahedra_ms,
     );
+    let _ = writeln!(
+        out,
+        "{:<10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "tet level", "elements", "nodes", "spacing mm", "volume ml", "min deg", "max deg"
+    );
+    for (l, level) in report.levels.iter().enumerate() {
+        let _ = writeln!(
+            out,
+            "{l:<10} {:>10} {:>10} {:>10.2} {:>10.1} {:>10.1} {:>10.1}",
+            level.elements,
+            level.nodes,
+            level.spacing_mm,
+            level.volume_ml,
+            level.min_dihedral_deg,
+            level.max_dihedral_deg,
+        );
+    }
     out
 }
 

@@ -216,13 +216,16 @@ fn register_writes_the_registered_scan_and_reports_json() {
 }
 
 /// The files `model` writes into its folder.
-const MODEL_FILES: [&str; 10] = [
+const MODEL_FILES: [&str; 13] = [
     "closed_surface.ply",
     "breast_left.ply",
     "breast_right.ply",
     "fill_left.ply",
     "fill_right.ply",
     "filled_base.ply",
+    "tets_level0.vtu",
+    "tets_level1.vtu",
+    "tets_level2.vtu",
     "cut_curve_left.obj",
     "cut_curve_right.obj",
     "control_points.json",
@@ -278,11 +281,26 @@ fn model_writes_every_file_and_the_volumes() {
         "holes_closed",
         "counts",
         "timings",
+        "min_dihedral_deg",
     ] {
         assert!(json.get(key).is_some(), "{key} missing");
     }
     for file in MODEL_FILES {
         assert!(out.join(file).is_file(), "{file} missing");
+    }
+    let levels = json["levels"].as_array().unwrap();
+    assert_eq!(levels.len(), 3);
+    for level in levels {
+        for key in [
+            "elements",
+            "nodes",
+            "spacing_mm",
+            "min_dihedral_deg",
+            "max_dihedral_deg",
+            "volume_ml",
+        ] {
+            assert!(level.get(key).is_some(), "levels: {key} missing");
+        }
     }
     let files: Vec<&str> = json["files"]
         .as_array()
@@ -377,6 +395,10 @@ fn bad_model_input_fails_cleanly_and_writes_nothing() {
     assert_clean_failure(
         &model(&scan, &landmarks, &out, &["--rear-wall-offset-mm", "0"]),
         "expected a number > 0",
+    );
+    assert_clean_failure(
+        &model(&scan, &landmarks, &out, &["--elements", "0"]),
+        "expected a whole number > 0",
     );
     assert!(!out.exists());
 }

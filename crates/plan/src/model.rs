@@ -1,5 +1,6 @@
 //! `mammaplan model`: the breast model of a scan (cut curves, breast patches, fill-ins,
-//! breast and quadrant volumes) and the closed surface around the breasts, and the model
+//! breast and quadrant volumes), the closed surface around the breasts, its tetrahedral
+//! meshes (a hierarchy of [`TET_LEVELS`] levels for the multigrid solver), and the model
 //! folder a researcher opens.
 //!
 //! The model folder holds:
@@ -9,6 +10,8 @@
 //! - `filled_base.ply`: the scan without the breasts, with both fill-ins stitched in;
 //! - `cut_curve_left.obj`, `cut_curve_right.obj`: each cut curve as a closed polyline
 //!   (OBJ `v` and `l` records; ParaView, MeshLab and Blender open them as lines);
+//! - `tets_level0.vtu`, `tets_level1.vtu`, ...: the tetrahedral meshes of the closed
+//!   surface, level 0 the finest (VTK XML unstructured grids; ParaView opens them);
 //! - `control_points.json`: the control points used, snapped to the surface, in the
 //!   control-point file format, so a user can move some and pass the file back with
 //!   `--control-points`;
@@ -31,8 +34,14 @@ use std::time::Instant;
 pub use anatomy::breast::DEFAULT_PC_RATIO;
 pub use anatomy::closed_surface::DEFAULT_REAR_WALL_OFFSET_MM;
 
+/// Default number of tetrahedra of the finest level (`--elements`).
+pub const DEFAULT_ELEMENTS: usize = 60_000;
+/// Levels of the tetrahedral hierarchy; each coarser level has twice the lattice spacing
+/// and about 1/8 the elements.
+pub const TET_LEVELS: usize = 3;
+
 /// Settings of [`build_model`].
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct ModelOptions {
     /// Cut curves, fill-ins, volumes. Its `control_points` are replaced by the file's
     /// when `control_points_file` is set.
@@ -42,6 +51,19 @@ pub struct ModelOptions {
     /// A control-point file (`{"units":"mm","left":[[x,y,z],...],"right":[...]}`, the
     /// format of `control_points.json` in a model folder).
     pub control_points_file: Option<PathBuf>,
+    /// About how many tetrahedra the finest level has (within about 20%).
+    pub elements: usize,
+}
+
+impl Default for ModelOptions {
+    fn default() -> ModelOptions {
+        ModelOptions {
+            breast: BreastOptions::default(),
+            closed_surface: ClosedSurfaceOptions::default(),
+            control_points_file: None,
+            elements: DEFAULT_ELEMENTS,
+        }
+    }
 }
 
 /// A patient's model: both breasts with the rear wall, and the closed surface.
@@ -53,6 +75,10 @@ pub struct PatientModel {
     pub pc_ratio: f64,
     pub breasts: BreastModel,
     pub closed_surface: ClosedSurface,
+    /// Tetrahedral meshes of the closed surface, `levels[0]` the finest.
+    pub tets: tetra::Hierarchy,
+    /// The figures of each level of `tets`.
+    pub levels: Vec<LevelReport>,
     pub scan_vertices: usize,
     pub scan_triangles: usize,
     pub timings: ModelTimings,
@@ -65,7 +91,22 @@ pub struct ModelTimings {
     pub breast_model_ms: f64,
     /// Clipping, shifting, stitching and the watertightness checks.
     pub closed_surface_ms: f64,
+    /// The tetrahedral hierarchy with its quality figures.
+    pub tetrahedra_ms: f64,
     pub total_ms: f64,
+}
+
+/// One level of the tetrahedral hierarchy.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct LevelReport {
+    /// Tetrahedra.
+    pub elements: usize,
+    pub nodes: usize,
+    /// Lattice spacing (mm).
+    pub spacing_mm: f64,
+    pub min_dihedral_deg: f64,
+    pub max_dihedral_deg: f64,
+    pub volume_ml: f64,
 }
 
 /// Left and right values.
@@ -120,8 +161,7 @@ pub struct ModelCounts {
     pub closed_surface_band_triangles: usize,
 }
 
-/// The JSON of `model` and the content of `model.json` (GUIDE section 5; the keys
-/// `levels` and `min_dihedral_deg` come with the tetrahedral meshes).
+/// The JSON of `model` and the content of `model.json` (GUIDE section 5).
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelReport {
     pub scan: String,
@@ -131,6 +171,10 @@ pub struct ModelReport {
     pub breast_volume_ml: PerSide<f64>,
     pub quadrant_volume_ml: PerSide<QuadrantVolumes>,
     pub closed_surface_volume_ml: f64,
+    /// The tetrahedral meshes, level 0 the finest (`tets_level{l}.vtu`).
+    pub levels: Vec<LevelReport>,
+    /// The smallest dihedral angle over all levels (degrees).
+    pub min_dihedral_deg: f64,
     /// The largest angle across each fill-in's stitch to the base between the base's and
     /// the fill-in's normals, each averaged over 3 mm (degrees): how smoothly the rear
     /// wall continues the chest.
@@ -219,6 +263,13 @@ pub fn build_model(
     let closed_surface_ms = elapsed_ms(closed_start);
     progress.step();
 
+    progress.stage("tetrahedra", 1);
+    let tets_start = Instant::now();
+    let (tets, levels) =
+        tetrahedra(&closed_surface, options.elements).context("tetrahedral meshing")?;
+    let tetrahedra_ms = elapsed_ms(tets_start);
+    progress.step();
+
     Ok(PatientModel {
         scan_path: scan.path.clone(),
         landmarks_path: marked.landmarks_path.clone(),
@@ -226,14 +277,45 @@ pub fn build_model(
         pc_ratio: breast_options.pc_ratio,
         breasts,
         closed_surface,
+        tets,
+        levels,
         scan_vertices: scan.mesh.vertex_count(),
         scan_triangles: scan.mesh.triangle_count(),
         timings: ModelTimings {
             breast_model_ms,
             closed_surface_ms,
+            tetrahedra_ms,
             total_ms: elapsed_ms(start),
         },
     })
+}
+
+/// The [`TET_LEVELS`] tetrahedral meshes of the closed surface, the finest with about
+/// `elements` tetrahedra, and their figures. Fails on an element of non-positive volume.
+fn tetrahedra(
+    closed: &ClosedSurface,
+    elements: usize,
+) -> Result<(tetra::Hierarchy, Vec<LevelReport>)> {
+    let surface = tetra::ClosedSurface::new(&closed.mesh)?;
+    let hierarchy = tetra::build_hierarchy_with_elements(&surface, elements, TET_LEVELS)?;
+    let mut levels = Vec::with_capacity(hierarchy.levels.len());
+    for (l, level) in hierarchy.levels.iter().enumerate() {
+        let quality = tetra::quality::quality(&level.mesh);
+        anyhow::ensure!(
+            quality.min_volume_mm3 > 0.0,
+            "level {l} has a tetrahedron of volume {} mm³",
+            quality.min_volume_mm3
+        );
+        levels.push(LevelReport {
+            elements: level.mesh.tet_count(),
+            nodes: level.mesh.vertex_count(),
+            spacing_mm: level.spacing_mm,
+            min_dihedral_deg: quality.min_dihedral_deg,
+            max_dihedral_deg: quality.max_dihedral_deg,
+            volume_ml: level.mesh.volume_mm3() / 1000.0,
+        });
+    }
+    Ok((hierarchy, levels))
 }
 
 fn elapsed_ms(since: Instant) -> f64 {
@@ -269,6 +351,12 @@ impl PatientModel {
             breast_volume_ml: PerSide::from_fn(|side| model.breast(side).volume_ml),
             quadrant_volume_ml: PerSide::from_fn(|side| model.breast(side).quadrant_volume_ml),
             closed_surface_volume_ml: closed.volume_ml,
+            levels: self.levels.clone(),
+            min_dihedral_deg: self
+                .levels
+                .iter()
+                .map(|l| l.min_dihedral_deg)
+                .fold(f64::INFINITY, f64::min),
             max_stitch_angle_deg: PerSide::from_fn(|side| model.max_stitch_angle_deg(side)),
             max_stitch_angle_single_triangles_deg: PerSide::from_fn(|side| {
                 model.max_stitch_angle_raw_deg(side)
@@ -348,11 +436,19 @@ pub fn write_model(
         ("fill_right.ply", &breasts.right.fill.mesh),
         ("filled_base.ply", &breasts.filled_base),
     ];
-    progress.stage("write", meshes.len() as u64 + 4);
+    let levels = &model.tets.levels;
+    progress.stage("write", (meshes.len() + levels.len()) as u64 + 4);
     let mut files = Vec::new();
     for (name, mesh) in meshes {
         mesh::io::write_mesh(&out_dir.join(name), mesh)?;
         files.push(name.to_string());
+        progress.step();
+    }
+    for (l, level) in levels.iter().enumerate() {
+        let name = format!("tets_level{l}.vtu");
+        tetra::vtu::write_vtu(&out_dir.join(&name), &level.mesh, &[], &[])
+            .with_context(|| format!("writing {name}"))?;
+        files.push(name);
         progress.step();
     }
     for side in Side::BOTH {

@@ -1,6 +1,7 @@
 //! `plan::model`: the model folder of the phantom and of every shared scan, with the
 //! closed surface read back from `closed_surface.ply` and checked to be watertight,
-//! 2-manifold, outward and free of self-intersections.
+//! 2-manifold, outward and free of self-intersections, and the tetrahedral meshes read
+//! back from `tets_level*.vtu` and checked against the request and the closed surface.
 //!
 //! Run with `cargo test --release -p plan --test model -- --nocapture` for the figures.
 
@@ -11,10 +12,19 @@ use plan::{MarkedScan, Scan, Silent};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Builds and writes the model, checks the closed surface as written, prints the figures.
+/// Tetrahedra asked for on the finest level: the default. At 20,000 (about 9 mm spacing)
+/// the closed surface, only a few centimetres thick at its edges, loses 2.5-3.5% of its
+/// volume on level 0; at 60,000 (about 6 mm) about 1.3%. Meshing takes about 0.3 s.
+const ELEMENTS: usize = plan::model::DEFAULT_ELEMENTS;
+
+/// Builds and writes the model, checks the closed surface and the tetrahedral meshes as
+/// written, prints the figures.
 fn build_write_check(name: &str, marked: &MarkedScan, out: &Path) -> ModelReport {
-    let model = build_model(marked, &ModelOptions::default(), &Silent)
-        .unwrap_or_else(|e| panic!("{name}: {e:#}"));
+    let options = ModelOptions {
+        elements: ELEMENTS,
+        ..Default::default()
+    };
+    let model = build_model(marked, &options, &Silent).unwrap_or_else(|e| panic!("{name}: {e:#}"));
     let report = write_model(out, &model, &Silent).unwrap();
     let closed = mesh::io::read_mesh(&out.join("closed_surface.ply")).unwrap();
     let start = Instant::now();
@@ -49,7 +59,55 @@ fn build_write_check(name: &str, marked: &MarkedScan, out: &Path) -> ModelReport
         (volume_ml - report.closed_surface_volume_ml).abs() < 1e-6 * volume_ml,
         "{name}: the file's volume {volume_ml} ml"
     );
+    check_tetrahedra(name, &report, out);
     report
+}
+
+/// The `tets_level*.vtu` files match the report; level 0 has about [`ELEMENTS`]
+/// tetrahedra and the closed surface's volume; every level's dihedral angles are >= 8°.
+fn check_tetrahedra(name: &str, report: &ModelReport, out: &Path) {
+    assert_eq!(report.levels.len(), plan::model::TET_LEVELS, "{name}");
+    for (l, level) in report.levels.iter().enumerate() {
+        println!(
+            "{name}: level {l}: {} tets, {} nodes, spacing {:.2} mm, {:.1} ml, \
+             dihedral {:.1}°..{:.1}°",
+            level.elements,
+            level.nodes,
+            level.spacing_mm,
+            level.volume_ml,
+            level.min_dihedral_deg,
+            level.max_dihedral_deg
+        );
+        let file = format!("tets_level{l}.vtu");
+        assert!(report.files.contains(&file), "{name}: {file} not listed");
+        let data = tetra::vtu::read_vtu(&out.join(&file)).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(data.mesh.tet_count(), level.elements, "{name}: {file}");
+        assert_eq!(data.mesh.vertex_count(), level.nodes, "{name}: {file}");
+        assert!(
+            level.min_dihedral_deg >= 8.0,
+            "{name}: level {l} min dihedral {}°",
+            level.min_dihedral_deg
+        );
+    }
+    let finest = &report.levels[0];
+    let miss = (finest.elements as f64 - ELEMENTS as f64).abs() / ELEMENTS as f64;
+    assert!(
+        miss <= 0.2,
+        "{name}: {} tets for {ELEMENTS}",
+        finest.elements
+    );
+    let closed = report.closed_surface_volume_ml;
+    assert!(
+        (finest.volume_ml - closed).abs() <= 0.02 * closed,
+        "{name}: level 0 {} ml, closed surface {closed} ml",
+        finest.volume_ml
+    );
+    let min = report
+        .levels
+        .iter()
+        .map(|l| l.min_dihedral_deg)
+        .fold(f64::INFINITY, f64::min);
+    assert_eq!(report.min_dihedral_deg, min, "{name}");
 }
 
 #[test]
