@@ -49,6 +49,7 @@
 //!   breasts, beyond the nipples but well inside the lateral fold ends (PSMFll, PSMFlr),
 //!   which the box does not keep.
 
+use crate::fill_in::inside_polygon;
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks};
 use glam::{DVec2, DVec3};
@@ -1005,14 +1006,9 @@ fn triangulate_in_plane(
     Ok(cdt
         .inner_faces()
         .filter_map(|face| {
-            // Spade lists corners counter-clockwise. A triangle of polygon corners is
-            // inside exactly if it lists them in the polygon's cyclic order and sense: no
-            // geometry, so slivers along straight runs are classified reliably.
+            // Spade lists corners counter-clockwise.
             let corners = face.vertices().map(|v| v.fix().index());
-            let ascents = (0..3)
-                .filter(|&k| corners[k] < corners[(k + 1) % 3])
-                .count();
-            let inside = (ascents == 2) == counter_clockwise;
+            let inside = inside_polygon(corners, counter_clockwise);
             // Against the polygon's sense: clockwise if the polygon runs counter-clockwise.
             let [a, b, c] = corners.map(|k| polygon[k]);
             inside.then_some(if counter_clockwise {

@@ -1204,17 +1204,23 @@ fn triangulate(boundary: &Boundary, interior: &[DVec2]) -> Result<Vec<[u32; 3]>,
         .filter_map(|face| {
             let corners = face.vertices().map(|v| v.fix().index());
             // A triangle with a lattice corner is inside: constraints are never crossed.
-            // One with three loop corners is inside exactly if it lists them in the loop's
-            // cyclic order and sense; this needs no geometry, so slivers along straight
-            // runs of the loop are classified as reliably as spade's exact predicates.
-            let ascents = (0..3)
-                .filter(|&k| corners[k] < corners[(k + 1) % 3])
-                .count();
             let inside = corners.iter().any(|&c| c >= boundary_count)
-                || (ascents == 2) == loop_is_counter_clockwise;
+                || inside_polygon(corners, loop_is_counter_clockwise);
             inside.then(|| corners.map(|c| c as u32))
         })
         .collect())
+}
+
+/// Whether a counter-clockwise triangle of a constrained Delaunay triangulation whose
+/// three corners are polygon vertices (indices in polygon order) lies inside the polygon:
+/// exactly if it lists them in the polygon's cyclic order and sense. This needs no
+/// geometry, so slivers along straight runs of the polygon are classified as reliably as
+/// the triangulation's exact predicates.
+pub(crate) fn inside_polygon(corners: [usize; 3], polygon_counter_clockwise: bool) -> bool {
+    let ascents = (0..3)
+        .filter(|&k| corners[k] < corners[(k + 1) % 3])
+        .count();
+    (ascents == 2) == polygon_counter_clockwise
 }
 
 /// Explicit Laplace-Beltrami smoothing of the heights over the triangulated plane
