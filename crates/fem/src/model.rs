@@ -1,0 +1,454 @@
+//! The finite element model: linear tetrahedra with per-element isotropic Hooke
+//! material, rest-state shape function gradients, consistent loads, and the corotated
+//! element kinematics (rotation, stress, elastic force).
+//!
+//! Units: positions and displacements in mm, Young's modulus in kPa = mN/mm², so stresses
+//! are in kPa and forces in mN; density in kg/m³ and gravity in m/s², converted with
+//! 1 kg/m³ · 1 m/s² = 1e-6 mN/mm³.
+
+use crate::error::FemError;
+use crate::material::Material;
+use crate::polar::{polar_rotation, rotation_variant_svd};
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+use tetra::TetMesh;
+
+/// Conversion of density (kg/m³) times acceleration (m/s²) to a force density (mN/mm³).
+pub const KG_M3_TIMES_M_S2_TO_MN_MM3: f64 = 1e-6;
+
+/// Strain formulation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Formulation {
+    /// Small-strain (Cauchy) linear elasticity: `R = I` in every element.
+    Linear,
+    /// Corotated linear elasticity: the element rotation `R` of the polar decomposition
+    /// of the deformation gradient is removed before the linear strain is measured.
+    #[default]
+    Corotated,
+}
+
+/// Which tangent stiffness the corotated formulation assembles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Tangent {
+    /// `R K Rᵀ` only ("stiffness warping", the paper's and the multigrid's matrix): the
+    /// derivative of the rotation is neglected. The fixed-point iteration built on it
+    /// converges linearly, and diverges in the bending modes of slender parts under a
+    /// large tension (the missing geometric stiffness).
+    Warped,
+    /// `R K Rᵀ` plus the rotation-derivative (geometric) term of the corotated energy,
+    /// clamped to stay positive semi-definite: in the principal frame of `S = RᵀF`, the
+    /// twist mode of the axes `i, j` gets the stiffness `2 max(σᵢ + σⱼ, 0) / max(sᵢ + sⱼ,
+    /// 0.1)` (σ principal stresses, s signed singular values). Exact Newton tangent in
+    /// tension, so Newton converges quadratically there; in compression the negative
+    /// part is dropped (a positive definite approximation, as in Teran et al. 2005).
+    #[default]
+    Full,
+}
+
+/// Rest-state data of one linear tetrahedron.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElementRest {
+    /// Gradients of the four barycentric shape functions (1/mm); they sum to zero.
+    pub grad: [DVec3; 4],
+    /// Rest volume (mm³), positive.
+    pub volume_mm3: f64,
+    /// Volume times the first Lamé parameter (mN·mm).
+    pub vol_lambda: f64,
+    /// Volume times the shear modulus (mN·mm).
+    pub vol_mu: f64,
+}
+
+/// The current state of one element: its rotation, rotated shape function gradients, its
+/// (unrotated) stress and its elastic force on its four vertices.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElementState {
+    /// Element rotation (identity in [`Formulation::Linear`]).
+    pub rotation: DMat3,
+    /// `R gᵢ`: the rest gradients rotated into the current frame. The rotated element
+    /// stiffness block is `K'ᵢⱼ = V (λ hᵢ hⱼᵀ + μ hⱼ hᵢᵀ + μ (hᵢ·hⱼ) I)`.
+    pub rotated_grad: [DVec3; 4],
+    /// Internal elastic force `R K (Rᵀ x - X)` at the four vertices (mN); the force the
+    /// element exerts on a vertex is its negative.
+    pub force: [DVec3; 4],
+    /// Geometric (twist) term of [`Tangent::Full`]: for each principal axis pair
+    /// (0,1), (0,2), (1,2), per vertex `t = ½ (uᵢ (g·vⱼ) - uⱼ (g·vᵢ))`; the block
+    /// `(a, b)` gains `Σ twist_coef · t_a t_bᵀ`.
+    pub twist: [[DVec3; 4]; 3],
+    /// Volume-scaled coefficients of the twist term (mN·mm); zero for none.
+    pub twist_coef: [f64; 3],
+}
+
+/// A tetrahedral finite element model in its rest state.
+#[derive(Debug, Clone)]
+pub struct FemModel {
+    rest: Vec<DVec3>,
+    tets: Vec<[u32; 4]>,
+    materials: Vec<Material>,
+    elements: Vec<ElementRest>,
+}
+
+/// Rest data of one tetrahedron; `Err` with its signed volume if it is not positive.
+fn element_rest(p: [DVec3; 4], material: &Material) -> Result<ElementRest, f64> {
+    let dm = DMat3::from_cols(p[1] - p[0], p[2] - p[0], p[3] - p[0]);
+    let det = dm.determinant();
+    let volume = det / 6.0;
+    // relative test: a sliver far below rounding is as bad as an inverted element
+    let scale = (p[1] - p[0])
+        .length()
+        .max((p[2] - p[0]).length())
+        .max((p[3] - p[0]).length());
+    if !(volume.is_finite() && det > 1e-14 * scale * scale * scale) {
+        return Err(volume);
+    }
+    let inv = dm.inverse();
+    let g1 = inv.row(0);
+    let g2 = inv.row(1);
+    let g3 = inv.row(2);
+    let g0 = -(g1 + g2 + g3);
+    let (lambda, mu) = material.lame();
+    Ok(ElementRest {
+        grad: [g0, g1, g2, g3],
+        volume_mm3: volume,
+        vol_lambda: volume * lambda,
+        vol_mu: volume * mu,
+    })
+}
+
+impl FemModel {
+    /// A model over `mesh` with one material per tetrahedron.
+    ///
+    /// Errors: non-finite vertices, bad indices, a material out of range, an inverted or
+    /// flat rest element (each naming the first bad vertex or element).
+    pub fn new(mesh: &TetMesh, materials: Vec<Material>) -> Result<FemModel, FemError> {
+        if materials.len() != mesh.tets.len() {
+            return Err(FemError::LengthMismatch {
+                what: "materials (one per tetrahedron)",
+                expected: mesh.tets.len(),
+                got: materials.len(),
+            });
+        }
+        if let Some((vertex, p)) = mesh
+            .positions
+            .iter()
+            .enumerate()
+            .find(|(_, p)| !p.is_finite())
+        {
+            return Err(FemError::NonFiniteVertex {
+                vertex,
+                position: p.to_array(),
+            });
+        }
+        let n = mesh.positions.len();
+        for (element, t) in mesh.tets.iter().enumerate() {
+            if t.iter().any(|&v| v as usize >= n) {
+                return Err(FemError::BadElement {
+                    element,
+                    vertices: *t,
+                    reason: "vertex index out of range",
+                });
+            }
+            if (0..4).any(|a| (a + 1..4).any(|b| t[a] == t[b])) {
+                return Err(FemError::BadElement {
+                    element,
+                    vertices: *t,
+                    reason: "repeated vertex",
+                });
+            }
+        }
+        for (element, m) in materials.iter().enumerate() {
+            m.check()
+                .map_err(|what| FemError::BadMaterial { element, what })?;
+        }
+        let elements: Vec<Result<ElementRest, f64>> = mesh
+            .tets
+            .par_iter()
+            .zip(materials.par_iter())
+            .map(|(t, m)| element_rest(t.map(|v| mesh.positions[v as usize]), m))
+            .collect();
+        let mut rest_elements = Vec::with_capacity(elements.len());
+        for (element, e) in elements.into_iter().enumerate() {
+            match e {
+                Ok(e) => rest_elements.push(e),
+                Err(volume_mm3) => {
+                    return Err(FemError::InvertedElement {
+                        element,
+                        volume_mm3,
+                    });
+                }
+            }
+        }
+        Ok(FemModel {
+            rest: mesh.positions.clone(),
+            tets: mesh.tets.clone(),
+            materials,
+            elements: rest_elements,
+        })
+    }
+
+    /// A model with the same material in every tetrahedron.
+    pub fn homogeneous(mesh: &TetMesh, material: Material) -> Result<FemModel, FemError> {
+        FemModel::new(mesh, vec![material; mesh.tets.len()])
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.rest.len()
+    }
+
+    /// Number of tetrahedra.
+    pub fn element_count(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// Rest positions (mm).
+    pub fn rest_positions(&self) -> &[DVec3] {
+        &self.rest
+    }
+
+    /// Tetrahedra.
+    pub fn tets(&self) -> &[[u32; 4]] {
+        &self.tets
+    }
+
+    /// Materials, one per tetrahedron.
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+
+    /// Rest data, one per tetrahedron.
+    pub fn elements(&self) -> &[ElementRest] {
+        &self.elements
+    }
+
+    /// Replaces the material of one element (e.g. softening implant elements); the rest
+    /// geometry is kept.
+    pub fn set_material(&mut self, element: usize, material: Material) -> Result<(), FemError> {
+        material
+            .check()
+            .map_err(|what| FemError::BadMaterial { element, what })?;
+        let (lambda, mu) = material.lame();
+        let e = &mut self.elements[element];
+        e.vol_lambda = e.volume_mm3 * lambda;
+        e.vol_mu = e.volume_mm3 * mu;
+        self.materials[element] = material;
+        Ok(())
+    }
+
+    /// Consistent nodal gravity forces (mN) for the acceleration `gravity_m_s2` (m/s²,
+    /// e.g. `(0, -9.80665, 0)`): each element adds `ρ g V / 4` to each of its vertices
+    /// (exact for a constant body force on linear elements), over the rest volume.
+    pub fn gravity_forces(&self, gravity_m_s2: DVec3) -> Result<Vec<DVec3>, FemError> {
+        if !gravity_m_s2.is_finite() {
+            return Err(FemError::NonFiniteInput {
+                what: "gravity",
+                vertex: 0,
+                value: gravity_m_s2.to_array(),
+            });
+        }
+        let mut f = vec![DVec3::ZERO; self.rest.len()];
+        for ((t, e), m) in self.tets.iter().zip(&self.elements).zip(&self.materials) {
+            let fe =
+                gravity_m_s2 * (m.density_kg_m3 * e.volume_mm3 * 0.25 * KG_M3_TIMES_M_S2_TO_MN_MM3);
+            for &v in t {
+                f[v as usize] += fe;
+            }
+        }
+        Ok(f)
+    }
+
+    /// Checks that `u` has one finite entry per vertex.
+    pub(crate) fn check_vertex_field(
+        &self,
+        what: &'static str,
+        u: &[DVec3],
+    ) -> Result<(), FemError> {
+        if u.len() != self.rest.len() {
+            return Err(FemError::LengthMismatch {
+                what,
+                expected: self.rest.len(),
+                got: u.len(),
+            });
+        }
+        if let Some((vertex, p)) = u.iter().enumerate().find(|(_, p)| !p.is_finite()) {
+            return Err(FemError::NonFiniteInput {
+                what,
+                vertex,
+                value: p.to_array(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The displacement gradient `∇u = Σᵢ (uᵢ - u₀) ⊗ gᵢ` of element `e`.
+    #[inline]
+    fn displacement_gradient(&self, e: usize, u: &[DVec3]) -> DMat3 {
+        let t = self.tets[e];
+        let g = &self.elements[e].grad;
+        let u0 = u[t[0] as usize];
+        let d1 = u[t[1] as usize] - u0;
+        let d2 = u[t[2] as usize] - u0;
+        let d3 = u[t[3] as usize] - u0;
+        outer(d1, g[1]) + outer(d2, g[2]) + outer(d3, g[3])
+    }
+
+    /// The rotation of element `e` for displacement `u`.
+    #[inline]
+    pub fn element_rotation(&self, e: usize, u: &[DVec3], formulation: Formulation) -> DMat3 {
+        match formulation {
+            Formulation::Linear => DMat3::IDENTITY,
+            Formulation::Corotated => {
+                polar_rotation(DMat3::IDENTITY + self.displacement_gradient(e, u))
+            }
+        }
+    }
+
+    /// The unrotated (corotated-frame) stress of element `e` (kPa):
+    /// `σ = λ tr(ε) I + 2μ ε` with `ε = sym(Rᵀ F - I)`; in the current frame the stress is
+    /// `R σ Rᵀ`. Also returns `R`.
+    pub fn element_stress(
+        &self,
+        e: usize,
+        u: &[DVec3],
+        formulation: Formulation,
+    ) -> (DMat3, DMat3) {
+        let du = self.displacement_gradient(e, u);
+        let (r, g) = match formulation {
+            Formulation::Linear => (DMat3::IDENTITY, du),
+            Formulation::Corotated => {
+                let r = polar_rotation(DMat3::IDENTITY + du);
+                // Rᵀ(I + ∇u) - I = (Rᵀ - I) + Rᵀ ∇u, accurate for small ∇u
+                (r, (r.transpose() - DMat3::IDENTITY) + r.transpose() * du)
+            }
+        };
+        let el = &self.elements[e];
+        let v = el.volume_mm3;
+        let eps = (g + g.transpose()) * 0.5;
+        let tr = eps.x_axis.x + eps.y_axis.y + eps.z_axis.z;
+        let sigma = DMat3::from_diagonal(DVec3::splat(el.vol_lambda / v * tr))
+            + eps * (2.0 * el.vol_mu / v);
+        (sigma, r)
+    }
+
+    /// State of element `e` for displacement `u`: rotation, rotated gradients, and the
+    /// internal elastic force `fᵢ = V R σ gᵢ` (= `R K (Rᵀ x - X)` at vertex i).
+    #[inline]
+    pub fn element_state(
+        &self,
+        e: usize,
+        u: &[DVec3],
+        formulation: Formulation,
+        tangent: Tangent,
+    ) -> ElementState {
+        let el = &self.elements[e];
+        let du = self.displacement_gradient(e, u);
+        let (r, g, svd) = match formulation {
+            Formulation::Linear => (DMat3::IDENTITY, du, None),
+            Formulation::Corotated => {
+                let (r, v, s) = rotation_variant_svd(DMat3::IDENTITY + du);
+                let g = (r.transpose() - DMat3::IDENTITY) + r.transpose() * du;
+                (r, g, (tangent == Tangent::Full).then_some((v, s)))
+            }
+        };
+        let eps = (g + g.transpose()) * 0.5;
+        let tr = eps.x_axis.x + eps.y_axis.y + eps.z_axis.z;
+        // volume times stress
+        let vsigma =
+            DMat3::from_diagonal(DVec3::splat(el.vol_lambda * tr)) + eps * (2.0 * el.vol_mu);
+        let rs = r * vsigma;
+        let mut twist = [[DVec3::ZERO; 4]; 3];
+        let mut twist_coef = [0.0; 3];
+        if let Some((v, s)) = svd {
+            let trs = s[0] + s[1] + s[2] - 3.0;
+            let vsig = s.map(|si| 2.0 * el.vol_mu * (si - 1.0) + el.vol_lambda * trs);
+            let uu = r * v;
+            let (vc, uc) = (
+                [v.x_axis, v.y_axis, v.z_axis],
+                [uu.x_axis, uu.y_axis, uu.z_axis],
+            );
+            for (m, (i, j)) in [(0usize, 1usize), (0, 2), (1, 2)].into_iter().enumerate() {
+                let c = 2.0 * (vsig[i] + vsig[j]).max(0.0) / (s[i] + s[j]).max(0.1);
+                if c > 0.0 {
+                    twist_coef[m] = c;
+                    twist[m] = el
+                        .grad
+                        .map(|gb| (uc[i] * gb.dot(vc[j]) - uc[j] * gb.dot(vc[i])) * 0.5);
+                }
+            }
+        }
+        ElementState {
+            rotation: r,
+            rotated_grad: el.grad.map(|g| r * g),
+            force: el.grad.map(|g| rs * g),
+            twist,
+            twist_coef,
+        }
+    }
+
+    /// Elastic energy of element `e` (mN·mm = µJ): `V (μ ‖ε‖² + λ/2 tr(ε)²)` with the
+    /// strain of [`FemModel::element_stress`]. For the corotated formulation this is
+    /// `V (μ ‖F - R‖² + λ/2 tr(RᵀF - I)²)`, whose gradient is exactly the element force
+    /// (the derivative of the polar rotation drops out), so the forces are conservative.
+    pub fn element_energy(&self, e: usize, u: &[DVec3], formulation: Formulation) -> f64 {
+        let du = self.displacement_gradient(e, u);
+        let g = match formulation {
+            Formulation::Linear => du,
+            Formulation::Corotated => {
+                let r = polar_rotation(DMat3::IDENTITY + du);
+                (r.transpose() - DMat3::IDENTITY) + r.transpose() * du
+            }
+        };
+        let el = &self.elements[e];
+        let eps = (g + g.transpose()) * 0.5;
+        let tr = eps.x_axis.x + eps.y_axis.y + eps.z_axis.z;
+        let norm2 =
+            eps.x_axis.length_squared() + eps.y_axis.length_squared() + eps.z_axis.length_squared();
+        el.vol_mu * norm2 + 0.5 * el.vol_lambda * tr * tr
+    }
+
+    /// Total potential energy `Σₑ Ψₑ(u) - f_ext · u` (mN·mm); `f_ext` may be empty.
+    pub fn potential_energy(&self, u: &[DVec3], f_ext: &[DVec3], formulation: Formulation) -> f64 {
+        let elastic: f64 = (0..self.tets.len())
+            .into_par_iter()
+            .map(|e| self.element_energy(e, u, formulation))
+            .sum();
+        let work: f64 = f_ext.iter().zip(u).map(|(f, u)| f.dot(*u)).sum();
+        elastic - work
+    }
+
+    /// Unrotated stresses of all elements (kPa), see [`FemModel::element_stress`].
+    pub fn stresses(&self, u: &[DVec3], formulation: Formulation) -> Result<Vec<DMat3>, FemError> {
+        self.check_vertex_field("displacement", u)?;
+        Ok((0..self.tets.len())
+            .into_par_iter()
+            .map(|e| self.element_stress(e, u, formulation).0)
+            .collect())
+    }
+
+    /// The internal elastic force `Σₑ R K (Rᵀ x - X)` at every vertex (mN) for
+    /// displacement `u` (mm). At equilibrium it equals the external force at free
+    /// vertices.
+    pub fn internal_forces(
+        &self,
+        u: &[DVec3],
+        formulation: Formulation,
+    ) -> Result<Vec<DVec3>, FemError> {
+        self.check_vertex_field("displacement", u)?;
+        let states: Vec<[DVec3; 4]> = (0..self.tets.len())
+            .into_par_iter()
+            .map(|e| self.element_state(e, u, formulation, Tangent::Warped).force)
+            .collect();
+        let mut f = vec![DVec3::ZERO; self.rest.len()];
+        for (t, fe) in self.tets.iter().zip(&states) {
+            for a in 0..4 {
+                f[t[a] as usize] += fe[a];
+            }
+        }
+        Ok(f)
+    }
+}
+
+/// `a bᵀ`.
+#[inline]
+pub(crate) fn outer(a: DVec3, b: DVec3) -> DMat3 {
+    DMat3::from_cols(a * b.x, a * b.y, a * b.z)
+}

@@ -1,0 +1,52 @@
+//! Shared helpers of the integration tests.
+#![allow(dead_code)]
+
+use fem::{box_is_boundary, box_mesh};
+use glam::{DMat3, DVec3};
+use tetra::TetMesh;
+
+/// A box mesh whose interior vertices are moved by a deterministic pseudo-random offset
+/// of up to `jitter` cell sizes per axis, so that the mesh is irregular (a stronger
+/// patch test). All elements stay positively oriented for `jitter <= 0.15`.
+pub fn jittered_box(min: DVec3, max: DVec3, n: [usize; 3], jitter: f64) -> TetMesh {
+    let mut m = box_mesh(min, max, n);
+    let h = (max - min) / DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64);
+    for (v, p) in m.positions.iter_mut().enumerate() {
+        if !box_is_boundary(n, v as u32) {
+            let r = |k: u64| {
+                let mut x = (v as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+                    ^ k.wrapping_mul(0xD1B5_4A32_D192_ED03);
+                x ^= x >> 31;
+                x = x.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+                x ^= x >> 29;
+                (x >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+            };
+            *p += DVec3::new(r(1), r(2), r(3)) * h * jitter;
+        }
+    }
+    m.validate().expect("jittered mesh stays valid");
+    m
+}
+
+/// Largest |a - b| over two fields.
+pub fn max_diff(a: &[DVec3], b: &[DVec3]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length())
+        .fold(0.0, f64::max)
+}
+
+/// Largest |a|.
+pub fn max_norm(a: &[DVec3]) -> f64 {
+    a.iter().map(|x| x.length()).fold(0.0, f64::max)
+}
+
+/// Frobenius norm of a 3x3 matrix.
+pub fn frob(m: DMat3) -> f64 {
+    m.to_cols_array().iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// A generic rotation (axis (1, 2, 3), 70 degrees).
+pub fn generic_rotation() -> DMat3 {
+    DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 70f64.to_radians())
+}
