@@ -56,6 +56,13 @@ pub(crate) trait StencilContext {
     /// The final position of an output vertex (mm); lattice points have their index as
     /// key.
     fn position(&self, key: u32) -> DVec3;
+    /// Which of the inside vertices `p`, `q` of the lattice face `(p, q, m)` (`m`
+    /// outside) is the lattice end of the diagonal of its quadrilateral. It must depend
+    /// on the face alone, and the three faces at the outside vertex of a 3-1 prism must
+    /// not form a cycle. The default is the uniform BCC lattice's rule.
+    fn diagonal_end(&self, p: LatticePoint, q: LatticePoint, m: LatticePoint) -> LatticePoint {
+        diagonal_lattice_end(p, q, m)
+    }
 }
 
 /// An output vertex with its position on the reference lattice, in units of a quarter
@@ -157,13 +164,14 @@ fn prism_tetrahedra(
 /// The diagonal arrow of the quadrilateral between prism columns `i` and `j` that lies on
 /// the lattice face `(p, q, m)`, where `p` is column `i`'s end and `q` column `j`'s end.
 fn face_arrow(
+    context: &impl StencilContext,
     i: usize,
     j: usize,
     p: LatticePoint,
     q: LatticePoint,
     m: LatticePoint,
 ) -> (usize, usize) {
-    if diagonal_lattice_end(p, q, m) == p {
+    if context.diagonal_end(p, q, m) == p {
         (i, j)
     } else {
         (j, i)
@@ -203,7 +211,7 @@ pub(crate) fn fill(
         }
         (2, 1) => {
             let (m, z) = (outside[0], surface[0]);
-            let end = diagonal_lattice_end(inside[0], inside[1], m);
+            let end = context.diagonal_end(inside[0], inside[1], m);
             let other = if end == inside[0] {
                 inside[1]
             } else {
@@ -224,7 +232,8 @@ pub(crate) fn fill(
             let p = [inside[0], inside[1], inside[2]];
             let top = p.map(lattice_corner);
             let bottom = p.map(|v| cut_corner(context, v, m));
-            let arrows = [(0, 1), (1, 2), (0, 2)].map(|(i, j)| face_arrow(i, j, p[i], p[j], m));
+            let arrows =
+                [(0, 1), (1, 2), (0, 2)].map(|(i, j)| face_arrow(context, i, j, p[i], p[j], m));
             prism(out, top, bottom, arrows);
         }
     }
@@ -250,8 +259,8 @@ fn two_two_prism(
         cut_corner(context, q, m1),
         cut_corner(context, q, m2),
     ];
-    let first = face_arrow(0, 1, p, q, m1);
-    let second = face_arrow(0, 2, p, q, m2);
+    let first = face_arrow(context, 0, 1, p, q, m1);
+    let second = face_arrow(context, 0, 2, p, q, m2);
     let surface_options: &[(usize, usize)] = match (first, second) {
         ((1, 0), (0, 2)) => &[(1, 2)],
         ((0, 1), (2, 0)) => &[(2, 1)],
