@@ -11,8 +11,12 @@
 //! - [`StaticSolver`]: the corotational static solve (re-estimate rotations, reassemble,
 //!   solve) to convergence.
 //! - [`box_mesh`]: structured box tetrahedralisations for tests and benchmarks.
-//! - [`Prolongation`]: barycentric transfer between non-nested levels (the first piece
-//!   of the multigrid; the multigrid itself is not written yet).
+//! - [`Prolongation`]: barycentric transfer between non-nested levels.
+//! - [`multigrid`]: geometric multigrid on non-nested levels (Galerkin or rediscretised
+//!   coarse operators, multicolour block Gauss-Seidel, Cholesky on the coarsest level),
+//!   one V(2,1) cycle per call or as the preconditioner of (flexible) CG. Measured: PCG
+//!   matches the direct solver to 1e-10; a bare cycle reduces the residual only about
+//!   1.7x at ν = 0.45, short of the target of 5.
 //!
 //! # The static solve
 //! Each iteration re-estimates the element rotations, reassembles and solves
@@ -38,6 +42,7 @@ pub mod direct;
 pub mod error;
 pub mod material;
 pub mod model;
+pub mod multigrid;
 pub mod polar;
 pub mod solve;
 pub mod system;
