@@ -20,6 +20,8 @@ pub struct DirectSolver {
     values: Vec<f64>,
     symbolic: SymbolicLlt<usize>,
     pattern_slots: usize,
+    /// The numeric factor of the last [`DirectSolver::factorise`].
+    factor: Option<Llt<usize, f64>>,
 }
 
 impl DirectSolver {
@@ -67,12 +69,22 @@ impl DirectSolver {
             values,
             symbolic,
             pattern_slots: a.values.len(),
+            factor: None,
         })
     }
 
     /// Factorises the current values of `a` (same pattern as at construction) and solves
     /// `a x = b`.
     pub fn solve(&mut self, a: &BlockCsr, b: &[DVec3]) -> Result<Vec<DVec3>, FemError> {
+        self.factorise(a)?;
+        let mut x = vec![DVec3::ZERO; b.len()];
+        self.solve_factorised(b, &mut x);
+        Ok(x)
+    }
+
+    /// Factorises the current values of `a` (same pattern as at construction) and keeps
+    /// the factor for [`DirectSolver::solve_factorised`].
+    pub fn factorise(&mut self, a: &BlockCsr) -> Result<(), FemError> {
         assert_eq!(
             a.values.len(),
             self.pattern_slots,
@@ -89,11 +101,21 @@ impl DirectSolver {
                     detail: format!("{e}"),
                 }
             })?;
-        let n = b.len() * 3;
-        let mut rhs = Mat::<f64>::from_fn(n, 1, |r, _| b[r / 3][r % 3]);
+        self.factor = Some(llt);
+        Ok(())
+    }
+
+    /// Solves `a x = b` with the factor of the last [`DirectSolver::factorise`]. Panics
+    /// if nothing was factorised yet.
+    pub fn solve_factorised(&self, b: &[DVec3], x: &mut [DVec3]) {
+        let llt = self
+            .factor
+            .as_ref()
+            .expect("DirectSolver::factorise before solve_factorised");
+        let mut rhs = Mat::<f64>::from_fn(3 * b.len(), 1, |r, _| b[r / 3][r % 3]);
         llt.solve_in_place(rhs.as_mut());
-        Ok((0..b.len())
-            .map(|k| DVec3::new(rhs[(3 * k, 0)], rhs[(3 * k + 1, 0)], rhs[(3 * k + 2, 0)]))
-            .collect())
+        for (k, xk) in x.iter_mut().enumerate() {
+            *xk = DVec3::new(rhs[(3 * k, 0)], rhs[(3 * k + 1, 0)], rhs[(3 * k + 2, 0)]);
+        }
     }
 }

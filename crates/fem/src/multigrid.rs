@@ -30,14 +30,11 @@
 //! V-cycle (flexible, Polak-Ribière form, because a V(2,1) cycle is not a symmetric
 //! operator).
 
+use crate::direct::DirectSolver;
 use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
 use crate::system::{BlockCsr, Constraints, NOT_FREE, ReducedSystem, block_mul};
 use crate::transfer::Prolongation;
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
-use faer::{Mat, Side};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use tetra::TetMesh;
@@ -125,93 +122,13 @@ struct Transfer {
     sample: Prolongation,
 }
 
-/// Sparse Cholesky of the coarsest level, factor kept between solves.
-#[derive(Debug)]
-struct CoarseSolver {
-    symbolic_matrix: SymbolicSparseColMat<usize>,
-    gather: Vec<usize>,
-    values: Vec<f64>,
-    symbolic: SymbolicLlt<usize>,
-    factor: Option<Llt<usize, f64>>,
-}
-
-impl CoarseSolver {
-    fn new(a: &BlockCsr) -> Result<CoarseSolver, FemError> {
-        let nb = a.block_rows();
-        let n = 3 * nb;
-        let mut col_ptr = Vec::with_capacity(n + 1);
-        col_ptr.push(0usize);
-        let mut row_idx = Vec::new();
-        let mut gather = Vec::new();
-        for i in 0..nb {
-            for q in 0..3 {
-                let c = 3 * i + q;
-                for s in a.row_ptr[i]..a.row_ptr[i + 1] {
-                    let j = a.cols[s] as usize;
-                    if j > i {
-                        break;
-                    }
-                    for p in 0..3 {
-                        let r = 3 * j + p;
-                        if r <= c {
-                            row_idx.push(r);
-                            gather.push(s * 9 + 3 * q + p);
-                        }
-                    }
-                }
-                col_ptr.push(row_idx.len());
-            }
-        }
-        let symbolic_matrix = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
-        let symbolic =
-            SymbolicLlt::try_new(symbolic_matrix.as_ref(), Side::Upper).map_err(|e| {
-                FemError::Singular {
-                    detail: format!("coarse symbolic factorisation failed: {e:?}"),
-                }
-            })?;
-        let values = vec![0.0; gather.len()];
-        Ok(CoarseSolver {
-            symbolic_matrix,
-            gather,
-            values,
-            symbolic,
-            factor: None,
-        })
-    }
-
-    fn factorise(&mut self, a: &BlockCsr) -> Result<(), FemError> {
-        let flat = a.values.as_flattened();
-        for (v, &g) in self.values.iter_mut().zip(&self.gather) {
-            *v = flat[g];
-        }
-        let mat = SparseColMatRef::new(self.symbolic_matrix.as_ref(), &self.values);
-        let llt =
-            Llt::try_new_with_symbolic(self.symbolic.clone(), mat, Side::Upper).map_err(|e| {
-                FemError::Singular {
-                    detail: format!("coarsest level: {e}"),
-                }
-            })?;
-        self.factor = Some(llt);
-        Ok(())
-    }
-
-    fn solve(&self, b: &[DVec3], x: &mut [DVec3]) {
-        let llt = self.factor.as_ref().expect("coarse level factorised");
-        let mut rhs = Mat::<f64>::from_fn(3 * b.len(), 1, |r, _| b[r / 3][r % 3]);
-        llt.solve_in_place(rhs.as_mut());
-        for (k, xk) in x.iter_mut().enumerate() {
-            *xk = DVec3::new(rhs[(3 * k, 0)], rhs[(3 * k + 1, 0)], rhs[(3 * k + 2, 0)]);
-        }
-    }
-}
-
 /// Geometric multigrid over non-nested tetrahedral levels, see the module documentation.
 #[derive(Debug)]
 pub struct Multigrid {
     levels: Vec<Level>,
     /// `transfers[l]` connects level `l` (fine) and `l + 1` (coarse).
     transfers: Vec<Transfer>,
-    coarse: Option<CoarseSolver>,
+    coarse: Option<DirectSolver>,
     options: MultigridOptions,
     /// Per-level work vectors: iterate, right-hand side, residual.
     xs: Vec<Vec<DVec3>>,
@@ -481,7 +398,7 @@ impl Multigrid {
         }
         let last = built.last().expect("at least one level");
         let coarse = if last.system.unknowns() > 0 {
-            Some(CoarseSolver::new(last.op())?)
+            Some(DirectSolver::new(last.op())?)
         } else {
             None
         };
@@ -612,7 +529,13 @@ impl Multigrid {
             }
         }
         if let Some(c) = self.coarse.as_mut() {
-            c.factorise(self.levels.last().expect("levels").op())?;
+            c.factorise(self.levels.last().expect("levels").op())
+                .map_err(|error| match error {
+                    FemError::Singular { detail } => FemError::Singular {
+                        detail: format!("coarsest level: {detail}"),
+                    },
+                    other => other,
+                })?;
         }
         self.assembled = true;
         Ok(())
@@ -665,7 +588,7 @@ impl Multigrid {
         }
         // coarsest
         if let Some(c) = &self.coarse {
-            c.solve(&self.bs[nl - 1], &mut self.xs[nl - 1]);
+            c.solve_factorised(&self.bs[nl - 1], &mut self.xs[nl - 1]);
         }
         // up
         for l in (0..nl - 1).rev() {
