@@ -31,6 +31,7 @@ pub mod stuffing;
 pub mod surface;
 pub mod tetmesh;
 pub mod vtu;
+mod warp;
 mod winding;
 
 pub use error::TetraError;

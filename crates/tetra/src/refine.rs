@@ -52,6 +52,7 @@ use crate::stencils::{Sign, StencilContext, StencilVertex, fill};
 use crate::stuffing::{ALPHA_LONG, ALPHA_SHORT, stuff};
 use crate::surface::ClosedSurface;
 use crate::tetmesh::TetMesh;
+use crate::warp::{WarpCut, warp_targets};
 use crate::winding::classify_line;
 use glam::{DVec3, IVec3};
 use mesh::{SurfaceIndex, TriMesh};
@@ -407,7 +408,15 @@ struct Cut {
     length: f64,
 }
 
-impl Cut {
+impl WarpCut for Cut {
+    fn inside(&self) -> u32 {
+        self.inside
+    }
+
+    fn outside(&self) -> u32 {
+        self.outside
+    }
+
     /// Distance of the cut from its end `point` (mm), if it violates that end.
     fn violation(&self, point: u32) -> Option<f64> {
         let fraction = if point == self.inside {
@@ -669,60 +678,6 @@ fn find_cuts(
             }
         })
         .collect()
-}
-
-/// The points to warp and the cut each moves to, `(point, cut index)` sorted by point:
-/// the uniform mesher's rule (outside points first, in rounds, onto cuts whose inside
-/// end is not violated; then the inside points still violated).
-fn warp_targets(cuts: &[Cut]) -> Vec<(u32, u32)> {
-    let mut incidence: Vec<(u32, u32)> = cuts
-        .iter()
-        .enumerate()
-        .flat_map(|(c, cut)| [(cut.inside, c as u32), (cut.outside, c as u32)])
-        .collect();
-    incidence.sort_unstable();
-    let groups: Vec<&[(u32, u32)]> = incidence.chunk_by(|a, b| a.0 == b.0).collect();
-    let cuts_of = |point: u32| groups[groups.partition_point(|g| g[0].0 < point)];
-    let is_outside = |group: &[(u32, u32)]| cuts[group[0].1 as usize].outside == group[0].0;
-    let mut live = vec![true; cuts.len()];
-    let violated = |point: u32, live: &[bool]| {
-        cuts_of(point)
-            .iter()
-            .any(|&(_, c)| live[c as usize] && cuts[c as usize].violation(point).is_some())
-    };
-    let nearest = |group: &[(u32, u32)], live: &[bool], eligible: &dyn Fn(&Cut) -> bool| {
-        group
-            .iter()
-            .filter(|&&(_, c)| live[c as usize] && eligible(&cuts[c as usize]))
-            .filter_map(|&(point, c)| cuts[c as usize].violation(point).map(|d| (d, c)))
-            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
-            .map(|(_, c)| (group[0].0, c))
-    };
-    let mut warps: Vec<(u32, u32)> = Vec::new();
-    loop {
-        let round: Vec<(u32, u32)> = groups
-            .par_iter()
-            .filter(|g| is_outside(g))
-            .filter_map(|g| nearest(g, &live, &|cut: &Cut| !violated(cut.inside, &live)))
-            .collect();
-        if round.is_empty() {
-            break;
-        }
-        for &(point, _) in &round {
-            for &(_, c) in cuts_of(point) {
-                live[c as usize] = false;
-            }
-        }
-        warps.extend(round);
-    }
-    warps.par_extend(
-        groups
-            .par_iter()
-            .filter(|g| !is_outside(g))
-            .filter_map(|g| nearest(g, &live, &|_| true)),
-    );
-    warps.par_sort_unstable();
-    warps
 }
 
 /// One graded stuffing run as the stencils see it. Output vertex keys: point indices,

@@ -21,6 +21,7 @@ use crate::lattice::{Lattice, LatticePoint};
 use crate::stencils::{Sign, StencilContext, StencilVertex, fill};
 use crate::surface::ClosedSurface;
 use crate::tetmesh::TetMesh;
+use crate::warp::{WarpCut, warp_targets};
 use crate::winding::classify_line;
 use glam::{DVec3, IVec3};
 use rayon::prelude::*;
@@ -147,6 +148,20 @@ fn alpha(cut: &Cut) -> f64 {
     }
 }
 
+impl WarpCut for Cut {
+    fn inside(&self) -> u32 {
+        self.inside.index
+    }
+
+    fn outside(&self) -> u32 {
+        self.outside.index
+    }
+
+    fn violation(&self, point: u32) -> Option<f64> {
+        violation(self, point)
+    }
+}
+
 /// Distance of `cut` from its end `point` in units of half a spacing, if it violates it.
 fn violation(cut: &Cut, point: u32) -> Option<f64> {
     let length = if cut.inside.same_grid(cut.outside) {
@@ -160,70 +175,6 @@ fn violation(cut: &Cut, point: u32) -> Option<f64> {
         1.0 - cut.fraction
     };
     (fraction < alpha(cut)).then_some(fraction * length)
-}
-
-/// The lattice points to warp and the cut point each moves to: `(point, cut index)`,
-/// sorted by point. The paper's order:
-/// 1. while an outside point is violated by a cut point on an edge whose inside end is
-///    not violated, it moves to the nearest such cut point (in rounds: all such points
-///    at once, then the violations are updated);
-/// 2. every inside point still violated moves to its nearest violating cut point.
-///
-/// A warped point drops the cut points on its edges, which may clear violations of its
-/// neighbours. No edge ends up with both ends warped towards each other, and no cut
-/// point is left violating an end.
-fn warp_targets(cuts: &[Cut]) -> Vec<(u32, u32)> {
-    // Every point at the end of a cut, with its cuts: (point, cut) grouped by point.
-    let mut incidence: Vec<(u32, u32)> = cuts
-        .iter()
-        .enumerate()
-        .flat_map(|(c, cut)| [(cut.inside.index, c as u32), (cut.outside.index, c as u32)])
-        .collect();
-    incidence.sort_unstable();
-    let points: Vec<&[(u32, u32)]> = incidence.chunk_by(|a, b| a.0 == b.0).collect();
-    let cuts_of = |point: u32| points[points.partition_point(|g| g[0].0 < point)];
-    let is_outside = |group: &[(u32, u32)]| cuts[group[0].1 as usize].outside.index == group[0].0;
-    let mut live = vec![true; cuts.len()];
-    let violated = |point: u32, live: &[bool]| {
-        cuts_of(point)
-            .iter()
-            .any(|&(_, c)| live[c as usize] && violation(&cuts[c as usize], point).is_some())
-    };
-    // The nearest live cut violating the group's point among those `eligible`.
-    let nearest = |group: &[(u32, u32)], live: &[bool], eligible: &dyn Fn(&Cut) -> bool| {
-        group
-            .iter()
-            .filter(|&&(_, c)| live[c as usize] && eligible(&cuts[c as usize]))
-            .filter_map(|&(point, c)| violation(&cuts[c as usize], point).map(|d| (d, c)))
-            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
-            .map(|(_, c)| (group[0].0, c))
-    };
-    let mut warps: Vec<(u32, u32)> = Vec::new();
-    loop {
-        let round: Vec<(u32, u32)> = points
-            .par_iter()
-            .filter(|g| is_outside(g))
-            .filter_map(|g| nearest(g, &live, &|cut: &Cut| !violated(cut.inside.index, &live)))
-            .collect();
-        if round.is_empty() {
-            break;
-        }
-        for &(point, _) in &round {
-            for &(_, c) in cuts_of(point) {
-                live[c as usize] = false;
-            }
-        }
-        warps.extend(round);
-    }
-    // Inside points share no cut edge, so their warps are independent.
-    warps.par_extend(
-        points
-            .par_iter()
-            .filter(|g| !is_outside(g))
-            .filter_map(|g| nearest(g, &live, &|_| true)),
-    );
-    warps.par_sort_unstable();
-    warps
 }
 
 /// The state of one stuffing run, as the stencils see it. Output vertex keys: lattice
