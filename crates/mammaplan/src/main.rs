@@ -108,9 +108,16 @@ enum Command {
         /// How far the filled base is shifted back to form the rear wall (mm).
         #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REAR_WALL_OFFSET_MM, value_parser = positive)]
         rear_wall_offset_mm: f64,
-        /// About how many tetrahedra the finest mesh level has (within about 20%).
+        /// About how many tetrahedra the finest uniform mesh level has (within about 20%).
         #[arg(long, value_name = "N", default_value_t = plan::model::DEFAULT_ELEMENTS, value_parser = positive_integer)]
         elements: usize,
+        /// Adds a finest level refined within this distance of both fill-ins, where the
+        /// implant sits (mm; e.g. 5). Costs several times the elements.
+        #[arg(long, value_name = "MM", value_parser = positive)]
+        refine_band_mm: Option<f64>,
+        /// Longest element edge in the refined band (mm).
+        #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REFINE_EDGE_MM, value_parser = positive, requires = "refine_band_mm")]
+        refine_edge_mm: f64,
         #[arg(long)]
         json: bool,
     },
@@ -232,12 +239,18 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             pc_ratio,
             rear_wall_offset_mm,
             elements,
+            refine_band_mm,
+            refine_edge_mm,
             json,
         } => {
             let marked = plan::MarkedScan::load(&scan, &landmarks, progress)?;
             let mut options = plan::model::ModelOptions {
                 control_points_file: control_points,
                 elements,
+                refinement: refine_band_mm.map(|band_mm| plan::model::Refinement {
+                    band_mm,
+                    max_edge_mm: refine_edge_mm,
+                }),
                 ..Default::default()
             };
             options.breast.pc_ratio = pc_ratio;

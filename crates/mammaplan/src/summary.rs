@@ -157,6 +157,18 @@ fn model_figures(report: &ModelReport) -> String {
             level.max_dihedral_deg,
         );
     }
+    if let Some(refinement) = &report.refinement {
+        let _ = writeln!(
+            out,
+            "level 0 is refined within {} mm of the fill-ins: lattice spacing {:.2} mm, \
+             {} elements in the band, longest edge {:.2} mm (bound {} mm)",
+            refinement.band_mm,
+            refinement.band_spacing_mm,
+            refinement.elements_in_band,
+            refinement.longest_edge_in_band_mm,
+            refinement.max_edge_mm,
+        );
+    }
     out
 }
 

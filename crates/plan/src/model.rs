@@ -1,6 +1,7 @@
 //! `mammaplan model`: the breast model of a scan (cut curves, breast patches, fill-ins,
 //! breast and quadrant volumes), the closed surface around the breasts, its tetrahedral
-//! meshes (a hierarchy of [`TET_LEVELS`] levels for the multigrid solver), and the model
+//! meshes (a hierarchy of [`TET_LEVELS`] levels for the multigrid solver, plus on request
+//! a finest level refined around the fill-ins, where the implant sits), and the model
 //! folder a researcher opens.
 //!
 //! The model folder holds:
@@ -36,9 +37,38 @@ pub use anatomy::closed_surface::DEFAULT_REAR_WALL_OFFSET_MM;
 
 /// Default number of tetrahedra of the finest level (`--elements`).
 pub const DEFAULT_ELEMENTS: usize = 60_000;
-/// Levels of the tetrahedral hierarchy; each coarser level has twice the lattice spacing
-/// and about 1/8 the elements.
+/// Levels of the uniform tetrahedral hierarchy; each coarser level has twice the lattice
+/// spacing and about 1/8 the elements. A refined level, when asked for, comes on top.
 pub const TET_LEVELS: usize = 3;
+
+/// Local refinement of the finest tetrahedral level in a band around both fill-ins, the
+/// surfaces the implant sits on (paper V-A: "the region which may be covered by an
+/// implant"). Off by default: with 4 mm edges a band round two fill-ins of about
+/// 160 cm² each costs several hundred thousand elements (see the README), six times
+/// the default budget of the interactive solver.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Refinement {
+    /// Half-width of the band around each fill-in (mm).
+    pub band_mm: f64,
+    /// Upper bound on element edges in the band (mm).
+    pub max_edge_mm: f64,
+}
+
+/// Default half-width of the refinement band (mm): the elements the implant template
+/// displaces lie within a few millimetres of the fill-in.
+pub const DEFAULT_REFINE_BAND_MM: f64 = 5.0;
+
+/// Default upper bound on element edges in the refinement band (mm).
+pub const DEFAULT_REFINE_EDGE_MM: f64 = tetra::refine::DEFAULT_MAX_EDGE_MM;
+
+impl Default for Refinement {
+    fn default() -> Refinement {
+        Refinement {
+            band_mm: DEFAULT_REFINE_BAND_MM,
+            max_edge_mm: DEFAULT_REFINE_EDGE_MM,
+        }
+    }
+}
 
 /// Settings of [`build_model`].
 #[derive(Debug, Clone)]
@@ -51,8 +81,10 @@ pub struct ModelOptions {
     /// A control-point file (`{"units":"mm","left":[[x,y,z],...],"right":[...]}`, the
     /// format of `control_points.json` in a model folder).
     pub control_points_file: Option<PathBuf>,
-    /// About how many tetrahedra the finest level has (within about 20%).
+    /// About how many tetrahedra the finest uniform level has (within about 20%).
     pub elements: usize,
+    /// A refined finest level on top of the uniform ones, if set.
+    pub refinement: Option<Refinement>,
 }
 
 impl Default for ModelOptions {
@@ -62,6 +94,7 @@ impl Default for ModelOptions {
             closed_surface: ClosedSurfaceOptions::default(),
             control_points_file: None,
             elements: DEFAULT_ELEMENTS,
+            refinement: None,
         }
     }
 }
@@ -79,6 +112,8 @@ pub struct PatientModel {
     pub tets: tetra::Hierarchy,
     /// The figures of each level of `tets`.
     pub levels: Vec<LevelReport>,
+    /// The refined level's figures, when `tets.levels[0]` is one.
+    pub refinement: Option<RefinementReport>,
     pub scan_vertices: usize,
     pub scan_triangles: usize,
     pub timings: ModelTimings,
@@ -107,6 +142,22 @@ pub struct LevelReport {
     pub min_dihedral_deg: f64,
     pub max_dihedral_deg: f64,
     pub volume_ml: f64,
+}
+
+/// The refined finest level.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct RefinementReport {
+    /// Half-width of the band around each fill-in (mm).
+    pub band_mm: f64,
+    /// The requested upper bound on edges in the band (mm).
+    pub max_edge_mm: f64,
+    /// Lattice spacing in the band (mm); tetrahedra next to the surface whose warped
+    /// edges exceed the bound are refined to half of it.
+    pub band_spacing_mm: f64,
+    /// Tetrahedra with their centroid in the band.
+    pub elements_in_band: usize,
+    /// The longest edge of those (mm).
+    pub longest_edge_in_band_mm: f64,
 }
 
 /// Left and right values.
@@ -173,6 +224,8 @@ pub struct ModelReport {
     pub closed_surface_volume_ml: f64,
     /// The tetrahedral meshes, level 0 the finest (`tets_level{l}.vtu`).
     pub levels: Vec<LevelReport>,
+    /// The refinement of level 0 around the fill-ins (`None`: all levels uniform).
+    pub refinement: Option<RefinementReport>,
     /// The smallest dihedral angle over all levels (degrees).
     pub min_dihedral_deg: f64,
     /// The largest angle across each fill-in's stitch to the base between the base's and
@@ -265,8 +318,12 @@ pub fn build_model(
 
     progress.stage("tetrahedra", 1);
     let tets_start = Instant::now();
-    let (tets, levels) =
-        tetrahedra(&closed_surface, options.elements).context("tetrahedral meshing")?;
+    let (tets, levels, refinement) = tetrahedra(
+        &closed_surface,
+        options.elements,
+        options.refinement.map(|r| (r, &breasts)),
+    )
+    .context("tetrahedral meshing")?;
     let tetrahedra_ms = elapsed_ms(tets_start);
     progress.step();
 
@@ -279,6 +336,7 @@ pub fn build_model(
         closed_surface,
         tets,
         levels,
+        refinement,
         scan_vertices: scan.mesh.vertex_count(),
         scan_triangles: scan.mesh.triangle_count(),
         timings: ModelTimings {
@@ -291,13 +349,51 @@ pub fn build_model(
 }
 
 /// The [`TET_LEVELS`] tetrahedral meshes of the closed surface, the finest with about
-/// `elements` tetrahedra, and their figures. Fails on an element of non-positive volume.
+/// `elements` tetrahedra, and their figures; with a refinement, a level refined around
+/// the breasts' fill-ins comes first, at the uniform finest level's spacing elsewhere.
+/// Fails on an element of non-positive volume.
 fn tetrahedra(
     closed: &ClosedSurface,
     elements: usize,
-) -> Result<(tetra::Hierarchy, Vec<LevelReport>)> {
+    refinement: Option<(Refinement, &BreastModel)>,
+) -> Result<(tetra::Hierarchy, Vec<LevelReport>, Option<RefinementReport>)> {
     let surface = tetra::ClosedSurface::new(&closed.mesh)?;
-    let hierarchy = tetra::build_hierarchy_with_elements(&surface, elements, TET_LEVELS)?;
+    let mut hierarchy = tetra::build_hierarchy_with_elements(&surface, elements, TET_LEVELS)?;
+    let refinement = match refinement {
+        None => None,
+        Some((refinement, breasts)) => {
+            anyhow::ensure!(
+                refinement.band_mm.is_finite() && refinement.band_mm > 0.0,
+                "the refinement band must be a positive width in mm, not {}",
+                refinement.band_mm
+            );
+            anyhow::ensure!(
+                refinement.max_edge_mm.is_finite() && refinement.max_edge_mm >= MIN_REFINE_EDGE_MM,
+                "the refinement's maximum edge must be at least {MIN_REFINE_EDGE_MM} mm, not {}",
+                refinement.max_edge_mm
+            );
+            let region = Side::BOTH
+                .into_iter()
+                .fold(tetra::RefinementRegion::new(), |region, side| {
+                    region.with_band(breasts.breast(side).fill.mesh.clone(), refinement.band_mm)
+                })
+                .with_max_edge(refinement.max_edge_mm);
+            let spacing_mm = hierarchy.levels[0].spacing_mm;
+            let mesh = tetra::stuff_refined(&surface, spacing_mm, &region)?;
+            let (longest_edge_in_band_mm, elements_in_band) =
+                tetra::refine::longest_edge_in_region(&mesh, &region);
+            hierarchy
+                .levels
+                .insert(0, tetra::Level { spacing_mm, mesh });
+            Some(RefinementReport {
+                band_mm: refinement.band_mm,
+                max_edge_mm: refinement.max_edge_mm,
+                band_spacing_mm: region.fine_spacing(spacing_mm),
+                elements_in_band,
+                longest_edge_in_band_mm,
+            })
+        }
+    };
     let mut levels = Vec::with_capacity(hierarchy.levels.len());
     for (l, level) in hierarchy.levels.iter().enumerate() {
         let quality = tetra::quality::quality(&level.mesh);
@@ -315,8 +411,12 @@ fn tetrahedra(
             volume_ml: level.mesh.volume_mm3() / 1000.0,
         });
     }
-    Ok((hierarchy, levels))
+    Ok((hierarchy, levels, refinement))
 }
+
+/// The smallest maximum edge a refinement may ask for (mm): below it the band alone
+/// would need tens of millions of elements.
+pub const MIN_REFINE_EDGE_MM: f64 = 1.0;
 
 fn elapsed_ms(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
@@ -352,6 +452,7 @@ impl PatientModel {
             quadrant_volume_ml: PerSide::from_fn(|side| model.breast(side).quadrant_volume_ml),
             closed_surface_volume_ml: closed.volume_ml,
             levels: self.levels.clone(),
+            refinement: self.refinement,
             min_dihedral_deg: self
                 .levels
                 .iter()

@@ -157,3 +157,84 @@ fn every_shared_scan_gives_a_watertight_closed_surface() {
         build_write_check(name, &marked, &out.path().join(name));
     }
 }
+
+/// A refined finest level on a shared scan: every level keeps its dihedral angles >= 8°,
+/// level 0 keeps the closed surface's volume within 2%, and every tetrahedron with its
+/// centroid within the band of a fill-in (recomputed here from `fill_*.ply` and
+/// `tets_level0.vtu`) has edges of at most the bound; the uniform levels follow it.
+#[test]
+fn refined_level_around_the_fill_ins() {
+    let Some(dir) = shared_scans() else { return };
+    let name = "pair1_post";
+    let marked = MarkedScan::load(
+        &dir.join(format!("{name}.ply")),
+        &dir.join(format!("{name}_landmarks.json")),
+        &Silent,
+    )
+    .unwrap();
+    let refinement = plan::model::Refinement::default();
+    let options = ModelOptions {
+        refinement: Some(refinement),
+        ..Default::default()
+    };
+    let model = build_model(&marked, &options, &Silent).unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let report = write_model(out.path(), &model, &Silent).unwrap();
+    let refined = report.refinement.expect("refinement report");
+    assert_eq!(report.levels.len(), plan::model::TET_LEVELS + 1);
+    for (l, level) in report.levels.iter().enumerate() {
+        println!(
+            "{name} refined: level {l}: {} tets, spacing {:.2} mm, {:.1} ml, dihedral \
+             {:.1}°..{:.1}°",
+            level.elements,
+            level.spacing_mm,
+            level.volume_ml,
+            level.min_dihedral_deg,
+            level.max_dihedral_deg
+        );
+        assert!(level.min_dihedral_deg >= 8.0, "level {l}");
+    }
+    let closed = report.closed_surface_volume_ml;
+    assert!((report.levels[0].volume_ml - closed).abs() <= 0.02 * closed);
+    let uniform = report.levels[1].elements as f64;
+    assert!((uniform - ELEMENTS as f64).abs() <= 0.2 * ELEMENTS as f64);
+    assert_eq!(report.levels[1].spacing_mm, report.levels[0].spacing_mm);
+
+    let fills: Vec<mesh::SurfaceIndex> = ["fill_left.ply", "fill_right.ply"]
+        .iter()
+        .map(|f| {
+            mesh::SurfaceIndex::new(&mesh::io::read_mesh(&out.path().join(f)).unwrap()).unwrap()
+        })
+        .collect();
+    let level0 = tetra::vtu::read_vtu(&out.path().join("tets_level0.vtu"))
+        .unwrap()
+        .mesh;
+    let (mut longest, mut in_band) = (0.0f64, 0usize);
+    for t in 0..level0.tet_count() {
+        let p = level0.tet_positions(t);
+        let centroid = (p[0] + p[1] + p[2] + p[3]) / 4.0;
+        if fills.iter().any(|f| {
+            f.closest_point_within(centroid, refinement.band_mm)
+                .is_some()
+        }) {
+            in_band += 1;
+            for i in 0..4 {
+                for j in i + 1..4 {
+                    longest = longest.max(p[i].distance(p[j]));
+                }
+            }
+        }
+    }
+    println!(
+        "{name} refined: {in_band} tets in the {} mm band (report {}), longest edge {longest:.3} mm \
+         (report {:.3}), band spacing {:.2} mm",
+        refinement.band_mm,
+        refined.elements_in_band,
+        refined.longest_edge_in_band_mm,
+        refined.band_spacing_mm
+    );
+    assert_eq!(in_band, refined.elements_in_band);
+    // The VTU holds positions in shortest round-trip form, so the lengths agree exactly.
+    assert_eq!(longest, refined.longest_edge_in_band_mm);
+    assert!(longest <= refinement.max_edge_mm, "{longest}");
+}

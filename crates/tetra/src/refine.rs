@@ -40,10 +40,13 @@
 //! mesher's (only quadrilateral diagonals may differ).
 //!
 //! # Edge length in the region
-//! Every output vertex of a lattice tetrahedron lies on it or, warped, within
-//! `α · ℓ` of one of its vertices (at most `0.3722 h` for the fine spacing `h`), so an
-//! output edge in the fine part is at most [`EDGE_GROWTH`]` · h`. The fine spacing is
-//! the coarse spacing halved until that bound is within the requested maximum edge.
+//! The region's lattice spacing `h` is the coarse spacing halved until it is within the
+//! requested maximum edge, so lattice edges (at most `h`) and interior tetrahedra meet
+//! it. Warping can lengthen an edge next to the surface to at most [`EDGE_GROWTH`]` · h`
+//! (each end moves by at most `α · ℓ`); such tetrahedra are found after meshing and the
+//! octree is refined one level further around them (the octree keeps one reserve level
+//! below the region's for this and for the angle repairs). Halving everywhere until the
+//! worst-case bound holds would cost eight times the elements for a few near the skin.
 
 use crate::error::TetraError;
 use crate::lattice::LatticePoint;
@@ -57,6 +60,7 @@ use crate::winding::classify_line;
 use glam::{DVec3, IVec3};
 use mesh::{SurfaceIndex, TriMesh};
 use rayon::prelude::*;
+use rstar::RTree;
 use std::collections::{HashMap, HashSet};
 
 /// Default upper bound on element edges in the refined region (mm).
@@ -66,9 +70,12 @@ pub const DEFAULT_MAX_EDGE_MM: f64 = 4.0;
 /// tetrahedron's diameter (one spacing) plus twice the largest warp (`α_short · √3/2`).
 pub const EDGE_GROWTH: f64 = 1.0 + 2.0 * ALPHA_SHORT * 0.866_025_403_784_438_7;
 
-/// Cubes within this many fine spacings of the region are refined to the fine spacing,
-/// so that every lattice tetrahedron near the region is a fine one.
-pub const REGION_MARGIN: f64 = 3.0;
+/// Cubes within this many of the region's spacings of the region are refined to that
+/// spacing (and cubes within as many reserve spacings of a repair point to the reserve
+/// level), so that every lattice tetrahedron touching the region is a fine one: a BCC
+/// tetrahedron reaches at most one spacing into the neighbouring cube. Edges are
+/// checked after meshing in any case.
+pub const REGION_MARGIN: f64 = 1.0;
 
 /// The smallest dihedral angle [`stuff_refined`] accepts (degrees).
 pub const MIN_DIHEDRAL_DEG: f64 = 8.0;
@@ -79,7 +86,7 @@ pub const MAX_REPAIR_ROUNDS: usize = 6;
 /// More bad tetrahedra than this in one round: fall back to the uniform mesh at once.
 const MAX_REPAIR_POINTS: usize = 2000;
 
-/// Octree levels below the coarse spacing at most.
+/// Octree levels below the coarse spacing at most (the region's and the reserve level).
 const MAX_DEPTH: u32 = 8;
 
 /// Points of the graded lattice at most.
@@ -141,15 +148,16 @@ impl RefinementRegion {
         self
     }
 
-    /// The fine lattice spacing for coarse spacing `spacing_mm`: halved until output
-    /// edges are provably within [`Self::max_edge_mm`].
+    /// The lattice spacing inside the region for coarse spacing `spacing_mm`: halved
+    /// until lattice edges are within [`Self::max_edge_mm`] (mm).
     pub fn fine_spacing(&self, spacing_mm: f64) -> f64 {
         spacing_mm / f64::from(1u32 << self.depth(spacing_mm))
     }
 
+    /// Octree levels from the coarse spacing down to the region's spacing.
     fn depth(&self, spacing_mm: f64) -> u32 {
         (0..MAX_DEPTH)
-            .find(|&d| spacing_mm / f64::from(1u32 << d) * EDGE_GROWTH <= self.max_edge_mm)
+            .find(|&d| spacing_mm / f64::from(1u32 << d) <= self.max_edge_mm)
             .unwrap_or(MAX_DEPTH)
     }
 
@@ -197,7 +205,8 @@ type Cube = (u32, IVec3);
 struct Octree {
     /// Position of doubled coordinate 0 (mm).
     origin: DVec3,
-    /// Fine spacing (mm); doubled coordinates are in units of half of it.
+    /// Spacing of level 0, the reserve level half the region's spacing (mm); doubled
+    /// coordinates are in units of half of it.
     fine: f64,
     /// Coarsest level (the roots).
     depth: u32,
@@ -237,7 +246,7 @@ impl Octree {
         hi: DVec3,
         spacing_mm: f64,
         region: &RefinementRegion,
-        repairs: &[DVec3],
+        repairs: &RTree<[f64; 3]>,
     ) -> Result<Octree, TetraError> {
         if !(spacing_mm.is_finite() && spacing_mm > 0.0) {
             return Err(TetraError::InvalidSpacing { spacing_mm });
@@ -247,7 +256,8 @@ impl Octree {
                 spacing_mm: region.max_edge_mm,
             });
         }
-        let depth = region.depth(spacing_mm);
+        // Region cubes stop at level 1; level 0 is the reserve for repairs.
+        let depth = region.depth(spacing_mm) + 1;
         let fine = spacing_mm / f64::from(1u32 << depth);
         let origin = lo - DVec3::splat(2.0 * spacing_mm);
         let roots_f = ((hi - origin) / spacing_mm).ceil() + 2.0;
@@ -260,7 +270,8 @@ impl Octree {
         }
         let roots = roots_f.as_ivec3();
         let index = region.index();
-        let margin = REGION_MARGIN * fine;
+        let region_margin = REGION_MARGIN * 2.0 * fine;
+        let repair_margin = REGION_MARGIN * fine;
         let mut tree = Octree {
             origin,
             fine,
@@ -281,10 +292,15 @@ impl Octree {
                     let (min, side) = Octree::extent(cube);
                     let centre = tree.position(min + side / 2);
                     let half_diagonal = 0.5 * 3f64.sqrt() * f64::from(side) * 0.5 * fine;
-                    let reach = margin + half_diagonal;
-                    let near = index.near(centre, reach)
-                        || repairs.iter().any(|p| p.distance(centre) <= reach);
-                    if cube.0 > 0 && near {
+                    let split = (cube.0 > 1 && index.near(centre, region_margin + half_diagonal))
+                        || (cube.0 > 0 && {
+                            let reach = repair_margin + half_diagonal;
+                            repairs
+                                .locate_within_distance(centre.to_array(), reach * reach)
+                                .next()
+                                .is_some()
+                        });
+                    if split {
                         stack.extend(children(cube));
                     } else {
                         out.push(cube);
@@ -439,10 +455,11 @@ fn edge_key(a: u32, b: u32) -> (u32, u32) {
 ///
 /// The transitions between octree levels carry no proved angle bound where the surface
 /// crosses them, so the result is checked: while some tetrahedron has a dihedral angle
-/// below [`MIN_DIHEDRAL_DEG`] (or is not positive), the octree is refined to the fine
-/// spacing around it (which moves the transition away) and the mesh rebuilt, up to
-/// [`MAX_REPAIR_ROUNDS`] times; failing that, the uniform mesh at the fine spacing (the
-/// paper's bound) is returned.
+/// below [`MIN_DIHEDRAL_DEG`] (or is not positive), or lies in the region with an edge
+/// longer than its `max_edge_mm` (warped next to the surface), the octree is refined to
+/// half the region's spacing around it and the mesh rebuilt, up to [`MAX_REPAIR_ROUNDS`]
+/// times; failing that, the uniform mesh at that spacing (the paper's angle bound, and
+/// edges within [`EDGE_GROWTH`] times half the region's spacing) is returned.
 pub fn stuff_refined(
     surface: &ClosedSurface,
     spacing_mm: f64,
@@ -458,8 +475,10 @@ pub struct RefineStats {
     pub fine_spacing_mm: f64,
     /// Rebuilds with extra refinement around bad tetrahedra.
     pub repair_rounds: usize,
-    /// Tetrahedra refined around in those rounds.
+    /// Tetrahedra refined around in those rounds for their angles.
     pub repaired_tets: usize,
+    /// Tetrahedra refined around in those rounds for an edge over the region's bound.
+    pub long_edge_tets: usize,
     /// Whether the repairs failed and the uniform fine mesh was returned.
     pub uniform_fallback: bool,
 }
@@ -474,40 +493,74 @@ pub fn stuff_refined_with_stats(
         fine_spacing_mm: region.fine_spacing(spacing_mm),
         repair_rounds: 0,
         repaired_tets: 0,
+        long_edge_tets: 0,
         uniform_fallback: false,
     };
-    let mut repairs: Vec<DVec3> = Vec::new();
+    let index = region.index();
+    let mut repairs: RTree<[f64; 3]> = RTree::new();
     for round in 0..=MAX_REPAIR_ROUNDS {
         let mesh = stuff_graded(surface, spacing_mm, region, &repairs)?;
-        let bad: Vec<DVec3> = (0..mesh.tet_count())
+        let (bad, long): (Vec<_>, Vec<_>) = (0..mesh.tet_count())
             .into_par_iter()
             .filter_map(|t| {
                 let p = mesh.tet_positions(t);
                 let worst = dihedral_angles(p).into_iter().fold(f64::INFINITY, f64::min);
+                let centroid = (p[0] + p[1] + p[2] + p[3]) / 4.0;
                 // NaN (degenerate) fails the comparison and counts as bad.
                 let good = signed_volume(p) > 0.0 && worst.to_degrees() >= MIN_DIHEDRAL_DEG;
-                (!good).then(|| (p[0] + p[1] + p[2] + p[3]) / 4.0)
+                if !good {
+                    return Some((centroid, true));
+                }
+                let too_long = longest_edge(p) > region.max_edge_mm && index.contains(centroid);
+                too_long.then_some((centroid, false))
             })
-            .collect();
+            .partition(|&(_, bad_angle)| bad_angle);
         stats.repair_rounds = round;
-        if bad.is_empty() {
+        if bad.is_empty() && long.is_empty() {
             return Ok((mesh, stats));
         }
         if bad.len() > MAX_REPAIR_POINTS {
             break;
         }
         stats.repaired_tets += bad.len();
-        repairs.extend(bad);
+        stats.long_edge_tets += long.len();
+        for (point, _) in bad.into_iter().chain(long) {
+            repairs.insert(point.to_array());
+        }
     }
     stats.uniform_fallback = true;
-    Ok((stuff(surface, stats.fine_spacing_mm)?, stats))
+    Ok((stuff(surface, 0.5 * stats.fine_spacing_mm)?, stats))
+}
+
+/// The longest edge among the tetrahedra of `mesh` with their centroid in `region`
+/// (mm), and how many such tetrahedra there are.
+pub fn longest_edge_in_region(mesh: &TetMesh, region: &RefinementRegion) -> (f64, usize) {
+    let index = region.index();
+    (0..mesh.tet_count())
+        .into_par_iter()
+        .filter_map(|t| {
+            let p = mesh.tet_positions(t);
+            index
+                .contains((p[0] + p[1] + p[2] + p[3]) / 4.0)
+                .then(|| longest_edge(p))
+        })
+        .fold(|| (0.0, 0), |(l, n), e| (f64::max(l, e), n + 1))
+        .reduce(|| (0.0, 0), |a, b| (a.0.max(b.0), a.1 + b.1))
+}
+
+/// The longest of a tetrahedron's six edges (mm).
+fn longest_edge(p: [DVec3; 4]) -> f64 {
+    [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+        .into_iter()
+        .map(|(i, j)| p[i].distance(p[j]))
+        .fold(0.0, f64::max)
 }
 
 fn stuff_graded(
     surface: &ClosedSurface,
     spacing_mm: f64,
     region: &RefinementRegion,
-    repairs: &[DVec3],
+    repairs: &RTree<[f64; 3]>,
 ) -> Result<TetMesh, TetraError> {
     let (lo, hi) = surface.bounds();
     let tree = Octree::build(lo, hi, spacing_mm, region, repairs)?;
