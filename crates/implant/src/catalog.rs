@@ -5,7 +5,9 @@
 //! manufacturer proportions, not any manufacturer's products.
 
 use crate::error::{CatalogError, ImplantError};
-use crate::shape::{AnatomicImplant, ImplantShape, RoundImplant, ShapeKind};
+use crate::shape::{
+    AnatomicImplant, ImplantShape, PROJECTION_RANGE_MM, RoundImplant, ShapeKind, WIDTH_RANGE_MM,
+};
 use serde::Serialize;
 use std::collections::HashMap;
 use std::io::Read;
@@ -19,6 +21,9 @@ pub const BUILTIN_WIDTHS_MM: [f64; 15] = [
 
 /// Built-in entries whose computed volume falls outside this range (ml) are left out.
 pub const BUILTIN_VOLUME_RANGE_ML: (f64, f64) = (100.0, 800.0);
+
+/// Target volumes [`Catalog::suggest`] accepts (ml): well beyond any breast implant sold.
+pub const TARGET_VOLUME_RANGE_ML: (f64, f64) = (10.0, 2000.0);
 
 /// Built-in round families: (id code, family name, projection / diameter).
 ///
@@ -157,11 +162,16 @@ pub enum SuggestTarget {
 
 impl SuggestTarget {
     fn validate(&self) -> Result<(), ImplantError> {
-        let check = |what: &'static str, value: f64| {
-            if value.is_finite() && value > 0.0 {
+        let check = |what: &'static str, value: f64, (min, max): (f64, f64)| {
+            if (min..=max).contains(&value) {
                 Ok(())
             } else {
-                Err(ImplantError::BadTarget { what, value })
+                Err(ImplantError::BadTarget {
+                    what,
+                    value,
+                    min,
+                    max,
+                })
             }
         };
         match *self {
@@ -170,13 +180,15 @@ impl SuggestTarget {
                 height_mm,
                 projection_mm,
             } => {
-                check("width_mm", width_mm)?;
+                check("width_mm", width_mm, WIDTH_RANGE_MM)?;
                 if let Some(h) = height_mm {
-                    check("height_mm", h)?;
+                    check("height_mm", h, WIDTH_RANGE_MM)?;
                 }
-                check("projection_mm", projection_mm)
+                check("projection_mm", projection_mm, PROJECTION_RANGE_MM)
             }
-            SuggestTarget::Volume { volume_ml } => check("volume_ml", volume_ml),
+            SuggestTarget::Volume { volume_ml } => {
+                check("volume_ml", volume_ml, TARGET_VOLUME_RANGE_ML)
+            }
         }
     }
 }

@@ -40,13 +40,16 @@ pub enum ImplantError {
         /// The limiting dimension (`diameter`, `width` or `height`).
         limited_by: &'static str,
     },
-    /// A catalog suggestion target that is not a positive finite number.
-    #[error("suggestion target {what} must be a positive finite number, got {value}")]
+    /// A catalog suggestion target outside the sizes an implant can have.
+    #[error("suggestion target {what} must be from {min} to {max}, got {value}")]
     BadTarget {
         /// Which target value (`width_mm`, `height_mm`, `projection_mm`, `volume_ml`).
         what: &'static str,
         /// The offending value.
         value: f64,
+        /// The accepted range.
+        min: f64,
+        max: f64,
     },
     /// A surface mesh resolution that cannot make a closed shell.
     #[error(

@@ -351,7 +351,8 @@ fn suggestions_by_volume() {
 #[test]
 fn bad_suggestion_targets_are_rejected() {
     let catalog = Catalog::builtin();
-    for bad in [0.0, -250.0, f64::NAN, f64::INFINITY] {
+    // Non-positive, not finite, or no implant's size (5 m, 5 litres).
+    for bad in [0.0, -250.0, f64::NAN, f64::INFINITY, 5000.0] {
         let e = catalog
             .suggest(&SuggestTarget::Volume { volume_ml: bad }, None, 3)
             .unwrap_err();

@@ -25,6 +25,44 @@ struct Cli {
 }
 
 #[derive(Subcommand)]
+enum CatalogCommand {
+    /// Every entry: id, shape, family, dimensions (mm) and volume (ml).
+    List {
+        /// A CSV catalog (columns id, shape, family, width_mm, height_mm, projection_mm)
+        /// instead of the built-in generic one.
+        #[arg(long, value_name = "CSV")]
+        catalog: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
+    /// The entries closest to given dimensions or to a target volume, best first.
+    Suggest {
+        /// Width or diameter (mm).
+        #[arg(long, value_name = "MM", value_parser = positive, requires = "projection", conflicts_with = "volume_ml")]
+        width: Option<f64>,
+        /// Height (mm; anatomic implants).
+        #[arg(long, value_name = "MM", value_parser = positive, requires = "width")]
+        height: Option<f64>,
+        /// Projection (mm).
+        #[arg(long, value_name = "MM", value_parser = positive, requires = "width")]
+        projection: Option<f64>,
+        /// Target volume (ml) instead of dimensions.
+        #[arg(long, value_name = "ML", value_parser = positive, required_unless_present = "width")]
+        volume_ml: Option<f64>,
+        /// Only round or only anatomic implants.
+        #[arg(long, value_name = "round|anatomic", value_parser = shape_kind)]
+        shape: Option<plan::catalog::ShapeKind>,
+        /// How many entries.
+        #[arg(long, value_name = "N", default_value_t = 5, value_parser = positive_integer)]
+        count: usize,
+        #[arg(long, value_name = "CSV")]
+        catalog: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Subcommand)]
 enum Command {
     /// Run the whole pipeline on the built-in phantom and write every result to DIR.
     Demo {
@@ -120,6 +158,11 @@ enum Command {
         refine_edge_mm: f64,
         #[arg(long)]
         json: bool,
+    },
+    /// Implant catalogs: list the entries, or suggest the closest to a size or volume.
+    Catalog {
+        #[command(subcommand)]
+        command: CatalogCommand,
     },
 }
 
@@ -231,6 +274,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 Ok(())
             }
         }
+        Command::Catalog { command } => catalog(command),
         Command::Model {
             scan,
             landmarks,
@@ -265,6 +309,70 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 Ok(())
             }
         }
+    }
+}
+
+fn catalog(command: CatalogCommand) -> Result<()> {
+    match command {
+        CatalogCommand::List { catalog, json } => {
+            let source = catalog_source(catalog.as_deref());
+            let catalog = plan::catalog::load(catalog.as_deref())?;
+            if json {
+                print_json(&plan::catalog::CatalogListing {
+                    source,
+                    entries: catalog.entries(),
+                })
+            } else {
+                print!(
+                    "{}",
+                    summary::catalog_entries(&source, catalog.entries().iter(), None)
+                );
+                Ok(())
+            }
+        }
+        CatalogCommand::Suggest {
+            width,
+            height,
+            projection,
+            volume_ml,
+            shape,
+            count,
+            catalog,
+            json,
+        } => {
+            let source = catalog_source(catalog.as_deref());
+            let loaded = plan::catalog::load(catalog.as_deref())?;
+            let target = match (width, projection, volume_ml) {
+                (Some(width_mm), Some(projection_mm), _) => {
+                    plan::catalog::SuggestTarget::Dimensions {
+                        width_mm,
+                        height_mm: height,
+                        projection_mm,
+                    }
+                }
+                (_, _, Some(volume_ml)) => plan::catalog::SuggestTarget::Volume { volume_ml },
+                _ => anyhow::bail!("give --width and --projection (and --height), or --volume-ml"),
+            };
+            let report = plan::catalog::suggest(&loaded, source, &target, shape, count)?;
+            if json {
+                print_json(&report)
+            } else {
+                print!("{}", summary::suggestions(&report));
+                Ok(())
+            }
+        }
+    }
+}
+
+fn catalog_source(csv: Option<&std::path::Path>) -> String {
+    csv.map_or_else(|| "builtin".to_string(), |p| p.display().to_string())
+}
+
+fn shape_kind(text: &str) -> Result<plan::catalog::ShapeKind, String> {
+    match text {
+        "round" => Ok(plan::catalog::ShapeKind::Round),
+        "anatomic" => Ok(plan::catalog::ShapeKind::Anatomic),
+        _ => Err(format!("expected round or anatomic, got {text:?}")),
     }
 }
 

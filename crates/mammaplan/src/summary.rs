@@ -181,3 +181,60 @@ pub fn model(report: &ModelReport) -> String {
     }
     out
 }
+
+/// A table of catalog entries; `scores` adds a column (the suggestion's distance).
+pub fn catalog_entries<'a>(
+    source: &str,
+    entries: impl Iterator<Item = &'a plan::catalog::CatalogEntry>,
+    scores: Option<(&str, Vec<f64>)>,
+) -> String {
+    let mut out = format!("catalog: {source}\n");
+    let _ = write!(
+        out,
+        "{:<16} {:<9} {:<34} {:>9} {:>9} {:>13} {:>10}",
+        "id", "shape", "family", "width mm", "height mm", "projection mm", "volume ml"
+    );
+    if let Some((name, _)) = &scores {
+        let _ = write!(out, " {name:>14}");
+    }
+    out.push('\n');
+    for (k, entry) in entries.enumerate() {
+        let shape = entry.shape();
+        let _ = write!(
+            out,
+            "{:<16} {:<9} {:<34} {:>9.1} {:>9.1} {:>13.1} {:>10.1}",
+            entry.id(),
+            shape.kind().as_str(),
+            entry.family(),
+            shape.width_mm(),
+            shape.height_mm(),
+            shape.projection_mm(),
+            entry.volume_ml(),
+        );
+        if let Some((_, values)) = &scores {
+            let _ = write!(out, " {:>14.1}", values[k]);
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// The suggested entries, best first, with how far each is from the target.
+pub fn suggestions(report: &plan::catalog::SuggestReport) -> String {
+    let by_dimensions = report.suggestions.iter().any(|s| s.distance_mm.is_some());
+    let scores = report
+        .suggestions
+        .iter()
+        .map(|s| s.distance_mm.or(s.volume_difference_ml).unwrap_or(f64::NAN))
+        .collect();
+    let name = if by_dimensions {
+        "distance mm"
+    } else {
+        "difference ml"
+    };
+    catalog_entries(
+        &report.source,
+        report.suggestions.iter().map(|s| s.entry),
+        Some((name, scores)),
+    )
+}
