@@ -1,19 +1,29 @@
-//! Kernels of the static solve on a structured box of about 15,000 and 60,000
-//! tetrahedra, Poisson ratio 0.45, bottom face fixed and top face pushed sideways:
-//! corotated assembly (warped and full tangent) and one sparse Cholesky
-//! refactorisation and solve (symbolic factorisation reused).
+//! Kernels of the static solve and of the multigrid on structured boxes of about 15,000
+//! and 60,000 tetrahedra, Poisson ratio 0.45, bottom face fixed and top face pushed
+//! sideways: corotated assembly (warped and full tangent), one sparse Cholesky
+//! refactorisation and solve (symbolic factorisation reused), and for the multigrid
+//! (three Galerkin levels, default options): assembly of every level, one V(2,1) cycle,
+//! one prolongation and restriction, and `solve_ms` of the issue, five interactive
+//! cycles each with rotation update and reassembly on every level.
+//!
+//! `cargo bench -p fem --bench kernels`
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use fem::multigrid::{Multigrid, MultigridOptions};
 use fem::{
-    Constraints, DirectSolver, FemModel, Formulation, Material, ReducedSystem, Tangent, box_mesh,
+    Constraints, DirectSolver, FemModel, Formulation, Material, Prolongation, ReducedSystem,
+    Tangent, box_mesh,
 };
 use glam::DVec3;
 use std::hint::black_box;
+use tetra::TetMesh;
 
-fn setup(n: [usize; 3]) -> (FemModel, ReducedSystem, Vec<DVec3>) {
+fn box_of(n: [usize; 3]) -> (TetMesh, DVec3) {
     let size = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64) * 5.0;
-    let mesh = box_mesh(DVec3::ZERO, size, n);
-    let model = FemModel::homogeneous(&mesh, Material::default()).unwrap();
+    (box_mesh(DVec3::ZERO, size, n), size)
+}
+
+fn constraints(mesh: &TetMesh, size: DVec3) -> Constraints {
     let mut c = Constraints::new();
     for (v, x) in mesh.positions.iter().enumerate() {
         if x.z == 0.0 {
@@ -22,7 +32,13 @@ fn setup(n: [usize; 3]) -> (FemModel, ReducedSystem, Vec<DVec3>) {
             c.prescribe(v as u32, DVec3::new(0.3 * size.z, 0.0, -0.1 * size.z));
         }
     }
-    let system = ReducedSystem::new(&model, &c).unwrap();
+    c
+}
+
+fn setup(n: [usize; 3]) -> (FemModel, ReducedSystem, Vec<DVec3>) {
+    let (mesh, size) = box_of(n);
+    let model = FemModel::homogeneous(&mesh, Material::default()).unwrap();
+    let system = ReducedSystem::new(&model, &constraints(&mesh, size)).unwrap();
     // a sheared state: the linear interpolation of the top displacement
     let u: Vec<DVec3> = mesh
         .positions
@@ -30,6 +46,23 @@ fn setup(n: [usize; 3]) -> (FemModel, ReducedSystem, Vec<DVec3>) {
         .map(|x| DVec3::new(0.3 * x.z, 0.0, -0.1 * x.z))
         .collect();
     (model, system, u)
+}
+
+/// The multigrid over the box with `n` cells and two coarser boxes (about half and a
+/// quarter of the cells per axis, not nested).
+fn multigrid(n: [usize; 3]) -> Multigrid {
+    let levels = [1usize, 2, 4]
+        .iter()
+        .map(|&d| {
+            let (_, size) = box_of(n);
+            let m = n.map(|c| (c / d).max(1));
+            let mesh = box_mesh(DVec3::ZERO, size, m);
+            let model = FemModel::homogeneous(&mesh, Material::default()).unwrap();
+            let c = constraints(&mesh, size);
+            (model, c)
+        })
+        .collect();
+    Multigrid::new(levels, MultigridOptions::default()).unwrap()
 }
 
 fn kernels(c: &mut Criterion) {
@@ -66,6 +99,47 @@ fn kernels(c: &mut Criterion) {
         let rhs = system.rhs.clone();
         c.bench_function(&format!("cholesky_refactor_solve_{ne}"), |b| {
             b.iter(|| direct.solve(&system.matrix, black_box(&rhs)).unwrap())
+        });
+
+        let mut mg = multigrid(n);
+        let u0 = mg
+            .system()
+            .expand(&vec![DVec3::ZERO; mg.system().unknowns()]);
+        c.bench_function(&format!("mg_assemble_all_levels_{ne}"), |b| {
+            b.iter(|| {
+                mg.assemble(black_box(&u), &[], Formulation::Corotated)
+                    .unwrap()
+            })
+        });
+        let rhs = mg.system().rhs.clone();
+        c.bench_function(&format!("mg_vcycle_{ne}"), |b| {
+            b.iter(|| {
+                let mut x = vec![DVec3::ZERO; rhs.len()];
+                mg.vcycle(&mut x, black_box(&rhs));
+                x
+            })
+        });
+        c.bench_function(&format!("mg_solve_five_cycles_{ne}"), |b| {
+            b.iter(|| {
+                let mut x = u0.clone();
+                for _ in 0..5 {
+                    mg.cycle(&mut x, &[], Formulation::Corotated).unwrap();
+                }
+                x
+            })
+        });
+        let (fine, size) = box_of(n);
+        let coarse = box_mesh(DVec3::ZERO, size, n.map(|c| c / 2));
+        let p = Prolongation::new(&coarse, &fine).unwrap();
+        let xc = vec![DVec3::ONE; coarse.positions.len()];
+        let mut xf = vec![DVec3::ZERO; fine.positions.len()];
+        c.bench_function(&format!("transfer_prolong_restrict_{ne}"), |b| {
+            b.iter(|| {
+                p.prolong(black_box(&xc), &mut xf);
+                let mut back = vec![DVec3::ZERO; coarse.positions.len()];
+                p.restrict(&xf, &mut back);
+                back
+            })
         });
     }
 }

@@ -1,25 +1,42 @@
 //! Geometric multigrid on non-nested tetrahedral levels for the warped system
-//! `K'_ff = (R K Rᵀ)_ff` (issue 5, item 4).
+//! `K'_ff = (R K Rᵀ)_ff` (issue 5, item 4). Units as in the rest of the crate:
+//! displacements in mm, forces and residuals in mN, stiffness blocks in mN/mm.
 //!
 //! - Levels: independent tetrahedral meshes of the same body, finest first, each with its
-//!   own [`FemModel`] and [`Constraints`]. On a coarse level the constraints only say
-//!   which vertices are eliminated (they carry no correction); their values are unused.
+//!   own [`FemModel`]; coarse levels need not cover the fine domain (fine vertices
+//!   outside are extrapolated from the nearest coarse element).
 //! - Coarse operators ([`CoarseOperator`]): Galerkin `Pᵀ A P` on a pattern built once
 //!   (default), or rediscretised: every level assembles its own `R K Rᵀ` with its own
-//!   element rotations, from the current fine displacement sampled at its vertices
-//!   (barycentric interpolation in the fine mesh). With [`Formulation::Linear`] all
-//!   rotations are the identity. Measured on the box tests (`tests/multigrid.rs`, ν =
-//!   0.45, 3 levels): PCG needs 16 iterations with Galerkin against 20 rediscretised,
-//!   stand-alone V(2,1) cycles reduce the residual by an asymptotic factor of 1.69 per
-//!   cycle against 1.41; Galerkin is the default for that reason (and because it is
-//!   variational, so every two-grid step is an A-norm contraction), at the cost of a
-//!   denser coarse pattern (20-25 smoother colours instead of 8).
+//!   element rotations and its own constraints. Galerkin is the default: it is
+//!   variational (every two-grid step is an A-norm contraction) and converged better in
+//!   every measurement (box 17k, ν = 0.45, 3 levels, V(2,1) with symmetric Gauss-Seidel:
+//!   asymptotic residual factor 1.69 per cycle against 1.41 rediscretised; lowering the
+//!   coarse Poisson ratio of the rediscretised levels to 0.42, 0.40 or 0.35 to counter
+//!   locking did not help: 1.93, 2.10, 1.25 on the 20/11 box pair).
+//! - Coarse unknowns (Galerkin): every coarse vertex whose interpolation weights towards
+//!   the finer level's unknowns sum to at least 0.1; the coarse levels' own constraints
+//!   are not used. A fine constrained vertex has no row in `P`, so every coarse function
+//!   vanishes there and the fine constraints hold on every level, while coarse vertices
+//!   that happen to fall inside a fine constrained patch still carry the correction of
+//!   the free fine vertices around it. Eliminating coarse vertices by a geometric
+//!   predicate instead (the former scheme) left the correction at zero next to every
+//!   constrained patch, and on real hierarchies from isosurface stuffing it failed
+//!   outright: coarse vertices outside the fine body get empty Galerkin rows (singular
+//!   diagonal blocks).
 //! - Prolongation `P`: [`Prolongation`] (coarse to fine, barycentric, nearest-element
-//!   extrapolation outside) restricted to the free unknowns of both levels
+//!   extrapolation outside) restricted to the unknowns of both levels
 //!   ([`Prolongation::reduced`]); restriction is `Pᵀ`.
-//! - Smoother: block (3x3) Gauss-Seidel in multicolour order (a greedy colouring of the
-//!   block graph; the rows of one colour are independent and updated in parallel). A
-//!   smoothing step is one symmetric sweep (colours forward, then backward).
+//! - Smoother: block (3x3) SOR in multicolour order (a greedy colouring of the block
+//!   graph; the rows of one colour are independent and updated in parallel), ω = 1.5.
+//!   A smoothing step is two sweeps, colours forward before the coarse correction and
+//!   backward after it, so V(2,1) costs six sweeps per level, as the former symmetric
+//!   Gauss-Seidel steps did. Measured on the real 60k-element hierarchy of the shared
+//!   scan `v02_average` (2 levels; geometric mean of the residual reduction over the
+//!   first five cycles / relative error after five cycles): symmetric Gauss-Seidel steps
+//!   4.35 / 2.0e-3; forward-only pre and backward-only post Gauss-Seidel, 2 sweeps a
+//!   step, 5.97 / 7.9e-4; the same with ω = 1.3: 6.74 / 3.8e-4; ω = 1.5: 6.94 / 2.8e-4.
+//!   Over-relaxation helps the smooth error near free surfaces that the coarse P1 space
+//!   represents poorly (the slowest mode on the box is concentrated there).
 //! - Coarsest level: faer sparse Cholesky, refactorised at every [`Multigrid::assemble`].
 //! - Cycle: V(ν₁, ν₂), default V(2, 1).
 //!
@@ -40,12 +57,19 @@ use rayon::prelude::*;
 use tetra::TetMesh;
 
 /// Options of the [`Multigrid`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MultigridOptions {
-    /// Symmetric Gauss-Seidel sweeps before the coarse correction (ν₁).
+    /// Smoothing steps before the coarse correction (ν₁); each step is
+    /// [`MultigridOptions::sweeps_per_step`] forward multicolour block SOR sweeps.
     pub pre_smooth: usize,
-    /// Symmetric Gauss-Seidel sweeps after the coarse correction (ν₂).
+    /// Smoothing steps after the coarse correction (ν₂); each step is
+    /// [`MultigridOptions::sweeps_per_step`] backward sweeps (colours in reverse order),
+    /// so that V(ν, ν) is a symmetric operator.
     pub post_smooth: usize,
+    /// Block SOR sweeps per smoothing step (at least 1).
+    pub sweeps_per_step: usize,
+    /// SOR relaxation factor ω (1 is Gauss-Seidel; 0 < ω < 2 converges).
+    pub relaxation: f64,
     /// How the coarse operators are built.
     pub coarse_operator: CoarseOperator,
 }
@@ -54,19 +78,26 @@ pub struct MultigridOptions {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum CoarseOperator {
     /// Galerkin `Pᵀ A P` from the next finer level's operator, on a pattern built once.
+    /// The coarse unknowns are derived from the finer level (every coarse vertex that
+    /// carries interpolation weight to a finer unknown); the coarse levels' own
+    /// constraints are not used.
     #[default]
     Galerkin,
     /// Each level assembles its own `R K Rᵀ` with rotations from the fine displacement
-    /// sampled at its vertices.
+    /// sampled at its vertices; each level's own constraints say which of its vertices
+    /// are eliminated.
     Rediscretised,
 }
 
 impl Default for MultigridOptions {
-    /// V(2, 1).
+    /// V(2, 1) with two sweeps of block SOR (ω = 1.5) per smoothing step, Galerkin
+    /// coarse operators (measured choices, see the module documentation).
     fn default() -> Self {
         MultigridOptions {
             pre_smooth: 2,
             post_smooth: 1,
+            sweeps_per_step: 2,
+            relaxation: 1.5,
             coarse_operator: CoarseOperator::Galerkin,
         }
     }
@@ -92,11 +123,17 @@ pub struct CycleReport {
     pub linear_residual_after: f64,
 }
 
-/// One level: its model, its reduced system, the smoother's data.
+/// One level: its model, its unknowns, its operator, the smoother's data.
 #[derive(Debug, Clone)]
 struct Level {
     model: FemModel,
-    system: ReducedSystem,
+    /// The level's own reduced system: the finest level, and every level with
+    /// [`CoarseOperator::Rediscretised`].
+    system: Option<ReducedSystem>,
+    /// For each vertex its unknown, or [`NOT_FREE`].
+    reduced_of: Vec<u32>,
+    /// Number of unknowns.
+    unknowns: usize,
     /// The Galerkin operator (coarse levels with [`CoarseOperator::Galerkin`]).
     galerkin: Option<BlockCsr>,
     /// Unknowns grouped by colour (no two of one colour share a matrix block).
@@ -136,7 +173,52 @@ pub struct Multigrid {
     rs: Vec<Vec<DVec3>>,
     /// Per-level displacement used for the rotations (all vertices).
     us: Vec<Vec<DVec3>>,
+    /// Scratch of the smoother.
+    buf: Vec<DVec3>,
     assembled: bool,
+}
+
+impl Transfer {
+    /// The reduced transfer from `p` (coarse to fine, all vertices) restricted to the
+    /// unknowns of both levels, with its transpose.
+    fn new(
+        p: Prolongation,
+        sample: Prolongation,
+        fine_reduced_of: &[u32],
+        coarse_reduced_of: &[u32],
+        coarse_unknowns: usize,
+    ) -> Transfer {
+        let (p_ptr, p_cols, p_w) = p.reduced(fine_reduced_of, coarse_reduced_of);
+        let nc = coarse_unknowns;
+        let mut count = vec![0usize; nc + 1];
+        for &c in &p_cols {
+            count[c as usize + 1] += 1;
+        }
+        for i in 0..nc {
+            count[i + 1] += count[i];
+        }
+        let pt_ptr = count.clone();
+        let mut fill = count;
+        let mut pt_cols = vec![0u32; p_cols.len()];
+        let mut pt_w = vec![0.0; p_cols.len()];
+        for f in 0..p_ptr.len() - 1 {
+            for k in p_ptr[f]..p_ptr[f + 1] {
+                let c = p_cols[k] as usize;
+                pt_cols[fill[c]] = f as u32;
+                pt_w[fill[c]] = p_w[k];
+                fill[c] += 1;
+            }
+        }
+        Transfer {
+            p_ptr,
+            p_cols,
+            p_w,
+            pt_ptr,
+            pt_cols,
+            pt_w,
+            sample,
+        }
+    }
 }
 
 fn mesh_of(model: &FemModel) -> TetMesh {
@@ -174,8 +256,49 @@ fn colour_rows(a: &BlockCsr) -> Vec<Vec<u32>> {
 impl Level {
     /// The operator smoothed and solved on this level.
     fn op(&self) -> &BlockCsr {
-        self.galerkin.as_ref().unwrap_or(&self.system.matrix)
+        match (&self.galerkin, &self.system) {
+            (Some(g), _) => g,
+            (None, Some(s)) => &s.matrix,
+            (None, None) => unreachable!("a level has a Galerkin operator or a system"),
+        }
     }
+}
+
+/// A coarse vertex is a Galerkin unknown when the absolute interpolation weights it
+/// gives the finer level's unknowns sum to at least this (vertices the finer unknowns
+/// hardly see would make the coarse operator nearly singular).
+const MIN_COARSE_WEIGHT: f64 = 0.1;
+
+/// The Galerkin unknowns of a coarse level: its vertices used by a tetrahedron whose
+/// weights in `p` (coarse to fine) towards fine unknowns sum to [`MIN_COARSE_WEIGHT`].
+fn galerkin_unknowns(p: &Prolongation, fine_reduced_of: &[u32], coarse: &FemModel) -> Vec<u32> {
+    let mut weight = vec![0.0; coarse.vertex_count()];
+    for (row, &r) in p.rows.iter().zip(fine_reduced_of) {
+        if r != NOT_FREE {
+            for &(c, w) in row {
+                weight[c as usize] += w.abs();
+            }
+        }
+    }
+    let mut used = vec![false; coarse.vertex_count()];
+    for t in coarse.tets() {
+        for &v in t {
+            used[v as usize] = true;
+        }
+    }
+    let mut next = 0u32;
+    weight
+        .iter()
+        .zip(&used)
+        .map(|(&w, &u)| {
+            if u && w >= MIN_COARSE_WEIGHT {
+                next += 1;
+                next - 1
+            } else {
+                NOT_FREE
+            }
+        })
+        .collect()
 }
 
 /// Pattern of `Pᵀ A P` (rows: coarse unknowns), values zero.
@@ -272,11 +395,12 @@ fn residual(a: &BlockCsr, x: &[DVec3], b: &[DVec3], r: &mut [DVec3]) {
     });
 }
 
-/// One Gauss-Seidel pass over the rows of one colour (parallel within the colour);
-/// `buf` is scratch of at least the colour's size.
-fn gs_colour(
+/// One block SOR pass over the rows of one colour (parallel within the colour):
+/// `xᵢ += ω Dᵢ⁻¹ (b - A x)ᵢ`; `buf` is scratch of at least the colour's size.
+fn sor_colour(
     a: &BlockCsr,
     inv_diag: &[DMat3],
+    omega: f64,
     rows: &[u32],
     x: &mut [DVec3],
     b: &[DVec3],
@@ -285,37 +409,55 @@ fn gs_colour(
     buf.resize(rows.len(), DVec3::ZERO);
     {
         let x: &[DVec3] = x;
-        buf.par_iter_mut().zip(rows).for_each(|(out, &i)| {
-            let i = i as usize;
-            let mut s = b[i];
-            for k in a.row_ptr[i]..a.row_ptr[i + 1] {
-                s -= block_mul(&a.values[k], x[a.cols[k] as usize]);
-            }
-            *out = x[i] + inv_diag[i] * s;
-        });
+        buf.par_iter_mut()
+            .zip(rows)
+            .with_min_len(256)
+            .for_each(|(out, &i)| {
+                let i = i as usize;
+                let mut s = b[i];
+                for k in a.row_ptr[i]..a.row_ptr[i + 1] {
+                    s -= block_mul(&a.values[k], x[a.cols[k] as usize]);
+                }
+                *out = x[i] + inv_diag[i] * (s * omega);
+            });
     }
     for (&i, v) in rows.iter().zip(buf.iter()) {
         x[i as usize] = *v;
     }
 }
 
-/// One symmetric multicolour block Gauss-Seidel sweep.
-fn sgs(level: &Level, x: &mut [DVec3], b: &[DVec3], buf: &mut Vec<DVec3>) {
+/// One multicolour block SOR sweep, colours in order (`forward`) or reversed.
+fn sor_sweep(
+    level: &Level,
+    omega: f64,
+    forward: bool,
+    x: &mut [DVec3],
+    b: &[DVec3],
+    buf: &mut Vec<DVec3>,
+) {
     let a = level.op();
-    for rows in level.colours.iter() {
-        gs_colour(a, &level.inv_diag, rows, x, b, buf);
-    }
-    for rows in level.colours.iter().rev() {
-        gs_colour(a, &level.inv_diag, rows, x, b, buf);
+    if forward {
+        for rows in &level.colours {
+            sor_colour(a, &level.inv_diag, omega, rows, x, b, buf);
+        }
+    } else {
+        for rows in level.colours.iter().rev() {
+            sor_colour(a, &level.inv_diag, omega, rows, x, b, buf);
+        }
     }
 }
 
 impl Multigrid {
     /// Builds the hierarchy: `levels` are `(model, constraints)` pairs, finest first,
-    /// at least one. Every level must have at least one constraint (else its system is
-    /// singular) and the coarsest level at least one unknown.
+    /// at least one. The finest level must have at least one constraint (else its system
+    /// is singular). With [`CoarseOperator::Galerkin`] the coarse levels' constraints are
+    /// ignored (their unknowns follow from the finer level, see [`CoarseOperator`]);
+    /// with [`CoarseOperator::Rediscretised`] every level needs its own.
     ///
     /// Errors: see [`ReducedSystem::new`]; a level without tetrahedra.
+    ///
+    /// # Panics
+    /// If `options.sweeps_per_step` is zero or `options.relaxation` is outside (0, 2).
     pub fn new(
         levels: Vec<(FemModel, Constraints)>,
         options: MultigridOptions,
@@ -327,64 +469,64 @@ impl Multigrid {
                 got: 0,
             });
         }
-        let mut built = Vec::with_capacity(levels.len());
+        assert!(
+            options.sweeps_per_step > 0 && options.relaxation > 0.0 && options.relaxation < 2.0,
+            "multigrid options: need sweeps_per_step >= 1 and 0 < relaxation < 2, got {} and {}",
+            options.sweeps_per_step,
+            options.relaxation
+        );
+        let galerkin = options.coarse_operator == CoarseOperator::Galerkin;
+        let empty = || FemError::LengthMismatch {
+            what: "tetrahedra of a multigrid level",
+            expected: 1,
+            got: 0,
+        };
+        let mut built: Vec<Level> = Vec::with_capacity(levels.len());
+        let mut transfers = Vec::with_capacity(levels.len() - 1);
         for (model, constraints) in levels {
-            let system = ReducedSystem::new(&model, &constraints)?;
-            let inv_diag = vec![DMat3::IDENTITY; system.unknowns()];
+            let prolongations = match built.last() {
+                Some(fine) => {
+                    let fine_mesh = mesh_of(&fine.model);
+                    let coarse_mesh = mesh_of(&model);
+                    let p = Prolongation::new(&coarse_mesh, &fine_mesh).ok_or_else(empty)?;
+                    let sample = Prolongation::new(&fine_mesh, &coarse_mesh).ok_or_else(empty)?;
+                    Some((p, sample))
+                }
+                None => None,
+            };
+            let (system, reduced_of) = match (&prolongations, built.last()) {
+                (Some((p, _)), Some(fine)) if galerkin => {
+                    (None, galerkin_unknowns(p, &fine.reduced_of, &model))
+                }
+                _ => {
+                    let system = ReducedSystem::new(&model, &constraints)?;
+                    let reduced_of = system.reduced_of.clone();
+                    (Some(system), reduced_of)
+                }
+            };
+            let unknowns = reduced_of.iter().filter(|&&r| r != NOT_FREE).count();
+            if let (Some((p, sample)), Some(fine)) = (prolongations, built.last()) {
+                transfers.push(Transfer::new(
+                    p,
+                    sample,
+                    &fine.reduced_of,
+                    &reduced_of,
+                    unknowns,
+                ));
+            }
             built.push(Level {
                 model,
                 system,
+                reduced_of,
+                unknowns,
                 galerkin: None,
                 colours: Vec::new(),
                 diag_slot: Vec::new(),
-                inv_diag,
-            });
-        }
-        let mut transfers = Vec::with_capacity(built.len() - 1);
-        for l in 0..built.len() - 1 {
-            let fine_mesh = mesh_of(&built[l].model);
-            let coarse_mesh = mesh_of(&built[l + 1].model);
-            let empty = || FemError::LengthMismatch {
-                what: "tetrahedra of a multigrid level",
-                expected: 1,
-                got: 0,
-            };
-            let p = Prolongation::new(&coarse_mesh, &fine_mesh).ok_or_else(empty)?;
-            let sample = Prolongation::new(&fine_mesh, &coarse_mesh).ok_or_else(empty)?;
-            let (p_ptr, p_cols, p_w) =
-                p.reduced(&built[l].system.reduced_of, &built[l + 1].system.reduced_of);
-            let nc = built[l + 1].system.unknowns();
-            let mut count = vec![0usize; nc + 1];
-            for &c in &p_cols {
-                count[c as usize + 1] += 1;
-            }
-            for i in 0..nc {
-                count[i + 1] += count[i];
-            }
-            let pt_ptr = count.clone();
-            let mut fill = count;
-            let mut pt_cols = vec![0u32; p_cols.len()];
-            let mut pt_w = vec![0.0; p_cols.len()];
-            for f in 0..p_ptr.len() - 1 {
-                for k in p_ptr[f]..p_ptr[f + 1] {
-                    let c = p_cols[k] as usize;
-                    pt_cols[fill[c]] = f as u32;
-                    pt_w[fill[c]] = p_w[k];
-                    fill[c] += 1;
-                }
-            }
-            transfers.push(Transfer {
-                p_ptr,
-                p_cols,
-                p_w,
-                pt_ptr,
-                pt_cols,
-                pt_w,
-                sample,
+                inv_diag: vec![DMat3::IDENTITY; unknowns],
             });
         }
         for l in 0..built.len() {
-            if l > 0 && options.coarse_operator == CoarseOperator::Galerkin {
+            if l > 0 && galerkin {
                 let pattern = galerkin_pattern(built[l - 1].op(), &transfers[l - 1]);
                 built[l].galerkin = Some(pattern);
             }
@@ -397,12 +539,12 @@ impl Multigrid {
             built[l].diag_slot = diag_slot;
         }
         let last = built.last().expect("at least one level");
-        let coarse = if last.system.unknowns() > 0 {
+        let coarse = if last.unknowns > 0 {
             Some(DirectSolver::new(last.op())?)
         } else {
             None
         };
-        let sizes: Vec<usize> = built.iter().map(|l| l.system.unknowns()).collect();
+        let sizes: Vec<usize> = built.iter().map(|l| l.unknowns).collect();
         let xs = sizes.iter().map(|&n| vec![DVec3::ZERO; n]).collect();
         let bs = sizes.iter().map(|&n| vec![DVec3::ZERO; n]).collect();
         let rs = sizes.iter().map(|&n| vec![DVec3::ZERO; n]).collect();
@@ -419,6 +561,7 @@ impl Multigrid {
             bs,
             rs,
             us,
+            buf: Vec::new(),
             assembled: false,
         })
     }
@@ -430,7 +573,7 @@ impl Multigrid {
 
     /// Unknown vertices per level, finest first.
     pub fn unknowns_per_level(&self) -> Vec<usize> {
-        self.levels.iter().map(|l| l.system.unknowns()).collect()
+        self.levels.iter().map(|l| l.unknowns).collect()
     }
 
     /// Colours of the Gauss-Seidel smoother per level, finest first.
@@ -445,7 +588,18 @@ impl Multigrid {
 
     /// The finest level's reduced system of the latest [`Multigrid::assemble`].
     pub fn system(&self) -> &ReducedSystem {
-        &self.levels[0].system
+        self.levels[0]
+            .system
+            .as_ref()
+            .expect("the finest level has its system")
+    }
+
+    /// The finest level's system, mutably.
+    fn finest_mut(&mut self) -> &mut ReducedSystem {
+        self.levels[0]
+            .system
+            .as_mut()
+            .expect("the finest level has its system")
     }
 
     /// Changes the prescribed displacement of an already constrained vertex of the
@@ -453,7 +607,7 @@ impl Multigrid {
     ///
     /// Errors: the vertex is free or out of range, or `d` is not finite.
     pub fn set_prescribed(&mut self, vertex: u32, d: DVec3) -> Result<(), FemError> {
-        let sys = &mut self.levels[0].system;
+        let sys = self.finest_mut();
         let v = vertex as usize;
         if v >= sys.reduced_of.len() || sys.reduced_of[v] != NOT_FREE {
             return Err(FemError::ConstraintOutOfRange {
@@ -503,16 +657,18 @@ impl Multigrid {
             } else {
                 let level = &mut self.levels[l];
                 let f = if l == 0 { f_ext } else { &[] };
-                level.system.assemble(
-                    &level.model,
-                    &self.us[l],
-                    f,
-                    formulation,
-                    Tangent::Warped,
-                )?;
+                level
+                    .system
+                    .as_mut()
+                    .expect("a level without a Galerkin operator has its system")
+                    .assemble(&level.model, &self.us[l], f, formulation, Tangent::Warped)?;
             }
             let level = &mut self.levels[l];
-            let a = level.galerkin.as_ref().unwrap_or(&level.system.matrix);
+            let a = match (&level.galerkin, &level.system) {
+                (Some(g), _) => g,
+                (None, Some(s)) => &s.matrix,
+                (None, None) => unreachable!("a level has a Galerkin operator or a system"),
+            };
             let diag_slot = &level.diag_slot;
             level
                 .inv_diag
@@ -544,7 +700,7 @@ impl Multigrid {
     /// `‖b - A x‖₂` on the assembled finest system.
     pub fn residual_norm(&mut self, x: &[DVec3], b: &[DVec3]) -> f64 {
         let r = &mut self.rs[0];
-        residual(&self.levels[0].system.matrix, x, b, r);
+        residual(self.levels[0].op(), x, b, r);
         norm(r)
     }
 
@@ -555,7 +711,7 @@ impl Multigrid {
     /// Before the first [`Multigrid::assemble`], or on length mismatches.
     pub fn vcycle(&mut self, x: &mut [DVec3], b: &[DVec3]) {
         assert!(self.assembled, "Multigrid::vcycle before assemble");
-        let n0 = self.levels[0].system.unknowns();
+        let n0 = self.levels[0].unknowns;
         assert_eq!(x.len(), n0);
         assert_eq!(b.len(), n0);
         if n0 == 0 {
@@ -564,12 +720,13 @@ impl Multigrid {
         self.xs[0].copy_from_slice(x);
         self.bs[0].copy_from_slice(b);
         let nl = self.levels.len();
-        let mut buf = Vec::new();
+        let o = self.options;
+        let buf = &mut self.buf;
         // down
         for l in 0..nl - 1 {
             let level = &self.levels[l];
-            for _ in 0..self.options.pre_smooth {
-                sgs(level, &mut self.xs[l], &self.bs[l], &mut buf);
+            for _ in 0..o.pre_smooth * o.sweeps_per_step {
+                sor_sweep(level, o.relaxation, true, &mut self.xs[l], &self.bs[l], buf);
             }
             residual(level.op(), &self.xs[l], &self.bs[l], &mut self.rs[l]);
             let t = &self.transfers[l];
@@ -577,6 +734,7 @@ impl Multigrid {
             self.bs[l + 1]
                 .par_iter_mut()
                 .enumerate()
+                .with_min_len(256)
                 .for_each(|(c, bc)| {
                     let mut s = DVec3::ZERO;
                     for k in t.pt_ptr[c]..t.pt_ptr[c + 1] {
@@ -595,14 +753,25 @@ impl Multigrid {
             let t = &self.transfers[l];
             let (fine, coarse) = self.xs.split_at_mut(l + 1);
             let xc = &coarse[0];
-            fine[l].par_iter_mut().enumerate().for_each(|(f, xf)| {
-                for k in t.p_ptr[f]..t.p_ptr[f + 1] {
-                    *xf += xc[t.p_cols[k] as usize] * t.p_w[k];
-                }
-            });
+            fine[l]
+                .par_iter_mut()
+                .enumerate()
+                .with_min_len(256)
+                .for_each(|(f, xf)| {
+                    for k in t.p_ptr[f]..t.p_ptr[f + 1] {
+                        *xf += xc[t.p_cols[k] as usize] * t.p_w[k];
+                    }
+                });
             let level = &self.levels[l];
-            for _ in 0..self.options.post_smooth {
-                sgs(level, &mut self.xs[l], &self.bs[l], &mut buf);
+            for _ in 0..o.post_smooth * o.sweeps_per_step {
+                sor_sweep(
+                    level,
+                    o.relaxation,
+                    false,
+                    &mut self.xs[l],
+                    &self.bs[l],
+                    buf,
+                );
             }
         }
         x.copy_from_slice(&self.xs[0]);
@@ -630,7 +799,7 @@ impl Multigrid {
             };
         }
         let mut r = vec![DVec3::ZERO; n];
-        residual(&self.levels[0].system.matrix, x, b, &mut r);
+        residual(self.levels[0].op(), x, b, &mut r);
         let mut z = vec![DVec3::ZERO; n];
         let mut z_old = vec![DVec3::ZERO; n];
         let mut p = vec![DVec3::ZERO; n];
@@ -655,7 +824,7 @@ impl Multigrid {
                     .zip(&z)
                     .for_each(|(pi, zi)| *pi = *zi + *pi * beta);
             }
-            self.levels[0].system.matrix.mul_vec(&p, &mut ap);
+            self.levels[0].op().mul_vec(&p, &mut ap);
             let alpha = rz / dot(&p, &ap);
             x.par_iter_mut()
                 .zip(&p)
@@ -686,17 +855,17 @@ impl Multigrid {
         formulation: Formulation,
     ) -> Result<CycleReport, FemError> {
         self.levels[0].model.check_vertex_field("displacement", u)?;
-        let sys = &self.levels[0].system;
+        let sys = self.system();
         let u_free: Vec<DVec3> = sys.free.iter().map(|&v| u[v as usize]).collect();
         let imposed = sys.expand(&u_free);
         u.copy_from_slice(&imposed);
         self.assemble(u, f_ext, formulation)?;
-        let b = self.levels[0].system.rhs.clone();
+        let b = self.system().rhs.clone();
         let residual_before = norm(&b);
         let mut du = vec![DVec3::ZERO; b.len()];
         self.vcycle(&mut du, &b);
         let linear_residual_after = self.residual_norm(&du, &b);
-        for (&v, d) in self.levels[0].system.free.iter().zip(&du) {
+        for (&v, d) in self.system().free.iter().zip(&du) {
             u[v as usize] += *d;
         }
         Ok(CycleReport {

@@ -4,13 +4,14 @@
 //! the bottom face (`z = 0`, the chest wall) fixed, an implant-like patch of the top face
 //! (radius 20 mm around its centre) pushed down by 8 mm (a smooth bump). The finest level
 //! is jittered (irregular); the coarse levels are coarser boxes over the same domain with
-//! cell counts that do not divide the finer ones (non-nested levels). Coarse constraints:
-//! the same geometric predicate on the coarse vertices.
+//! cell counts that do not divide the finer ones (non-nested levels). The coarse levels'
+//! constraints (the same geometric predicate) are only used by the rediscretised
+//! variant; the default Galerkin levels derive their unknowns from the finer level.
 
 mod common;
 
 use common::*;
-use fem::multigrid::{CoarseOperator, Multigrid, MultigridOptions};
+use fem::multigrid::{Multigrid, MultigridOptions};
 use fem::{
     Constraints, DirectSolver, FemModel, Formulation, Material, STANDARD_GRAVITY_M_S2, box_mesh,
 };
@@ -130,55 +131,155 @@ fn pcg_agrees_with_direct_solver() {
     }
 }
 
-/// (2) and (3): stand-alone V(2,1) cycles from zero on the linear system. Prints the
-/// residual reduction factor of every cycle and the cycles needed for 1e-3 relative
-/// error against the direct solution.
+/// Runs `cycles` stand-alone V(2,1) cycles from zero on `A x = b`; returns the residual
+/// reduction factor of every cycle and the relative error (2-norm over the unknowns)
+/// against `x_direct` after each cycle.
+fn cycles_from_zero(
+    mg: &mut Multigrid,
+    b: &[DVec3],
+    x_direct: &[DVec3],
+    cycles: usize,
+) -> (Vec<f64>, Vec<f64>) {
+    let mut x = vec![DVec3::ZERO; b.len()];
+    let mut r_prev = mg.residual_norm(&x, b);
+    let mut factors = Vec::new();
+    let mut errors = Vec::new();
+    for _ in 0..cycles {
+        mg.vcycle(&mut x, b);
+        let r = mg.residual_norm(&x, b);
+        factors.push(r_prev / r);
+        errors.push(rel_diff(&x, x_direct));
+        r_prev = r;
+    }
+    (factors, errors)
+}
+
+/// Geometric mean of the first five factors.
+fn mean5(factors: &[f64]) -> f64 {
+    factors[..5].iter().product::<f64>().powf(0.2)
+}
+
+/// (2) and (3) on a box of 62,208 tetrahedra (32x18x18 cells, jittered; coarse boxes
+/// 16x9x9 and 8x5x5, Galerkin): ν = 0.45, bottom fixed, a 20 mm patch of the top
+/// pushed in by 8 mm, gravity. Stand-alone V(2,1) cycles from zero on the linear
+/// system. Measured (release): factors 10.3, 4.8, 3.3, 2.8, 2.6 (geometric mean 4.14,
+/// asymptotically 2.3), relative error 2.2e-3 after five cycles (9.1e-4 after six). This box misses the
+/// issue's targets (5 per cycle, 1e-3 after five cycles); the real hierarchy below
+/// meets them. The asserted bounds sit just below the measured figures so that a
+/// regression shows. Runs in about 2 s in release.
 #[test]
-fn vcycle_convergence() {
-    for (cells, op) in [
-        (TWO_LEVELS, CoarseOperator::Galerkin),
-        (THREE_LEVELS, CoarseOperator::Galerkin),
-        (TWO_LEVELS, CoarseOperator::Rediscretised),
-        (THREE_LEVELS, CoarseOperator::Rediscretised),
-    ] {
-        let options = MultigridOptions {
-            coarse_operator: op,
-            ..MultigridOptions::default()
-        };
-        let (mut mg, gravity) = hierarchy(cells, 8.0, options);
-        let (b, x_direct) = linear_problem(&mut mg, &gravity);
-        let mut x = vec![DVec3::ZERO; b.len()];
-        let mut r_prev = mg.residual_norm(&x, &b);
-        let r0 = r_prev;
-        let mut factors = Vec::new();
-        let mut errors = Vec::new();
-        for _ in 0..40 {
-            mg.vcycle(&mut x, &b);
-            let r = mg.residual_norm(&x, &b);
-            factors.push(r_prev / r);
-            errors.push(rel_diff(&x, &x_direct));
-            r_prev = r;
-        }
-        let mean5 = (r0 / {
-            let mut y = vec![DVec3::ZERO; b.len()];
-            for _ in 0..5 {
-                mg.vcycle(&mut y, &b);
+fn vcycle_convergence_box_60k() {
+    let cells: &[[usize; 3]] = &[[32, 18, 18], [16, 9, 9], [8, 5, 5]];
+    let (mut mg, gravity) = hierarchy(cells, 8.0, MultigridOptions::default());
+    assert!(mg.model().element_count() > 60_000);
+    let (b, x_direct) = linear_problem(&mut mg, &gravity);
+    let (factors, errors) = cycles_from_zero(&mut mg, &b, &x_direct, 12);
+    println!(
+        "box {cells:?}: unknowns {:?}, colours {:?}",
+        mg.unknowns_per_level(),
+        mg.colours_per_level()
+    );
+    println!("  reduction factor per cycle: {factors:.2?}");
+    println!(
+        "  relative error per cycle: {:?}",
+        errors
+            .iter()
+            .map(|e| format!("{e:.2e}"))
+            .collect::<Vec<_>>()
+    );
+    println!(
+        "  mean factor over the first 5 cycles: {:.2}",
+        mean5(&factors)
+    );
+    assert!(mean5(&factors) >= 4.0, "mean reduction {}", mean5(&factors));
+    assert!(errors[4] <= 3e-3, "error after five cycles {}", errors[4]);
+    assert!(
+        factors.iter().all(|&f| f >= 2.0),
+        "a cycle reduced less than 2x"
+    );
+}
+
+/// (2) and (3) on a real hierarchy of our pipeline: the finest two levels written by
+/// `mammaplan model --scan S --landmarks L --out DIR` (`tets_level0.vtu`,
+/// `tets_level1.vtu`), read from the folder in the environment variable
+/// `FEM_TEST_MODEL_DIR` (skipped with a message if unset or missing; the coarsest
+/// level of such a hierarchy keeps only a third of the volume of a 15 mm slab and
+/// slows the cycle down, so it is not used). Constraints: the rear wall (boundary
+/// faces with outward normal z < -0.7) fixed, the boundary vertices within 25 mm of the
+/// most anterior point pushed back by up to 8 mm. ν = 0.45. Measured on `v02_average`
+/// (59,506 tetrahedra): factors 23.8, 7.9, 5.2, 4.3, 3.9 (geometric mean 6.94),
+/// relative error 2.8e-4 after five cycles; PCG agrees with the direct solver to
+/// 1e-10.
+#[test]
+fn vcycle_convergence_real_hierarchy() {
+    let Some(dir) = std::env::var_os("FEM_TEST_MODEL_DIR") else {
+        println!("skipped: set FEM_TEST_MODEL_DIR to a `mammaplan model` output folder");
+        return;
+    };
+    let dir = std::path::PathBuf::from(dir);
+    let mut meshes = Vec::new();
+    for l in 0..2 {
+        let path = dir.join(format!("tets_level{l}.vtu"));
+        match tetra::vtu::read_vtu(&path) {
+            Ok(v) => meshes.push(v.mesh),
+            Err(e) => {
+                println!("skipped: {}: {e}", path.display());
+                return;
             }
-            mg.residual_norm(&y, &b)
-        })
-        .powf(0.2);
-        let needed = errors.iter().position(|&e| e <= 1e-3).map(|k| k + 1);
-        println!("levels {cells:?}, {op:?}:");
-        println!("  reduction factor per cycle: {factors:.2?}");
-        println!("  mean factor over the first 5 cycles: {mean5:.2}");
-        println!("  relative error after 5 cycles: {:.2e}", errors[4]);
-        println!("  cycles to 1e-3 relative: {needed:?}");
-        // measured figures are asserted with a margin below them (see the report)
-        if op == CoarseOperator::Galerkin {
-            assert!(mean5 >= 2.0, "mean reduction {mean5}");
-            assert!(needed.is_some_and(|k| k <= 20));
         }
     }
+    let top = *meshes[0]
+        .positions
+        .iter()
+        .max_by(|a, b| a.z.total_cmp(&b.z))
+        .unwrap();
+    let material = Material::new(3.0, 0.45);
+    let levels = meshes
+        .iter()
+        .map(|mesh| {
+            let boundary = mesh.boundary();
+            let mut rear = vec![false; boundary.tet_vertex.len()];
+            for t in &boundary.mesh.triangles {
+                let p = t.map(|k| boundary.mesh.positions[k as usize]);
+                if (p[1] - p[0]).cross(p[2] - p[0]).normalize().z < -0.7 {
+                    t.iter().for_each(|&k| rear[k as usize] = true);
+                }
+            }
+            let mut c = Constraints::new();
+            for (k, &v) in boundary.tet_vertex.iter().enumerate() {
+                let r = (mesh.positions[v as usize] - top).length();
+                if rear[k] {
+                    c.fix(v);
+                } else if r <= 25.0 {
+                    c.prescribe(v, DVec3::new(0.0, 0.0, -8.0 * (1.0 - r / 25.0)));
+                }
+            }
+            (FemModel::homogeneous(mesh, material).unwrap(), c)
+        })
+        .collect();
+    let mut mg = Multigrid::new(levels, MultigridOptions::default()).unwrap();
+    let (b, x_direct) = linear_problem(&mut mg, &[]);
+    let (factors, errors) = cycles_from_zero(&mut mg, &b, &x_direct, 8);
+    println!(
+        "real hierarchy: {} elements, unknowns {:?}",
+        mg.model().element_count(),
+        mg.unknowns_per_level()
+    );
+    println!("  reduction factor per cycle: {factors:.2?}");
+    println!(
+        "  relative error per cycle: {:?}",
+        errors
+            .iter()
+            .map(|e| format!("{e:.2e}"))
+            .collect::<Vec<_>>()
+    );
+    assert!(mean5(&factors) >= 5.0, "mean reduction {}", mean5(&factors));
+    assert!(errors[4] <= 1e-3, "error after five cycles {}", errors[4]);
+    let mut x = vec![DVec3::ZERO; b.len()];
+    let res = mg.pcg(&b, &mut x, 1e-10, 100);
+    println!("  PCG {res:?}");
+    assert!(res.converged);
+    assert!(rel_diff(&x, &x_direct) < 1e-6);
 }
 
 /// Interactive use: `cycle` (reassemble every level at the current displacement, one
