@@ -63,6 +63,31 @@ enum CatalogCommand {
 }
 
 #[derive(Subcommand)]
+enum FemCommand {
+    /// Static elasticity on a tetrahedral .vtu: point data `constrained` (0/1) and
+    /// `displacement` (prescribed where constrained), optional cell data
+    /// `young_modulus` (kPa) and `poisson_ratio`. Writes the mesh with the solved
+    /// `displacement` and each element's `von_mises_kpa`.
+    Solve {
+        #[arg(long, value_name = "IN.vtu")]
+        mesh: PathBuf,
+        #[arg(long, value_name = "OUT.vtu")]
+        out: PathBuf,
+        /// Small-strain elasticity instead of corotated.
+        #[arg(long)]
+        linear: bool,
+        /// Young's modulus of every element (kPa), instead of the file's.
+        #[arg(long, value_name = "E", value_parser = positive)]
+        young_kpa: Option<f64>,
+        /// Poisson ratio of every element, instead of the file's.
+        #[arg(long, value_name = "NU", value_parser = poisson_ratio)]
+        poisson: Option<f64>,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Subcommand)]
 enum Command {
     /// Run the whole pipeline on the built-in phantom and write every result to DIR.
     Demo {
@@ -158,6 +183,11 @@ enum Command {
         refine_edge_mm: f64,
         #[arg(long)]
         json: bool,
+    },
+    /// Finite elements on your own meshes.
+    Fem {
+        #[command(subcommand)]
+        command: FemCommand,
     },
     /// Implant catalogs: list the entries, or suggest the closest to a size or volume.
     Catalog {
@@ -275,6 +305,31 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             }
         }
         Command::Catalog { command } => catalog(command),
+        Command::Fem {
+            command:
+                FemCommand::Solve {
+                    mesh,
+                    out,
+                    linear,
+                    young_kpa,
+                    poisson,
+                    json,
+                },
+        } => {
+            let options = plan::fem_solve::FemSolveOptions {
+                linear,
+                young_kpa,
+                poisson_ratio: poisson,
+            };
+            let report = plan::fem_solve::fem_solve(&mesh, &out, &options)?;
+            progress.finish();
+            if json {
+                print_json(&report)
+            } else {
+                print!("{}", summary::fem_solve(&report));
+                Ok(())
+            }
+        }
         Command::Model {
             scan,
             landmarks,
@@ -401,6 +456,15 @@ fn positive(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(x) if x > 0.0 && x.is_finite() => Ok(x),
         _ => Err(format!("expected a number > 0, got {text:?}")),
+    }
+}
+
+fn poisson_ratio(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if x > -1.0 && x < 0.5 => Ok(x),
+        _ => Err(format!(
+            "expected a Poisson ratio above -1 and below 0.5, got {text:?}"
+        )),
     }
 }
 

@@ -238,3 +238,24 @@ pub fn suggestions(report: &plan::catalog::SuggestReport) -> String {
         Some((name, scores)),
     )
 }
+
+/// What `fem solve` computed.
+pub fn fem_solve(report: &plan::fem_solve::FemSolveReport) -> String {
+    format!(
+        "{}: {} elements, {} nodes ({} constrained), {} elasticity\n\
+         solved in {} iterations ({:.0} ms), relative residual {:.1e}\n\
+         largest displacement {:.3} mm, largest von Mises stress {:.4} kPa\n\
+         written to {}\n",
+        report.mesh.display(),
+        report.elements,
+        report.nodes,
+        report.constrained_nodes,
+        report.formulation,
+        report.iterations,
+        report.solve_ms,
+        report.relative_residual,
+        report.max_displacement_mm,
+        report.max_von_mises_kpa,
+        report.out.display(),
+    )
+}

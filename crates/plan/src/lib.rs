@@ -4,6 +4,7 @@
 
 pub mod catalog;
 pub mod demo;
+pub mod fem_solve;
 pub mod measure;
 pub mod model;
 pub mod register;
