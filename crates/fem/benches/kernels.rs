@@ -3,13 +3,16 @@
 //! sideways: corotated assembly (warped and full tangent), one sparse Cholesky
 //! refactorisation and solve (symbolic factorisation reused), and for the multigrid
 //! (three Galerkin levels, default options): assembly of every level, one V(2,1) cycle,
-//! one prolongation and restriction, and `solve_ms` of the issue, five interactive
-//! cycles each with rotation update and reassembly on every level.
+//! one prolongation and restriction, one interactive cycle (`Multigrid::cycle`: rotation
+//! update, reassembly of every level, one V-cycle; `1000 / update_hz` of the issue), and
+//! `solve_ms` of the issue, five interactive cycles from the rest state. After the
+//! five-cycle bench the median phase times of `Multigrid::phase_times` over 25 cycles
+//! are printed (where the time of a cycle goes).
 //!
-//! `cargo bench -p fem --bench kernels`
+//! `cargo bench -p fem --bench kernels` (`-- mg_` for the multigrid only)
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use fem::multigrid::{Multigrid, MultigridOptions};
+use fem::multigrid::{Multigrid, MultigridOptions, PhaseTimes};
 use fem::{
     Constraints, DirectSolver, FemModel, Formulation, Material, Prolongation, ReducedSystem,
     Tangent, box_mesh,
@@ -128,6 +131,17 @@ fn kernels(c: &mut Criterion) {
                 x
             })
         });
+        let mut x = u0.clone();
+        for _ in 0..5 {
+            mg.cycle(&mut x, &[], Formulation::Corotated).unwrap();
+        }
+        c.bench_function(&format!("mg_one_cycle_{ne}"), |b| {
+            b.iter(|| {
+                mg.cycle(black_box(&mut x), &[], Formulation::Corotated)
+                    .unwrap()
+            })
+        });
+        print_phases(&mut mg, &u0, ne);
         let (fine, size) = box_of(n);
         let coarse = box_mesh(DVec3::ZERO, size, n.map(|c| c / 2));
         let p = Prolongation::new(&coarse, &fine).unwrap();
@@ -142,6 +156,33 @@ fn kernels(c: &mut Criterion) {
             })
         });
     }
+}
+
+/// Prints the median phase times of 25 interactive cycles from the rest state (five
+/// runs of five cycles).
+fn print_phases(mg: &mut Multigrid, u0: &[DVec3], ne: usize) {
+    let mut phases: Vec<PhaseTimes> = Vec::new();
+    for _ in 0..5 {
+        let mut x = u0.to_vec();
+        for _ in 0..5 {
+            mg.cycle(&mut x, &[], Formulation::Corotated).unwrap();
+            phases.push(mg.phase_times());
+        }
+    }
+    let median = |f: fn(&PhaseTimes) -> f64| {
+        let mut v: Vec<f64> = phases.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    println!(
+        "phases {ne} (median ms): finest assembly {:.2}, coarse operators {:.2}, smoother set-up \
+         {:.2}, coarsest factorisation {:.2}, V-cycle {:.2}",
+        median(|p| p.finest_assembly_ms),
+        median(|p| p.coarse_operators_ms),
+        median(|p| p.smoother_setup_ms),
+        median(|p| p.coarsest_factorisation_ms),
+        median(|p| p.vcycle_ms),
+    );
 }
 
 criterion_group! {

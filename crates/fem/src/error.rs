@@ -86,6 +86,12 @@ pub enum FemError {
         /// The solver's message.
         detail: String,
     },
+    /// A solver option is out of range.
+    #[error("invalid solver options: {what}")]
+    InvalidOptions {
+        /// Which option and its value.
+        what: String,
+    },
     /// The solution contains NaN or infinite values.
     #[error("the solver produced a non-finite displacement (iteration {iteration})")]
     NonFiniteSolution {

@@ -344,9 +344,16 @@ impl FemModel {
         let (r, g, svd) = match formulation {
             Formulation::Linear => (DMat3::IDENTITY, du, None),
             Formulation::Corotated => {
-                let (r, v, s) = rotation_variant_svd(DMat3::IDENTITY + du);
+                let f = DMat3::IDENTITY + du;
+                let (r, svd) = match tangent {
+                    Tangent::Full => {
+                        let (r, v, s) = rotation_variant_svd(f);
+                        (r, Some((v, s)))
+                    }
+                    Tangent::Warped => (polar_rotation(f), None),
+                };
                 let g = (r.transpose() - DMat3::IDENTITY) + r.transpose() * du;
-                (r, g, (tangent == Tangent::Full).then_some((v, s)))
+                (r, g, svd)
             }
         };
         let eps = (g + g.transpose()) * 0.5;

