@@ -1,0 +1,197 @@
+//! Placing an implant on its bed (paper V-A): the anchor point (the centre of the
+//! implant's back wall) on the bed, moved along it, and the implant's local frame there.
+//!
+//! # Default anchor
+//! [`AnchorRule::FootprintCentre`] (default): the area centroid of the bed's domain in the
+//! cylinder parameters `(u, v)`, i.e. the implant centred on the breast's footprint (the
+//! region inside the cut curve, seen from the body's axis). On the phantom and the shared
+//! scans it lies 5-15 mm below and slightly medial of the nipple's radial projection, where a
+//! surgeon centres a round implant on the breast base. [`AnchorRule::BehindNipple`]
+//! puts it straight behind the nipple instead (the nipple's `(u, v)`).
+//!
+//! # Moves
+//! [`Placement::move_mm`] is in the anatomical frame: `x` towards the patient's left and
+//! `y` up are arc lengths walked along the bed (in steps of at most
+//! [`WALK_STEP_MM`], following the frame's left and up directions projected onto the bed's
+//! tangent plane), `z` anterior shifts the bed forwards (the implant lies deeper for
+//! negative values: the bed's backward shift is `shift_mm - z`).
+//!
+//! # Local frame and warping
+//! At the anchor, `x'` is the frame's `x` (patient's left) projected onto the bed's
+//! tangent plane, `y' = n × x'` (up), `z' = n` the bed's normal, then turned by
+//! [`Placement::rotation_deg`] about `n` (counter-clockwise seen from the front). The
+//! shapes are symmetric in `x'`, so `x'` pointing left on both sides is harmless. A point
+//! with bed parameters `(u, v)` gets `(x', y') = T (u - u_a, v - v_a)` where `T` is the
+//! bed's tangent map at the anchor expressed in `(x', y')` (isometric at the anchor).
+//! The implant is warped to the bed: its thickness `z'(x', y')` is laid off along the bed's
+//! local normal at `(u, v)`, not along the anchor's.
+
+use crate::bed::ImplantBed;
+use crate::error::SimulationError;
+use anatomy::AnatomicalFrame;
+use glam::{DMat2, DVec2, DVec3};
+use serde::Serialize;
+
+/// Longest step of the walk along the bed (mm).
+pub const WALK_STEP_MM: f64 = 2.0;
+
+/// Step of the finite differences of the bed's tangent map (mm in parameters).
+const TANGENT_STEP_MM: f64 = 1.5;
+
+/// Where an implant goes, relative to the default anchor.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct Placement {
+    /// Move in the anatomical frame (mm): `x` towards the patient's left and `y` up
+    /// along the bed, `z` anterior (the bed shifted forwards; negative = deeper).
+    pub move_mm: DVec3,
+    /// Turn about the bed's normal, counter-clockwise seen from the front (degrees).
+    pub rotation_deg: f64,
+}
+
+impl Placement {
+    /// A move (mm, anatomical frame) without rotation.
+    pub fn moved(x_mm: f64, y_mm: f64, z_mm: f64) -> Placement {
+        Placement {
+            move_mm: DVec3::new(x_mm, y_mm, z_mm),
+            rotation_deg: 0.0,
+        }
+    }
+}
+
+/// Where the default anchor lies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+pub enum AnchorRule {
+    /// The area centroid of the bed's domain in `(u, v)` (see the module documentation).
+    #[default]
+    FootprintCentre,
+    /// Straight behind the nipple: the nipple's `(u, v)`.
+    BehindNipple,
+}
+
+/// The implant's anchor on its bed and its local frame there.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Anchor {
+    /// Bed parameters `(u, v)` (mm).
+    pub uv: DVec2,
+    /// Position (file frame, mm).
+    pub position: DVec3,
+    /// Bed normal (anterior, unit).
+    pub normal: DVec3,
+    /// `x'` and `y'` axes (unit, tangent to the bed, after the rotation).
+    pub x_axis: DVec3,
+    pub y_axis: DVec3,
+    /// `(u - u_a, v - v_a)` to `(x', y')`.
+    pub to_local: DMat2,
+    /// `(x', y')` to `(u - u_a, v - v_a)`.
+    pub to_uv: DMat2,
+    /// The bed's backward shift behind the fill-in (mm).
+    pub shift_mm: f64,
+}
+
+impl Anchor {
+    /// Implant coordinates `(x', y')` (mm) of bed parameters `uv`.
+    #[inline]
+    pub fn local(&self, uv: DVec2) -> DVec2 {
+        self.to_local * (uv - self.uv)
+    }
+
+    /// Bed parameters of implant coordinates `(x', y')`.
+    #[inline]
+    pub fn uv_of(&self, local: DVec2) -> DVec2 {
+        self.uv + self.to_uv * local
+    }
+}
+
+/// Tangent vectors `(S_u, S_v)` of the bed at `uv` by central differences (one-sided
+/// at the domain's edge), and the bed point there.
+fn tangents(bed: &ImplantBed, uv: DVec2) -> Option<(DVec3, DVec3, crate::bed::BedPoint)> {
+    let at = bed.at(uv)?;
+    let h = TANGENT_STEP_MM;
+    let diff = |d: DVec2| -> Option<DVec3> {
+        match (bed.at(uv + d), bed.at(uv - d)) {
+            (Some(a), Some(b)) => Some((a.position - b.position) / (2.0 * h)),
+            (Some(a), None) => Some((a.position - at.position) / h),
+            (None, Some(b)) => Some((at.position - b.position) / h),
+            (None, None) => None,
+        }
+    };
+    Some((diff(DVec2::X * h)?, diff(DVec2::Y * h)?, at))
+}
+
+/// The frame's left and up projected onto the tangent plane of `normal`.
+fn tangent_frame(frame: &AnatomicalFrame, normal: DVec3) -> (DVec3, DVec3) {
+    let left = frame.left();
+    let x = (left - normal * left.dot(normal))
+        .try_normalize()
+        .unwrap_or_else(|| normal.any_orthonormal_vector());
+    (x, normal.cross(x))
+}
+
+/// `(du, dv)` to tangent-plane coordinates along `(x, y)`.
+fn tangent_map(su: DVec3, sv: DVec3, x: DVec3, y: DVec3) -> DMat2 {
+    DMat2::from_cols(
+        DVec2::new(su.dot(x), su.dot(y)),
+        DVec2::new(sv.dot(x), sv.dot(y)),
+    )
+}
+
+/// Resolves a placement on `bed`: the default anchor `start` (bed parameters) walked
+/// by the move, and the local frame there.
+///
+/// Errors: the walk leaves the bed; a non-finite move or rotation.
+pub fn resolve_anchor(
+    bed: &ImplantBed,
+    frame: &AnatomicalFrame,
+    start: DVec2,
+    placement: &Placement,
+) -> Result<Anchor, SimulationError> {
+    let side = bed.side;
+    for (what, value) in [
+        ("move x (mm)", placement.move_mm.x),
+        ("move y (mm)", placement.move_mm.y),
+        ("move z (mm)", placement.move_mm.z),
+        ("rotation (degrees)", placement.rotation_deg),
+    ] {
+        if !value.is_finite() {
+            return Err(SimulationError::BadPlacement {
+                side,
+                what,
+                value,
+                expected: "a finite number".into(),
+            });
+        }
+    }
+    let step = DVec2::new(placement.move_mm.x, placement.move_mm.y);
+    let moved_mm = step.length();
+    let steps = (moved_mm / WALK_STEP_MM).ceil().max(0.0) as usize;
+    let off = || SimulationError::AnchorOffFillIn { side, moved_mm };
+    let mut uv = start;
+    for _ in 0..steps {
+        let (su, sv, at) = tangents(bed, uv).ok_or_else(off)?;
+        let (x, y) = tangent_frame(frame, at.normal);
+        let j = tangent_map(su, sv, x, y);
+        if j.determinant().abs() < 1e-9 {
+            return Err(off());
+        }
+        uv += j.inverse() * (step / steps as f64);
+    }
+    let (su, sv, at) = tangents(bed, uv).ok_or_else(off)?;
+    let (x, y) = tangent_frame(frame, at.normal);
+    let (s, c) = placement.rotation_deg.to_radians().sin_cos();
+    let x_axis = x * c + y * s;
+    let y_axis = -x * s + y * c;
+    let to_local = tangent_map(su, sv, x_axis, y_axis);
+    if to_local.determinant().abs() < 1e-9 {
+        return Err(off());
+    }
+    Ok(Anchor {
+        uv,
+        position: at.position,
+        normal: at.normal,
+        x_axis,
+        y_axis,
+        to_local,
+        to_uv: to_local.inverse(),
+        shift_mm: bed.shift_mm,
+    })
+}

@@ -1,0 +1,1282 @@
+//! The simulation session: a patient's finite element hierarchy prepared once, implants
+//! set and moved cheaply, corotated multigrid V-cycles warm-started from the current
+//! displacement, the gravity correction of paper V-B, and the result on the scan.
+//!
+//! # Boundary conditions
+//! - Held (zero displacement) at all times: the finest vertices on the closed surface's
+//!   posterior wall (the shifted filled base: the chest wall, assumed rigid) and on its
+//!   band (the faces cut by the four clip planes, where the modelled region continues
+//!   into the rest of the body), except band vertices over an implant bed's domain and
+//!   in front of the bed (at the default shift): there a clip plane cuts through the
+//!   breast itself (on every scan so far the lateral planes cut 20-30 mm off the lateral
+//!   breast), and holding those faces glues the breast to the plane next to the implant
+//!   (measured on the phantom: about a thousand inverted elements along the lateral
+//!   plane); they are left free (traction-free). Vertices are assigned to the wall or
+//!   band when their closest point on the closed surface lies on one of those triangles
+//!   and within [`WALL_TOLERANCE_FACTOR`] times the finest spacing of it.
+//! - Per implant ([`crate::template`]): implant vertices displaced along the bed normal by
+//!   the implant's thickness, back vertices inside the footprint fixed. A vertex that is
+//!   both wall and implant takes the implant's value.
+//!
+//! # Stages
+//! 1. [`Stage::Implant`]: the Dirichlet problem of the template, solved by
+//!    [`Multigrid::cycle`] (rotation update, reassembly, one V(2,1)-cycle) on the
+//!    corotated formulation. The scan as captured is the rest state: the tissue's own
+//!    weight is already in it, so no body force acts.
+//! 2. [`Stage::Gravity`] (paper V-B): the implant vertices are released; the force that
+//!    held them, `f1 = K11 u1 + K12 u2` (for the corotated model: the internal elastic
+//!    force `f_int(u)` at those vertices, implant elements already soft), becomes a dead
+//!    load there, plus the weight of the volume the implant added: each implant element's
+//!    gravity at the implant density over its deformed minus its rest volume, a quarter
+//!    to each corner. Solved again from the stage-1 displacement. Only the added mass
+//!    pulls; the dead load keeps stage 1's equilibrium otherwise. The breast sags: the
+//!    nipple moves down.
+//!
+//! # Changing the implant
+//! [`Simulation::set_implant`] rebuilds that side's template from scratch (milliseconds)
+//! and drops back to stage 1. The next cycle rebuilds the multigrid when the set of
+//! constrained vertices changed (its pattern and transfers depend on it; about 0.1-0.3 s
+//! at 60,000 elements, see the crate README), else only updates the prescribed values.
+//! The displacement is kept as the warm start.
+
+use crate::bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
+use crate::error::SimulationError;
+use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap};
+use crate::placement::{Anchor, AnchorRule, Placement, resolve_anchor};
+use crate::template::{
+    ImplantTemplate, SmoothedThickness, TemplateIndex, build_template, check_footprint,
+};
+use anatomy::breast::{BreastModel, Side};
+use anatomy::closed_surface::ClosedSurface;
+use anatomy::fill_in::{FillInParams, fill_hole};
+use anatomy::{AnatomicalFrame, LandmarkName, Landmarks};
+use fem::multigrid::{CoarseOperator, Multigrid, MultigridOptions};
+use fem::{Constraints, FemModel, Formulation, Material, NOT_FREE};
+use glam::{DVec2, DVec3};
+use implant::ImplantShape;
+use mesh::TriMesh;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::time::Instant;
+use tetra::TetMesh;
+
+/// A finest vertex belongs to the posterior wall or band when its closest point on the
+/// closed surface lies on such a triangle within this many finest spacings.
+pub const WALL_TOLERANCE_FACTOR: f64 = 0.25;
+
+/// Default Young's modulus of implant elements as a fraction of the tissue's: "very soft"
+/// (paper V-A). Only stage 2 sees it (in stage 1 every implant element has all its corners
+/// prescribed).
+pub const DEFAULT_IMPLANT_YOUNG_RATIO: f64 = 0.01;
+
+/// Default implant density (kg/m³): silicone gel, 0.97 g/cm³.
+pub const DEFAULT_IMPLANT_DENSITY_KG_M3: f64 = 970.0;
+
+/// Default relative residual at which [`Simulation::solve`] stops.
+pub const DEFAULT_RELATIVE_TOLERANCE: f64 = 1e-3;
+
+/// Default cycle limit of [`Simulation::solve`].
+pub const DEFAULT_MAX_CYCLES: usize = 40;
+
+/// Relative residual at which the linear warm-up stops.
+pub const WARMUP_TOLERANCE: f64 = 0.05;
+
+/// Most halvings of a cycle's step by the line search.
+pub const MAX_HALVINGS: usize = 5;
+
+/// Furthest the bed may be moved in front of the fill-in (mm).
+pub const MAX_FORWARD_SHIFT_MM: f64 = 10.0;
+
+/// Least tissue kept between the bed and the posterior wall (mm).
+pub const MIN_WALL_CLEARANCE_MM: f64 = 3.0;
+
+/// Settings of a [`Simulation`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimulationOptions {
+    /// Backward shift of the implant bed behind the fill-in (mm).
+    pub shift_mm: f64,
+    /// Where the default anchor lies.
+    pub anchor_rule: AnchorRule,
+    /// Hold the whole bed, not only its part under the implant: every back vertex of a
+    /// fill-in element is fixed (the paper fixes the back vertices inside the footprint
+    /// only). The tissue behind the bed is the pectoral muscle on the ribs; leaving it
+    /// free next to the implant's rim let the rim elements, pushed out by the steep
+    /// edge of the implant on one side and dragged along the free slab on the other,
+    /// invert (measured on the phantom at 60,000 elements: 40-80 inverted elements
+    /// and a corotated iteration that stalled at a relative residual of 0.2-0.3).
+    pub hold_bed: bool,
+    /// Radius of the kernel that mollifies the implant's thickness in the template
+    /// (mm); `None`: the finest level's lattice spacing. `Some(0.0)`: no smoothing.
+    pub rim_smoothing_mm: Option<f64>,
+    /// Breast tissue.
+    pub tissue: Material,
+    /// Implant elements' Young's modulus over the tissue's.
+    pub implant_young_ratio: f64,
+    /// Implant elements' Poisson ratio.
+    pub implant_poisson_ratio: f64,
+    /// Implant density (kg/m³) for the gravity correction.
+    pub implant_density_kg_m3: f64,
+    /// Gravity (m/s²), acting along the anatomical frame's `-y`.
+    pub gravity_m_s2: f64,
+    /// The multigrid's settings. With Galerkin coarse operators (the default) a
+    /// singular coarse operator (see [`Simulation::coarse_fallbacks`]) makes the session
+    /// switch to rediscretised ones, whose coarse levels hold their own wall and band
+    /// vertices.
+    pub multigrid: MultigridOptions,
+    /// In the gravity stage, backtrack each cycle's step on the potential energy
+    /// (halving up to [`MAX_HALVINGS`] times until it does not grow). The multigrid's
+    /// matrix is the warped stiffness `R K Rᵀ` without the geometric term, so the plain
+    /// fixed-point iteration can overshoot where tissue is stretched hard and nothing is
+    /// prescribed; measured on the phantom, the gravity stage diverged without it. Stage 1
+    /// never needed it (its steps were all accepted whole) and an energy costs about as
+    /// much as a cycle, so it is not used there.
+    pub line_search: bool,
+    /// Linear (small-strain) cycles before the corotated ones when stage 1 starts cold
+    /// (zero displacement): at most this many, stopping once the relative residual is
+    /// below [`WARMUP_TOLERANCE`]. From zero, the first corotated cycles push the implant
+    /// vertices through their neighbours (3,600 inverted elements on the phantom after
+    /// one cycle) and took 20 cycles to untangle; from the linear solution the corotated
+    /// cycles converged in 8 with no inverted element on the way.
+    pub linear_warmup_cycles: usize,
+    /// Use at most this many levels of the hierarchy, finest first (`None`: all).
+    pub max_levels: Option<usize>,
+    /// Cycle limit and relative residual of [`Simulation::solve`].
+    pub max_cycles: usize,
+    pub relative_tolerance: f64,
+    /// Fade length of the displacement beyond the finest mesh (mm), see [`crate::field`].
+    pub falloff_mm: f64,
+    /// Fill-in parameters for re-measuring the simulated breasts (the cylinder axis
+    /// defaults to the frame's `y`, as when the model was built).
+    pub fill_in: FillInParams,
+}
+
+impl Default for SimulationOptions {
+    fn default() -> Self {
+        SimulationOptions {
+            shift_mm: DEFAULT_SHIFT_MM,
+            anchor_rule: AnchorRule::default(),
+            hold_bed: true,
+            rim_smoothing_mm: None,
+            tissue: Material::default(),
+            implant_young_ratio: DEFAULT_IMPLANT_YOUNG_RATIO,
+            implant_poisson_ratio: 0.3,
+            implant_density_kg_m3: DEFAULT_IMPLANT_DENSITY_KG_M3,
+            gravity_m_s2: fem::STANDARD_GRAVITY_M_S2,
+            multigrid: MultigridOptions::default(),
+            max_levels: None,
+            line_search: true,
+            linear_warmup_cycles: 6,
+            max_cycles: DEFAULT_MAX_CYCLES,
+            relative_tolerance: DEFAULT_RELATIVE_TOLERANCE,
+            falloff_mm: DEFAULT_FALLOFF_MM,
+            fill_in: FillInParams::default(),
+        }
+    }
+}
+
+/// What a [`Simulation`] is built from (all borrowed; the session keeps its own copies).
+#[derive(Clone, Copy)]
+pub struct PatientInput<'a> {
+    /// The scan as loaded (file frame, mm).
+    pub scan: &'a TriMesh,
+    pub landmarks: &'a Landmarks,
+    pub frame: &'a AnatomicalFrame,
+    pub breasts: &'a BreastModel,
+    pub closed_surface: &'a ClosedSurface,
+    /// The tetrahedral hierarchy, finest level first.
+    pub tets: &'a tetra::Hierarchy,
+}
+
+/// Which problem the session solves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Stage {
+    /// Implant vertices prescribed (Dirichlet).
+    Implant,
+    /// Implant vertices released under their holding force plus the added weight.
+    Gravity,
+}
+
+/// An implant placed on one side.
+#[derive(Debug, Clone)]
+pub struct PlacedImplant {
+    pub shape: ImplantShape,
+    pub placement: Placement,
+    pub anchor: Anchor,
+    pub template: ImplantTemplate,
+    /// Time to place the implant and build its template (ms).
+    pub setup_ms: f64,
+}
+
+/// The outcome of one [`Simulation::cycle`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CycleInfo {
+    pub stage: Stage,
+    /// `‖f_ext - f_int(u)‖` at the free vertices before the cycle (mN).
+    pub residual_mn: f64,
+    /// That over the load scale (the reaction forces at the held vertices plus the
+    /// external loads).
+    pub relative_residual: f64,
+    /// Whether the multigrid was rebuilt for this cycle (new constraint set).
+    pub rebuilt: bool,
+    /// The fraction of the cycle's step taken (1 unless the line search cut it).
+    pub step: f64,
+    /// A linear warm-up cycle (see [`SimulationOptions::linear_warmup_cycles`]).
+    pub linear: bool,
+    /// Wall-clock time of the cycle, a rebuild included (ms).
+    pub time_ms: f64,
+}
+
+/// The outcome of [`Simulation::solve`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SolveReport {
+    pub stage: Stage,
+    pub cycles: usize,
+    /// The relative residual before the last cycle.
+    pub relative_residual: f64,
+    pub converged: bool,
+    pub time_ms: f64,
+}
+
+/// Both stages of [`Simulation::run`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RunReport {
+    pub implant: SolveReport,
+    pub gravity: Option<SolveReport>,
+}
+
+/// One breast after the simulation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BreastVolume {
+    /// Before (the breast model's figure, ml).
+    pub volume_before_ml: f64,
+    /// After: the moved breast patch closed by a fill-in rebuilt on the moved base with
+    /// the model's fill-in method (ml): the same measurement as on a real post-operative
+    /// scan.
+    pub volume_ml: f64,
+    /// After, closed by the fill-in moved with the tissue instead (ml). The fill-in lies
+    /// in front of the bed, so the implant pushes it forwards with the breast: this
+    /// volume barely grows (a diagnostic, not the clinical figure).
+    pub volume_moved_fill_ml: f64,
+    /// Centre of volume before and after (file frame, mm), of the closed surfaces of
+    /// `volume_before_ml` and `volume_ml`.
+    pub centre_before_mm: DVec3,
+    pub centre_mm: DVec3,
+}
+
+/// Per-side data of the session.
+#[derive(Debug, Clone)]
+struct SideData {
+    fill: TriMesh,
+    boundary_count: usize,
+    /// The fill-in's boundary loop as base vertex indices.
+    base_loop: Vec<u32>,
+    patch: TriMesh,
+    volume_before_ml: f64,
+    centre_before_mm: DVec3,
+    default_uv: DVec2,
+}
+
+/// Maps of the breast meshes, computed on first use.
+#[derive(Debug, Clone)]
+struct MeshMaps {
+    base: PointMap,
+    patches: [PointMap; 2],
+    fills: [PointMap; 2],
+}
+
+/// A simulation session over one patient model.
+pub struct Simulation {
+    options: SimulationOptions,
+    frame: AnatomicalFrame,
+    /// Tissue models of every level, finest first.
+    levels: Vec<FemModel>,
+    finest: TetMesh,
+    spacing_mm: f64,
+    rear_wall_offset_mm: f64,
+    cylinder: ChestCylinder,
+    sides: [SideData; 2],
+    beds: [ImplantBed; 2],
+    index: TemplateIndex,
+    /// Posterior wall and band vertices of the finest level.
+    wall: Vec<u32>,
+    /// Held wall and band vertices of each coarser level (for rediscretised operators).
+    coarse_walls: Vec<Vec<u32>>,
+    /// The coarse operator in use, and how often Galerkin failed.
+    coarse_operator: CoarseOperator,
+    coarse_fallbacks: usize,
+    /// Vertex neighbours of the finest level (CSR).
+    neighbour_ptr: Vec<usize>,
+    neighbours: Vec<u32>,
+    implants: [Option<PlacedImplant>; 2],
+    stage: Stage,
+    multigrid: Option<Multigrid>,
+    /// Sorted constrained vertices of the current stage-1 multigrid.
+    multigrid_key: Vec<u32>,
+    /// The constraints changed since the multigrid was built.
+    dirty: bool,
+    u: Vec<DVec3>,
+    f_ext: Vec<DVec3>,
+    u_before_gravity: Option<Vec<DVec3>>,
+    last_relative_residual: f64,
+    stage_cycles: usize,
+    /// The constraints or loads changed since the last cycle (no line search then).
+    fresh: bool,
+    /// Linear warm-up cycles still to run.
+    warmup_left: usize,
+    /// Potential energy at the current displacement, when known, and the last step.
+    last_energy: Option<f64>,
+    last_step: f64,
+    scan_rest: Vec<DVec3>,
+    scan_map: PointMap,
+    landmarks: Landmarks,
+    landmark_map: PointMap,
+    base: TriMesh,
+    mesh_maps: Option<MeshMaps>,
+}
+
+/// `Σ (a - o)·((b - o) × (c - o)) / 6` and the first moment about `o` of a triangle soup
+/// (a closed surface when combined with its complement).
+fn volume_and_moment(mesh: &TriMesh, origin: DVec3) -> (f64, DVec3) {
+    mesh.triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| mesh.positions[v as usize] - origin);
+            let v = a.dot(b.cross(c)) / 6.0;
+            (v, (a + b + c) * (v / 4.0))
+        })
+        .fold((0.0, DVec3::ZERO), |(v, m), (dv, dm)| (v + dv, m + dm))
+}
+
+/// Volume (ml) and centre (mm) of the breast closed by a fill-in: `patch` outward, `fill`
+/// facing the same way as the base (outward), so it enters reversed.
+fn closed_volume(patch: &TriMesh, fill: &TriMesh) -> (f64, DVec3) {
+    let n = patch.positions.len().max(1) as f64;
+    let origin = patch.positions.iter().copied().sum::<DVec3>() / n;
+    let (vp, mp) = volume_and_moment(patch, origin);
+    let (vf, mf) = volume_and_moment(fill, origin);
+    let v = vp - vf;
+    (v / 1000.0, origin + (mp - mf) / v)
+}
+
+fn elapsed_ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
+
+fn check_option(
+    what: &'static str,
+    value: f64,
+    ok: bool,
+    expected: &'static str,
+) -> Result<(), SimulationError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(SimulationError::BadOption {
+            what,
+            value,
+            expected,
+        })
+    }
+}
+
+impl Simulation {
+    /// Prepares a session: the tissue model of every level, the implant beds at the
+    /// default shift with their default anchors, the template index, the held wall and
+    /// band vertices, and the maps of the scan and landmarks onto the finest level.
+    ///
+    /// Errors: bad options, a hierarchy without levels or with inverted elements, a
+    /// fill-in that cannot carry an implant.
+    pub fn new(
+        input: PatientInput,
+        options: SimulationOptions,
+    ) -> Result<Simulation, SimulationError> {
+        check_option("shift_mm", options.shift_mm, true, "a finite number of mm")?;
+        check_option(
+            "implant_young_ratio",
+            options.implant_young_ratio,
+            options.implant_young_ratio > 0.0,
+            "a positive fraction",
+        )?;
+        check_option(
+            "implant_density_kg_m3",
+            options.implant_density_kg_m3,
+            options.implant_density_kg_m3 >= 0.0,
+            "a non-negative density",
+        )?;
+        check_option(
+            "gravity_m_s2",
+            options.gravity_m_s2,
+            true,
+            "a finite acceleration",
+        )?;
+        check_option(
+            "relative_tolerance",
+            options.relative_tolerance,
+            options.relative_tolerance > 0.0,
+            "a positive number",
+        )?;
+        check_option(
+            "falloff_mm",
+            options.falloff_mm,
+            options.falloff_mm > 0.0,
+            "a positive length",
+        )?;
+        options
+            .tissue
+            .check()
+            .map_err(|what| SimulationError::BadModel(format!("tissue material: {what}")))?;
+        let frame = *input.frame;
+        let Some(level0) = input.tets.levels.first() else {
+            return Err(SimulationError::BadModel(
+                "the hierarchy has no level".into(),
+            ));
+        };
+        let finest = level0.mesh.clone();
+        let spacing_mm = level0.spacing_mm;
+        let level_count = options.max_levels.unwrap_or(usize::MAX).max(1);
+        let levels = input
+            .tets
+            .levels
+            .iter()
+            .take(level_count)
+            .map(|l| FemModel::homogeneous(&l.mesh, options.tissue))
+            .collect::<Result<Vec<_>, _>>()?;
+        let closed = input.closed_surface;
+
+        // one cylinder about the body's axis through both fill-ins
+        let fill_points: Vec<DVec3> = Side::BOTH
+            .iter()
+            .flat_map(|&s| input.breasts.breast(s).fill.mesh.positions.iter().copied())
+            .collect();
+        let cylinder = ChestCylinder::fit(&fill_points, &frame);
+        let sides = Side::BOTH.map(|side| {
+            let b = input.breasts.breast(side);
+            let (volume_before_ml, centre_before_mm) = closed_volume(&b.patch.mesh, &b.fill.mesh);
+            SideData {
+                fill: b.fill.mesh.clone(),
+                boundary_count: b.fill.boundary_to_base.len(),
+                base_loop: b.fill.boundary_to_base.clone(),
+                patch: b.patch.mesh.clone(),
+                volume_before_ml,
+                centre_before_mm,
+                default_uv: DVec2::ZERO,
+            }
+        });
+        // the chest-wide cylinder, or where the fill-in folds over seen from its axis
+        // (a steep lateral fill-in), one fitted to that fill-in alone
+        let bed_of = |side: Side| -> Result<ImplantBed, SimulationError> {
+            let data = &sides[side as usize];
+            ImplantBed::new(
+                side,
+                &data.fill,
+                data.boundary_count,
+                &cylinder,
+                options.shift_mm,
+            )
+            .or_else(|error| {
+                let own = ChestCylinder::fit(&data.fill.positions, &frame);
+                ImplantBed::new(
+                    side,
+                    &data.fill,
+                    data.boundary_count,
+                    &own,
+                    options.shift_mm,
+                )
+                .map_err(|_| error)
+            })
+        };
+        let beds = [bed_of(Side::Left)?, bed_of(Side::Right)?];
+        let mut sides = sides;
+        for side in Side::BOTH {
+            let bed = &beds[side as usize];
+            let uv = match options.anchor_rule {
+                AnchorRule::FootprintCentre => bed.centroid_uv(),
+                AnchorRule::BehindNipple => {
+                    let nipple = input.landmarks.get(match side {
+                        Side::Left => LandmarkName::Pnl,
+                        Side::Right => LandmarkName::Pnr,
+                    });
+                    let c = bed.cylinder.to_cylindrical(nipple);
+                    DVec2::new(c.x, c.y)
+                }
+            };
+            if bed.at(uv).is_none() {
+                return Err(SimulationError::BadFillIn {
+                    side,
+                    reason: format!(
+                        "the default anchor ({:?}) does not lie on it",
+                        options.anchor_rule
+                    ),
+                });
+            }
+            sides[side as usize].default_uv = uv;
+        }
+
+        let max_edge = finest
+            .tets
+            .iter()
+            .flat_map(|t| {
+                [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)].map(|(a, b)| {
+                    finest.positions[t[a] as usize].distance(finest.positions[t[b] as usize])
+                })
+            })
+            .fold(0.0, f64::max);
+        let index = TemplateIndex::new(
+            &finest,
+            [&beds[0], &beds[1]],
+            closed.rear_wall_offset_mm + 2.0 * max_edge,
+            MAX_FORWARD_SHIFT_MM + options.shift_mm.max(0.0) + 2.0 * max_edge,
+        );
+        // the band is held except where a clip plane cuts through breast tissue in front
+        // of an implant bed
+        let held = |mesh: &TetMesh, spacing: f64| -> Result<Vec<u32>, SimulationError> {
+            Ok(
+                wall_vertices(mesh, closed, spacing * WALL_TOLERANCE_FACTOR)?
+                    .into_iter()
+                    .filter(|&(v, band)| {
+                        !band
+                            || !beds.iter().any(|bed| {
+                                let c = bed.cylinder.to_cylindrical(mesh.positions[v as usize]);
+                                bed.at(DVec2::new(c.x, c.y)).is_some_and(|b| c.z > b.w)
+                            })
+                    })
+                    .map(|(v, _)| v)
+                    .collect(),
+            )
+        };
+        let wall = held(&finest, spacing_mm)?;
+        let coarse_walls = input.tets.levels[1..levels.len()]
+            .iter()
+            .map(|l| held(&l.mesh, l.spacing_mm))
+            .collect::<Result<Vec<_>, _>>()?;
+
+        let locator = FieldLocator::new(&finest, spacing_mm).ok_or_else(|| {
+            SimulationError::BadModel("the finest level has no tetrahedra".into())
+        })?;
+        let scan_rest = input.scan.positions.clone();
+        let scan_map = PointMap::new(&locator, &scan_rest, options.falloff_mm);
+        let landmark_points: Vec<DVec3> = input.landmarks.iter().map(|(_, p)| p).collect();
+        let landmark_map = PointMap::new(&locator, &landmark_points, options.falloff_mm);
+        let n = finest.positions.len();
+        let (neighbour_ptr, neighbours) = vertex_neighbours(&finest);
+        Ok(Simulation {
+            coarse_walls,
+            coarse_operator: options.multigrid.coarse_operator,
+            coarse_fallbacks: 0,
+            neighbour_ptr,
+            neighbours,
+            frame,
+            levels,
+            spacing_mm,
+            rear_wall_offset_mm: closed.rear_wall_offset_mm,
+            cylinder,
+            sides,
+            beds,
+            index,
+            wall,
+            implants: [None, None],
+            stage: Stage::Implant,
+            multigrid: None,
+            multigrid_key: Vec::new(),
+            dirty: true,
+            u: vec![DVec3::ZERO; n],
+            f_ext: Vec::new(),
+            u_before_gravity: None,
+            last_relative_residual: 0.0,
+            stage_cycles: 0,
+            fresh: true,
+            warmup_left: 0,
+            last_energy: None,
+            last_step: 1.0,
+            scan_rest,
+            scan_map,
+            landmarks: input.landmarks.clone(),
+            landmark_map,
+            base: input.breasts.base.mesh.clone(),
+            mesh_maps: None,
+            finest,
+            options,
+        })
+    }
+
+    /// The options.
+    pub fn options(&self) -> &SimulationOptions {
+        &self.options
+    }
+
+    /// The finest level (rest state).
+    pub fn finest_mesh(&self) -> &TetMesh {
+        &self.finest
+    }
+
+    /// The finest level's lattice spacing (mm).
+    pub fn spacing_mm(&self) -> f64 {
+        self.spacing_mm
+    }
+
+    /// The cylinder fitted to both fill-ins (each bed keeps the one it is
+    /// parameterised over: this one, or its own where this one let it fold over).
+    pub fn cylinder(&self) -> &ChestCylinder {
+        &self.cylinder
+    }
+
+    /// The current implant bed of one side.
+    pub fn bed(&self, side: Side) -> &ImplantBed {
+        &self.beds[side as usize]
+    }
+
+    /// The finest vertices held at the posterior wall and the clip faces.
+    pub fn wall_vertices(&self) -> &[u32] {
+        &self.wall
+    }
+
+    /// The implant of one side, if any.
+    pub fn implant(&self, side: Side) -> Option<&PlacedImplant> {
+        self.implants[side as usize].as_ref()
+    }
+
+    /// The current stage.
+    pub fn stage(&self) -> Stage {
+        self.stage
+    }
+
+    /// The default anchor of one side (bed parameters `(u, v)`, mm).
+    pub fn default_anchor_uv(&self, side: Side) -> DVec2 {
+        self.sides[side as usize].default_uv
+    }
+
+    /// Places (or replaces) the implant of one side and rebuilds its template; the
+    /// session drops back to stage 1 and keeps its displacement as the warm start. On
+    /// error nothing changes.
+    ///
+    /// Errors: a move or rotation that is not finite, a bed moved further forward than
+    /// [`MAX_FORWARD_SHIFT_MM`] or closer than [`MIN_WALL_CLEARANCE_MM`] to the posterior
+    /// wall, an anchor walked off the bed, an implant whose footprint does not fit on
+    /// the bed, a template without implant vertices.
+    pub fn set_implant(
+        &mut self,
+        side: Side,
+        shape: ImplantShape,
+        placement: Placement,
+    ) -> Result<&PlacedImplant, SimulationError> {
+        let start = Instant::now();
+        let s = side as usize;
+        let shift = self.options.shift_mm - placement.move_mm.z;
+        let max_shift = self.rear_wall_offset_mm - MIN_WALL_CLEARANCE_MM;
+        if !(shift.is_finite() && shift >= -MAX_FORWARD_SHIFT_MM && shift <= max_shift) {
+            return Err(SimulationError::BadPlacement {
+                side,
+                what: "move z (mm)",
+                value: placement.move_mm.z,
+                expected: format!(
+                    "the bed lies {:.1} mm behind the fill-in by default; it may move from \
+                     {MAX_FORWARD_SHIFT_MM} mm in front of the fill-in to {MIN_WALL_CLEARANCE_MM} mm \
+                     before the posterior wall, so z in {:.1}..={:.1}",
+                    self.options.shift_mm,
+                    self.options.shift_mm - max_shift,
+                    self.options.shift_mm + MAX_FORWARD_SHIFT_MM
+                ),
+            });
+        }
+        let new_bed = if self.beds[s].shift_mm == shift {
+            None
+        } else {
+            let data = &self.sides[s];
+            Some(ImplantBed::new(
+                side,
+                &data.fill,
+                data.boundary_count,
+                &self.beds[s].cylinder,
+                shift,
+            )?)
+        };
+        let bed = new_bed.as_ref().unwrap_or(&self.beds[s]);
+        let anchor = resolve_anchor(bed, &self.frame, self.sides[s].default_uv, &placement)?;
+        check_footprint(bed, &anchor, &shape, &self.frame)?;
+        let radius = self.options.rim_smoothing_mm.unwrap_or(self.spacing_mm);
+        let thickness = SmoothedThickness::new(shape, radius);
+        let template = build_template(
+            &self.finest,
+            self.index.side(side),
+            bed,
+            &anchor,
+            &thickness,
+            self.options.hold_bed,
+        )?;
+        if let Some(bed) = new_bed {
+            self.beds[s] = bed;
+        }
+        self.implants[s] = Some(PlacedImplant {
+            shape,
+            placement,
+            anchor,
+            template,
+            setup_ms: elapsed_ms(start),
+        });
+        self.constraints_changed();
+        Ok(self.implants[s].as_ref().expect("just set"))
+    }
+
+    /// Removes the implant of one side (back to stage 1).
+    pub fn remove_implant(&mut self, side: Side) {
+        if self.implants[side as usize].take().is_some() {
+            self.constraints_changed();
+        }
+    }
+
+    fn constraints_changed(&mut self) {
+        if self.stage == Stage::Gravity {
+            self.multigrid = None;
+            self.multigrid_key.clear();
+        }
+        self.stage = Stage::Implant;
+        self.f_ext.clear();
+        self.u_before_gravity = None;
+        self.stage_cycles = 0;
+        self.dirty = true;
+        self.fresh = true;
+        self.warmup_left = 0;
+    }
+
+    /// The constraints of stage 1 (or of stage 2 without the implant vertices).
+    ///
+    /// Besides the wall and the templates, a free vertex all of whose neighbours are held
+    /// at zero is held at zero too (repeatedly): in stage 1 its equilibrium displacement
+    /// is zero anyway (no load acts on it), and such islands, found between the fixed
+    /// back vertices and the posterior wall, leave coarse multigrid functions that only
+    /// see one free fine vertex, which made the Galerkin coarse operator singular.
+    fn constraints(&self, with_implant_vertices: bool) -> Constraints {
+        let n = self.finest.positions.len();
+        let mut zero = vec![false; n];
+        let mut held = vec![false; n];
+        for &v in &self.wall {
+            zero[v as usize] = true;
+        }
+        for implant in self.implants.iter().flatten() {
+            for &v in &implant.template.fixed_vertices {
+                zero[v as usize] = true;
+            }
+        }
+        if with_implant_vertices {
+            for implant in self.implants.iter().flatten() {
+                for &(v, _) in &implant.template.implant_vertices {
+                    held[v as usize] = true;
+                    zero[v as usize] = false;
+                }
+            }
+        }
+        let mut islands = Vec::new();
+        loop {
+            let before = islands.len();
+            for v in 0..n {
+                if zero[v] || held[v] {
+                    continue;
+                }
+                let nb = &self.neighbours[self.neighbour_ptr[v]..self.neighbour_ptr[v + 1]];
+                if !nb.is_empty() && nb.iter().all(|&w| zero[w as usize]) {
+                    zero[v] = true;
+                    islands.push(v as u32);
+                }
+            }
+            if islands.len() == before {
+                break;
+            }
+        }
+        let mut c = Constraints::new();
+        for &v in &self.wall {
+            c.fix(v);
+        }
+        for &v in &islands {
+            c.fix(v);
+        }
+        for implant in self.implants.iter().flatten() {
+            for &v in &implant.template.fixed_vertices {
+                c.fix(v);
+            }
+            if with_implant_vertices {
+                for &(v, d) in &implant.template.implant_vertices {
+                    c.prescribe(v, d);
+                }
+            }
+        }
+        c
+    }
+
+    /// The finest model with the implant elements' soft material.
+    fn finest_model(&self) -> Result<FemModel, SimulationError> {
+        let mut model = self.levels[0].clone();
+        let t = self.options.tissue;
+        let soft = Material {
+            young_kpa: t.young_kpa * self.options.implant_young_ratio,
+            poisson_ratio: self.options.implant_poisson_ratio,
+            density_kg_m3: self.options.implant_density_kg_m3,
+        };
+        for implant in self.implants.iter().flatten() {
+            for &e in &implant.template.implant_elements {
+                model.set_material(e as usize, soft)?;
+            }
+        }
+        Ok(model)
+    }
+
+    fn build_multigrid(&self, finest: Constraints) -> Result<Multigrid, SimulationError> {
+        let mut levels = Vec::with_capacity(self.levels.len());
+        levels.push((self.finest_model()?, finest));
+        let galerkin = self.coarse_operator == CoarseOperator::Galerkin;
+        for (m, wall) in self.levels[1..].iter().zip(&self.coarse_walls) {
+            let mut c = Constraints::new();
+            if !galerkin {
+                for &v in wall {
+                    c.fix(v);
+                }
+            }
+            levels.push((m.clone(), c));
+        }
+        let options = MultigridOptions {
+            coarse_operator: self.coarse_operator,
+            ..self.options.multigrid
+        };
+        Ok(Multigrid::new(levels, options)?)
+    }
+
+    /// How often a Galerkin coarse operator turned out singular and the session switched
+    /// to rediscretised coarse operators (at most once per session), and the operator in
+    /// use.
+    pub fn coarse_fallbacks(&self) -> (usize, CoarseOperator) {
+        (self.coarse_fallbacks, self.coarse_operator)
+    }
+
+    /// Brings the stage-1 multigrid up to date: rebuilt when the constrained set changed,
+    /// else only the prescribed values. Returns whether it was rebuilt.
+    fn ensure_multigrid(&mut self) -> Result<bool, SimulationError> {
+        if !self.dirty && self.multigrid.is_some() {
+            return Ok(false);
+        }
+        let constraints = self.constraints(true);
+        let mut key: Vec<u32> = constraints.prescribed.iter().map(|&(v, _)| v).collect();
+        key.sort_unstable();
+        key.dedup();
+        let reuse =
+            self.stage == Stage::Implant && self.multigrid.is_some() && key == self.multigrid_key;
+        let rebuilt = if reuse {
+            let table = constraints.table(self.finest.positions.len())?;
+            let mg = self.multigrid.as_mut().expect("checked");
+            for (v, d) in table.iter().enumerate() {
+                if let Some(d) = d {
+                    mg.set_prescribed(v as u32, *d)?;
+                }
+            }
+            false
+        } else {
+            self.multigrid = None;
+            self.multigrid = Some(self.build_multigrid(constraints)?);
+            self.multigrid_key = key;
+            true
+        };
+        self.dirty = false;
+        Ok(rebuilt)
+    }
+
+    /// The load scale of the relative residual: the reaction forces at the held
+    /// vertices (from the latest assembly) plus the external loads (mN).
+    fn load_scale(&self) -> f64 {
+        let mg = self.multigrid.as_ref().expect("assembled");
+        let sys = mg.system();
+        let mut f = vec![DVec3::ZERO; self.finest.positions.len()];
+        for (t, fe) in self.finest.tets.iter().zip(sys.element_forces()) {
+            for k in 0..4 {
+                f[t[k] as usize] += fe[k];
+            }
+        }
+        let reaction: f64 = f
+            .iter()
+            .zip(&sys.reduced_of)
+            .filter(|(_, r)| **r == NOT_FREE)
+            .map(|(x, _)| x.length_squared())
+            .sum::<f64>();
+        let external: f64 = self.f_ext.iter().map(|x| x.length_squared()).sum();
+        (reaction + external).sqrt().max(1e-12)
+    }
+
+    /// One interactive step: rotation update, reassembly and one V(2,1)-cycle of the
+    /// current stage, warm-started from the current displacement (rebuilding the
+    /// multigrid first if the constraints changed).
+    pub fn cycle(&mut self) -> Result<CycleInfo, SimulationError> {
+        if self.stage == Stage::Implant && self.fresh && self.u.iter().all(|d| *d == DVec3::ZERO) {
+            self.warmup_left = self.options.linear_warmup_cycles;
+        }
+        if self.warmup_left > 0 {
+            self.warmup_left -= 1;
+            let info = self.cycle_with(Formulation::Linear)?;
+            if info.relative_residual < WARMUP_TOLERANCE {
+                self.warmup_left = 0;
+            }
+            // the first corotated cycle starts afresh (no line search, energy unknown)
+            self.fresh = self.warmup_left == 0 || self.fresh;
+            return Ok(info);
+        }
+        self.cycle_with(Formulation::Corotated)
+    }
+
+    /// [`Simulation::cycle`] with a chosen formulation (the linear one as a warm-up).
+    pub fn cycle_with(&mut self, formulation: Formulation) -> Result<CycleInfo, SimulationError> {
+        let u_before = self.u.clone();
+        match self.cycle_once(formulation) {
+            Err(SimulationError::Fem(fem::FemError::Singular { .. }))
+                if self.coarse_operator == CoarseOperator::Galerkin && self.levels.len() > 1 =>
+            {
+                // a singular Galerkin coarse operator: rediscretised levels from now on
+                self.coarse_operator = CoarseOperator::Rediscretised;
+                self.coarse_fallbacks += 1;
+                self.u = u_before;
+                self.rebuild_current_stage()?;
+                self.cycle_once(formulation)
+            }
+            other => other,
+        }
+    }
+
+    /// Rebuilds the multigrid of the current stage (after a change of coarse operator).
+    fn rebuild_current_stage(&mut self) -> Result<(), SimulationError> {
+        match self.stage {
+            Stage::Implant => {
+                self.multigrid = None;
+                self.dirty = true;
+            }
+            Stage::Gravity => {
+                self.multigrid = Some(self.build_multigrid(self.constraints(false))?);
+            }
+        }
+        Ok(())
+    }
+
+    fn cycle_once(&mut self, formulation: Formulation) -> Result<CycleInfo, SimulationError> {
+        let start = Instant::now();
+        let rebuilt = self.ensure_multigrid()?;
+        let fresh = std::mem::take(&mut self.fresh) || rebuilt;
+        let search = self.options.line_search
+            && self.stage == Stage::Gravity
+            && !fresh
+            && formulation == Formulation::Corotated;
+        let u_old = search.then(|| self.u.clone());
+        let mg = self.multigrid.as_mut().expect("ensured");
+        let report = mg.cycle(&mut self.u, &self.f_ext, formulation)?;
+        if let Some(u_old) = u_old {
+            // backtracking on the potential energy (the corotated forces are conservative)
+            let model = mg.model();
+            let energy = |u: &[DVec3]| model.potential_energy(u, &self.f_ext, formulation);
+            let e0 = match self.last_energy {
+                Some(e) => e,
+                None => energy(&u_old),
+            };
+            let step: Vec<DVec3> = self.u.iter().zip(&u_old).map(|(a, b)| *a - *b).collect();
+            let mut alpha = 1.0;
+            let mut e = energy(&self.u);
+            let mut halvings = 0;
+            while (e > e0 || e.is_nan()) && halvings < MAX_HALVINGS {
+                alpha *= 0.5;
+                halvings += 1;
+                for ((u, o), d) in self.u.iter_mut().zip(&u_old).zip(&step) {
+                    *u = *o + *d * alpha;
+                }
+                e = energy(&self.u);
+            }
+            self.last_energy = Some(e);
+            self.last_step = alpha;
+        } else {
+            self.last_energy = None;
+            self.last_step = 1.0;
+        }
+
+        let relative = report.residual_before / self.load_scale();
+        self.last_relative_residual = relative;
+        self.stage_cycles += 1;
+        Ok(CycleInfo {
+            stage: self.stage,
+            residual_mn: report.residual_before,
+            relative_residual: relative,
+            rebuilt,
+            step: self.last_step,
+            linear: formulation == Formulation::Linear,
+            time_ms: elapsed_ms(start),
+        })
+    }
+
+    /// Cycles the current stage until the relative residual before a cycle is below
+    /// `relative_tolerance` (that cycle is still run) or `max_cycles` were run.
+    pub fn solve(
+        &mut self,
+        max_cycles: usize,
+        relative_tolerance: f64,
+    ) -> Result<SolveReport, SimulationError> {
+        let start = Instant::now();
+        let mut cycles = 0;
+        let mut relative = f64::INFINITY;
+        while cycles < max_cycles {
+            let info = self.cycle()?;
+            cycles += 1;
+            relative = info.relative_residual;
+            if relative < relative_tolerance && !info.linear {
+                break;
+            }
+        }
+        Ok(SolveReport {
+            stage: self.stage,
+            cycles,
+            relative_residual: relative,
+            converged: relative < relative_tolerance,
+            time_ms: elapsed_ms(start),
+        })
+    }
+
+    /// Switches to stage 2 (paper V-B) from the current (stage-1) displacement: the
+    /// implant vertices' holding forces and the added implant weight become loads, the
+    /// implant vertices are released. Does nothing without implants or when already
+    /// there. Run [`Simulation::cycle`] or [`Simulation::solve`] afterwards.
+    pub fn start_gravity_correction(&mut self) -> Result<(), SimulationError> {
+        if self.stage == Stage::Gravity || self.implants.iter().all(Option::is_none) {
+            return Ok(());
+        }
+        self.ensure_multigrid()?;
+        let model = self.multigrid.as_ref().expect("ensured").model();
+        let f_int = model.internal_forces(&self.u, Formulation::Corotated)?;
+        let mut f_ext = vec![DVec3::ZERO; self.u.len()];
+        let g = -self.frame.up()
+            * (self.options.gravity_m_s2
+                * self.options.implant_density_kg_m3
+                * fem::model::KG_M3_TIMES_M_S2_TO_MN_MM3);
+        let wall: std::collections::HashSet<u32> = self.wall.iter().copied().collect();
+        for implant in self.implants.iter().flatten() {
+            for &(v, _) in &implant.template.implant_vertices {
+                if !wall.contains(&v) {
+                    f_ext[v as usize] = f_int[v as usize];
+                }
+            }
+        }
+        for implant in self.implants.iter().flatten() {
+            for &e in &implant.template.implant_elements {
+                let t = self.finest.tets[e as usize];
+                let p = t.map(|v| self.finest.positions[v as usize]);
+                let q = [0, 1, 2, 3].map(|k| p[k] + self.u[t[k] as usize]);
+                let added = tetra::quality::signed_volume(q) - tetra::quality::signed_volume(p);
+                for &v in &t {
+                    f_ext[v as usize] += g * (added * 0.25);
+                }
+            }
+        }
+        let mg = self.build_multigrid(self.constraints(false))?;
+        self.u_before_gravity = Some(self.u.clone());
+        self.multigrid = Some(mg);
+        self.multigrid_key.clear();
+        self.f_ext = f_ext;
+        self.stage = Stage::Gravity;
+        self.stage_cycles = 0;
+        self.fresh = true;
+        self.dirty = false;
+        Ok(())
+    }
+
+    /// Solves stage 1 to convergence and, unless `no_gravity`, the gravity correction,
+    /// with the options' cycle limit and tolerance.
+    pub fn run(&mut self, no_gravity: bool) -> Result<RunReport, SimulationError> {
+        if self.stage == Stage::Gravity {
+            // start from the Dirichlet problem again
+            self.constraints_changed();
+        }
+        let (max, tol) = (self.options.max_cycles, self.options.relative_tolerance);
+        let implant = self.solve(max, tol)?;
+        let gravity = if no_gravity || self.implants.iter().all(Option::is_none) {
+            None
+        } else {
+            self.start_gravity_correction()?;
+            Some(self.solve(max, tol)?)
+        };
+        Ok(RunReport { implant, gravity })
+    }
+
+    /// The finest level's displacement (mm, one per vertex).
+    pub fn displacement(&self) -> &[DVec3] {
+        &self.u
+    }
+
+    /// The finest displacement at the end of stage 1, once the gravity correction began.
+    pub fn displacement_before_gravity(&self) -> Option<&[DVec3]> {
+        self.u_before_gravity.as_deref()
+    }
+
+    /// Cycles run in the current stage, and the relative residual before the last one.
+    pub fn stage_progress(&self) -> (usize, f64) {
+        (self.stage_cycles, self.last_relative_residual)
+    }
+
+    /// The current external loads of stage 2 (mN; empty in stage 1).
+    pub fn external_forces(&self) -> &[DVec3] {
+        &self.f_ext
+    }
+
+    /// Where each scan vertex is now (same order and count as the scan).
+    pub fn scan_positions(&self) -> Vec<DVec3> {
+        self.scan_map.moved(&self.scan_rest, &self.u)
+    }
+
+    /// The displacement of each scan vertex (mm).
+    pub fn scan_displacements(&self) -> Vec<DVec3> {
+        self.scan_map.displacements(&self.u)
+    }
+
+    /// The displacement of any points (mm), mapped like the scan (slower: locates them).
+    pub fn displacements_at(&self, points: &[DVec3]) -> Vec<DVec3> {
+        let locator = FieldLocator::new(&self.finest, self.spacing_mm)
+            .expect("checked when the session was built");
+        PointMap::new(&locator, points, self.options.falloff_mm).displacements(&self.u)
+    }
+
+    /// The landmarks moved with the tissue (required and extra points).
+    pub fn landmarks(&self) -> Landmarks {
+        let d = self.landmark_map.displacements(&self.u);
+        let mut out = self.landmarks.clone();
+        let mut k = 0;
+        for name in LandmarkName::ALL {
+            out.set(name, self.landmarks.get(name) + d[k]);
+            k += 1;
+        }
+        for p in out.extra.values_mut() {
+            *p += d[k];
+            k += 1;
+        }
+        out
+    }
+
+    /// Finest elements whose deformed volume is not positive.
+    pub fn inverted_elements(&self) -> Vec<usize> {
+        self.finest
+            .tets
+            .par_iter()
+            .enumerate()
+            .filter_map(|(e, t)| {
+                let q = t.map(|v| self.finest.positions[v as usize] + self.u[v as usize]);
+                (tetra::quality::signed_volume(q) <= 0.0).then_some(e)
+            })
+            .collect()
+    }
+
+    fn mesh_maps(&mut self) -> &MeshMaps {
+        if self.mesh_maps.is_none() {
+            let locator = FieldLocator::new(&self.finest, self.spacing_mm)
+                .expect("checked when the session was built");
+            let f = self.options.falloff_mm;
+            let map = |m: &TriMesh| PointMap::new(&locator, &m.positions, f);
+            let maps = MeshMaps {
+                base: map(&self.base),
+                patches: [map(&self.sides[0].patch), map(&self.sides[1].patch)],
+                fills: [map(&self.sides[0].fill), map(&self.sides[1].fill)],
+            };
+            self.mesh_maps = Some(maps);
+        }
+        self.mesh_maps.as_ref().expect("just built")
+    }
+
+    /// The breast volumes after the simulation (see [`BreastVolume`]). The first call
+    /// locates the breast meshes in the finest level (a fraction of a second).
+    ///
+    /// Errors: the fill-in cannot be rebuilt on the moved base.
+    pub fn breast_volumes(&mut self) -> Result<[BreastVolume; 2], SimulationError> {
+        self.mesh_maps();
+        let maps = self.mesh_maps.as_ref().expect("built");
+        let u = &self.u;
+        let moved = |mesh: &TriMesh, map: &PointMap| {
+            TriMesh::new(map.moved(&mesh.positions, u), mesh.triangles.clone())
+        };
+        let base = moved(&self.base, &maps.base);
+        let params = FillInParams {
+            cylinder_axis: self.options.fill_in.cylinder_axis.or(Some(self.frame.up())),
+            ..self.options.fill_in
+        };
+        let mut out = Vec::with_capacity(2);
+        for side in Side::BOTH {
+            let s = side as usize;
+            let data = &self.sides[s];
+            let patch = moved(&data.patch, &maps.patches[s]);
+            let fill = fill_hole(&base, &data.base_loop, &params).map_err(|e| {
+                SimulationError::Volume {
+                    side,
+                    reason: format!("rebuilding the fill-in: {e}"),
+                }
+            })?;
+            let (volume_ml, centre_mm) = closed_volume(&patch, &fill.mesh);
+            let moved_fill = moved(&data.fill, &maps.fills[s]);
+            let (volume_moved_fill_ml, _) = closed_volume(&patch, &moved_fill);
+            out.push(BreastVolume {
+                volume_before_ml: data.volume_before_ml,
+                volume_ml,
+                volume_moved_fill_ml,
+                centre_before_mm: data.centre_before_mm,
+                centre_mm,
+            });
+        }
+        Ok([out[0], out[1]])
+    }
+}
+
+/// Vertex neighbours of a tetrahedral mesh (CSR: `neighbours[ptr[v]..ptr[v + 1]]`).
+fn vertex_neighbours(mesh: &TetMesh) -> (Vec<usize>, Vec<u32>) {
+    let n = mesh.positions.len();
+    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(mesh.tets.len() * 12);
+    for t in &mesh.tets {
+        for a in 0..4 {
+            for b in 0..4 {
+                if a != b {
+                    pairs.push((t[a], t[b]));
+                }
+            }
+        }
+    }
+    pairs.par_sort_unstable();
+    pairs.dedup();
+    let mut ptr = vec![0usize; n + 1];
+    for &(a, _) in &pairs {
+        ptr[a as usize + 1] += 1;
+    }
+    for i in 0..n {
+        ptr[i + 1] += ptr[i];
+    }
+    (ptr, pairs.into_iter().map(|(_, b)| b).collect())
+}
+
+/// The finest vertices on the closed surface's posterior wall or band: boundary vertices
+/// of the tetrahedral mesh whose closest point on the closed surface lies on a
+/// `back_wall` or `band` triangle within `tolerance_mm`; `true` marks band vertices.
+fn wall_vertices(
+    mesh: &TetMesh,
+    closed: &ClosedSurface,
+    tolerance_mm: f64,
+) -> Result<Vec<(u32, bool)>, SimulationError> {
+    let Some(index) = mesh::SurfaceIndex::new(&closed.mesh) else {
+        return Err(SimulationError::BadModel(
+            "the closed surface has no triangles".into(),
+        ));
+    };
+    let boundary = mesh.boundary();
+    let mut wall: Vec<(u32, bool)> = boundary
+        .tet_vertex
+        .par_iter()
+        .filter_map(|&v| {
+            let cp = index.closest_point_within(mesh.positions[v as usize], tolerance_mm)?;
+            if closed.back_wall.contains(&cp.triangle) {
+                Some((v, false))
+            } else if closed.band.contains(&cp.triangle) {
+                Some((v, true))
+            } else {
+                None
+            }
+        })
+        .collect();
+    wall.sort_unstable();
+    if wall.is_empty() {
+        return Err(SimulationError::BadModel(
+            "no finest vertex lies on the closed surface's posterior wall or band".into(),
+        ));
+    }
+    Ok(wall)
+}

@@ -1,0 +1,358 @@
+//! The displacement template (paper V-A, Fig. 6): which vertices of the finest
+//! tetrahedral level the implant displaces, which it holds, and which elements become
+//! implant.
+//!
+//! For one breast with its bed ([`ImplantBed`]) and anchor ([`Anchor`]):
+//! 1. *Fill-in elements*: tetrahedra of the finest level with vertices on both sides of
+//!    the bed (all four vertices over the bed's `(u, v)` domain). The spatial index is
+//!    the bed's `(u, v)` grid: every finest vertex near the fill-in has its cylinder
+//!    coordinates computed once per model ([`TemplateIndex`]), so a template costs one
+//!    2D point location per candidate vertex.
+//! 2. Each vertex of a fill-in element gets implant coordinates `(x', y')` and the
+//!    thickness `z'(x', y')`, mollified over about one element ([`SmoothedThickness`]:
+//!    linear tetrahedra of 6-7 mm cannot follow the square-root rim of eqs. 3 and 10,
+//!    which rises by 10 mm within the outer 5% of the radius; unsmoothed, the elements
+//!    over the rim inverted, 40-80 of them on the phantom). A *front* vertex (in front of the bed) with `z' > 0` is an
+//!    *implant vertex*, displaced by `z'` along the bed's normal at its `(u, v)`; a
+//!    *back* vertex with `z' > 0` (inside the footprint) is fixed, and by default
+//!    ([`crate::SimulationOptions::hold_bed`]) every other back vertex of a fill-in
+//!    element too.
+//! 3. *Implant elements*: fill-in elements whose four vertices are implant or fixed
+//!    vertices; they get the implant's soft material and density (see
+//!    [`crate::SimulationOptions`]).
+//!
+//! The template is rebuilt from scratch on every change of implant or position. The
+//! posterior wall and the clip faces are held by [`TemplateIndex::wall_vertices`]
+//! (see [`crate::session`]).
+
+use crate::bed::ImplantBed;
+use crate::error::SimulationError;
+use crate::placement::Anchor;
+use anatomy::breast::Side;
+use glam::{DVec2, DVec3};
+use implant::ImplantShape;
+use tetra::TetMesh;
+
+/// Points of the implant's outline checked against the bed's domain.
+pub const OUTLINE_POINTS: usize = 72;
+
+/// Margin around the fill-in's domain within which vertices are candidates (mm): the
+/// shifted bed's domain moves a little against the fill-in's.
+const DOMAIN_MARGIN_MM: f64 = 15.0;
+
+/// Per-model data of the template search for one breast: the finest vertices near its
+/// fill-in, with their cylinder coordinates, and the tetrahedra among them.
+#[derive(Debug, Clone)]
+pub struct SideCandidates {
+    /// Candidate vertices (finest level).
+    pub vertices: Vec<u32>,
+    /// `(u, v)` of each candidate.
+    pub uv: Vec<DVec2>,
+    /// Radial offset `w` of each candidate.
+    pub w: Vec<f64>,
+    /// Tetrahedra whose four vertices are candidates, with their corners as candidate
+    /// indices.
+    pub tets: Vec<(u32, [u32; 4])>,
+}
+
+/// Per-model data of the template search.
+#[derive(Debug, Clone)]
+pub struct TemplateIndex {
+    pub sides: [SideCandidates; 2],
+}
+
+impl TemplateIndex {
+    /// Candidates of each side: finest vertices whose `(u, v)` lies on the side's
+    /// unshifted bed (or within [`DOMAIN_MARGIN_MM`] of its edge) and whose radial offset
+    /// lies within `[-back_mm, front_mm]` of it (or of the bed's range near the edge).
+    pub fn new(mesh: &TetMesh, beds: [&ImplantBed; 2], back_mm: f64, front_mm: f64) -> Self {
+        let sides = beds.map(|bed| {
+            let cyl: Vec<DVec3> = mesh
+                .positions
+                .iter()
+                .map(|p| bed.cylinder.to_cylindrical(*p))
+                .collect();
+            let (w_lo, w_hi) = bed
+                .w
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &w| {
+                    (a.min(w), b.max(w))
+                });
+            let mut local = vec![u32::MAX; mesh.positions.len()];
+            let mut vertices = Vec::new();
+            let mut uv = Vec::new();
+            let mut w = Vec::new();
+            for (i, c) in cyl.iter().enumerate() {
+                let p = DVec2::new(c.x, c.y);
+                let keep = match bed.at(p) {
+                    Some(b) => c.z >= b.w - back_mm && c.z <= b.w + front_mm,
+                    None => {
+                        c.z >= w_lo - back_mm
+                            && c.z <= w_hi + front_mm
+                            && bed.distance_to_boundary(p) <= DOMAIN_MARGIN_MM
+                    }
+                };
+                if keep {
+                    local[i] = vertices.len() as u32;
+                    vertices.push(i as u32);
+                    uv.push(p);
+                    w.push(c.z);
+                }
+            }
+            let tets = mesh
+                .tets
+                .iter()
+                .enumerate()
+                .filter_map(|(t, tet)| {
+                    let l = tet.map(|v| local[v as usize]);
+                    l.iter().all(|&x| x != u32::MAX).then_some((t as u32, l))
+                })
+                .collect();
+            SideCandidates {
+                vertices,
+                uv,
+                w,
+                tets,
+            }
+        });
+        TemplateIndex { sides }
+    }
+
+    /// The candidates of one side.
+    pub fn side(&self, side: Side) -> &SideCandidates {
+        &self.sides[side as usize]
+    }
+}
+
+/// The displacement template of one implant.
+#[derive(Debug, Clone, Default)]
+pub struct ImplantTemplate {
+    /// Implant (front) vertices with their displacement (mm): `z'` along the bed normal.
+    pub implant_vertices: Vec<(u32, DVec3)>,
+    /// Back vertices inside the footprint, fixed.
+    pub fixed_vertices: Vec<u32>,
+    /// Implant elements (finest level).
+    pub implant_elements: Vec<u32>,
+    /// Number of fill-in elements (crossing the bed).
+    pub fill_in_elements: usize,
+    /// The volume the template alone adds to the implant elements (ml): the sum over
+    /// implant elements of deformed minus rest volume, with only the template's
+    /// displacements applied. Close to the implant's volume when the mesh resolves it.
+    pub template_volume_ml: f64,
+}
+
+/// The implant's thickness mollified over a disc of radius `radius_mm` (mm): the
+/// average of `z'` under the biweight kernel `(1 - (r/ρ)²)²`, by a polar rule of
+/// [`SMOOTHING_RINGS`] rings (1, 6, 12, ... points). Zero radius: the thickness itself.
+/// The convolution keeps the implant's volume and spreads its steep rim (the square
+/// root edge of eqs. 3 and 10) over about one element.
+#[derive(Debug, Clone)]
+pub struct SmoothedThickness {
+    shape: ImplantShape,
+    radius_mm: f64,
+    /// Offsets (unit disc) and normalised weights.
+    samples: Vec<(DVec2, f64)>,
+}
+
+/// Rings of [`SmoothedThickness`] beyond the centre.
+pub const SMOOTHING_RINGS: usize = 4;
+
+impl SmoothedThickness {
+    pub fn new(shape: ImplantShape, radius_mm: f64) -> SmoothedThickness {
+        let mut samples = vec![(DVec2::ZERO, 1.0)];
+        if radius_mm > 0.0 {
+            let dr = 1.0 / (SMOOTHING_RINGS as f64 + 0.5);
+            // the centre carries the kernel's mass over r in [0, dr/2]
+            let kernel = |r: f64| (1.0 - r * r).powi(2);
+            samples[0].1 = kernel(0.0) * (dr * 0.5).powi(2) * std::f64::consts::PI;
+            for ring in 1..=SMOOTHING_RINGS {
+                let r = ring as f64 * dr;
+                let count = 6 * ring;
+                let ring_weight = kernel(r) * 2.0 * std::f64::consts::PI * r * dr;
+                for k in 0..count {
+                    let a =
+                        (k as f64 + 0.5 * (ring % 2) as f64) / count as f64 * std::f64::consts::TAU;
+                    samples.push((DVec2::new(a.cos(), a.sin()) * r, ring_weight / count as f64));
+                }
+            }
+            let total: f64 = samples.iter().map(|s| s.1).sum();
+            samples.iter_mut().for_each(|s| s.1 /= total);
+        }
+        SmoothedThickness {
+            shape,
+            radius_mm: radius_mm.max(0.0),
+            samples,
+        }
+    }
+
+    /// The mollified thickness at `(x', y')` (mm).
+    #[inline]
+    pub fn at(&self, p: DVec2) -> f64 {
+        if self.radius_mm == 0.0 {
+            return self.shape.thickness_mm(p.x, p.y);
+        }
+        let f = self.shape.footprint();
+        let r = self.radius_mm;
+        if p.x < f.x_min_mm - r
+            || p.x > f.x_max_mm + r
+            || p.y < f.y_min_mm - r
+            || p.y > f.y_max_mm + r
+        {
+            return 0.0;
+        }
+        self.samples
+            .iter()
+            .map(|&(o, w)| {
+                let q = p + o * r;
+                w * self.shape.thickness_mm(q.x, q.y)
+            })
+            .sum()
+    }
+}
+
+/// Scratch state of one candidate vertex.
+#[derive(Clone, Copy)]
+enum Class {
+    /// Not over the bed.
+    Off,
+    /// In front of the bed; thickness and normal there.
+    Front(f64, DVec3),
+    /// Behind the bed; thickness there.
+    Back(f64),
+}
+
+/// How far the implant's outline may reach beyond the cut curve (mm): its rim has zero
+/// thickness, and the cut curve itself is only as precise as its control points.
+pub const FOOTPRINT_TOLERANCE_MM: f64 = 2.0;
+
+/// Checks that the implant's footprint outline lies on the bed's domain (within
+/// [`FOOTPRINT_TOLERANCE_MM`]).
+///
+/// Errors: [`SimulationError::ImplantLargerThanFootprint`] naming how far the worst
+/// outline point is outside and where.
+pub fn check_footprint(
+    bed: &ImplantBed,
+    anchor: &Anchor,
+    shape: &ImplantShape,
+    frame: &anatomy::AnatomicalFrame,
+) -> Result<(), SimulationError> {
+    let mut worst: Option<(f64, DVec2)> = None;
+    for local in shape.footprint_outline_mm(OUTLINE_POINTS) {
+        let uv = anchor.uv_of(local);
+        if !bed.contains(uv) {
+            let d = bed.distance_to_boundary(uv);
+            if d > FOOTPRINT_TOLERANCE_MM && worst.is_none_or(|(w, _)| d > w) {
+                worst = Some((d, uv));
+            }
+        }
+    }
+    match worst {
+        None => Ok(()),
+        Some((outside_mm, uv)) => {
+            // where: on the cylinder at the bed's mean offset
+            let radius = bed.cylinder.radius_mm + bed.w.iter().sum::<f64>() / bed.w.len() as f64;
+            let p = bed.cylinder.centre
+                + bed.cylinder.radial(uv.x) * radius
+                + bed.cylinder.axes.z_axis * uv.y;
+            let footprint = shape.footprint();
+            Err(SimulationError::ImplantLargerThanFootprint {
+                side: bed.side,
+                width_mm: footprint.width_mm(),
+                height_mm: footprint.height_mm(),
+                outside_mm,
+                near_mm: frame.to_local(p).to_array(),
+            })
+        }
+    }
+}
+
+/// Builds the template of `shape` anchored at `anchor` on `bed`, over the finest
+/// level `mesh` with its `candidates` (of the bed's side). With `hold_bed`, every back
+/// vertex of a fill-in element is fixed, inside the footprint or not (see
+/// [`crate::SimulationOptions::hold_bed`]); else only those inside (the paper's rule).
+///
+/// Errors: [`SimulationError::EmptyTemplate`] when no vertex is displaced.
+pub fn build_template(
+    mesh: &TetMesh,
+    candidates: &SideCandidates,
+    bed: &ImplantBed,
+    anchor: &Anchor,
+    thickness: &SmoothedThickness,
+    hold_bed: bool,
+) -> Result<ImplantTemplate, SimulationError> {
+    let classes: Vec<Class> = candidates
+        .uv
+        .iter()
+        .zip(&candidates.w)
+        .map(|(&uv, &w)| match bed.locate(uv) {
+            None => Class::Off,
+            Some((t, b)) => {
+                let at = bed.interpolate(t, b);
+                let local = anchor.local(uv);
+                let z = thickness.at(local);
+                if w > at.w {
+                    Class::Front(z, at.normal)
+                } else {
+                    Class::Back(z)
+                }
+            }
+        })
+        .collect();
+    let mut state = vec![0u8; classes.len()]; // 1 implant vertex, 2 fixed, 4 seen
+    let mut template = ImplantTemplate::default();
+    let mut added_mm3 = 0.0;
+    for &(t, corners) in &candidates.tets {
+        let c = corners.map(|k| classes[k as usize]);
+        if c.iter().any(|x| matches!(x, Class::Off)) {
+            continue;
+        }
+        let front = c.iter().filter(|x| matches!(x, Class::Front(..))).count();
+        if front == 0 || front == 4 {
+            continue;
+        }
+        template.fill_in_elements += 1;
+        let mut interior = 0;
+        for (k, class) in corners.iter().zip(&c) {
+            let s = &mut state[*k as usize];
+            match *class {
+                Class::Front(z, n) if z > 0.0 => {
+                    interior += 1;
+                    if *s == 0 {
+                        *s = 1;
+                        let v = candidates.vertices[*k as usize];
+                        template.implant_vertices.push((v, n * z));
+                    }
+                }
+                Class::Back(z) if z > 0.0 || hold_bed => {
+                    if z > 0.0 {
+                        interior += 1;
+                    }
+                    if *s == 0 {
+                        *s = 2;
+                        template
+                            .fixed_vertices
+                            .push(candidates.vertices[*k as usize]);
+                    }
+                }
+                _ => {}
+            }
+        }
+        if interior == 4 {
+            template.implant_elements.push(t);
+            let p = mesh.tets[t as usize].map(|v| mesh.positions[v as usize]);
+            let d = corners.map(|k| match classes[k as usize] {
+                Class::Front(z, n) => n * z,
+                _ => DVec3::ZERO,
+            });
+            let rest = tetra::quality::signed_volume(p);
+            let moved =
+                tetra::quality::signed_volume([p[0] + d[0], p[1] + d[1], p[2] + d[2], p[3] + d[3]]);
+            added_mm3 += moved - rest;
+        }
+    }
+    if template.implant_vertices.is_empty() {
+        return Err(SimulationError::EmptyTemplate { side: bed.side });
+    }
+    template.template_volume_ml = added_mm3 / 1000.0;
+    Ok(template)
+}
