@@ -184,6 +184,37 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Implants on a model: the predicted post-operative scan (finite elements).
+    Simulate {
+        /// A model folder written by `mammaplan model`.
+        #[arg(long, value_name = "MODEL_DIR")]
+        model: PathBuf,
+        /// Left implant: round:diameter=D,projection=P | anatomic:width=W,height=H,projection=P
+        /// | catalog:ID (mm).
+        #[arg(long, value_name = "SPEC", required_unless_present = "right")]
+        left: Option<String>,
+        /// Right implant, as --left.
+        #[arg(long, value_name = "SPEC")]
+        right: Option<String>,
+        /// Move the left implant from its default position (mm, anatomical frame: x to
+        /// the patient's left, y up, z anterior).
+        #[arg(long, value_name = "DX,DY,DZ", value_parser = vector_mm, requires = "left", allow_hyphen_values = true)]
+        move_left: Option<[f64; 3]>,
+        /// Move the right implant, as --move-left.
+        #[arg(long, value_name = "DX,DY,DZ", value_parser = vector_mm, requires = "right", allow_hyphen_values = true)]
+        move_right: Option<[f64; 3]>,
+        /// Skip the gravity correction.
+        #[arg(long)]
+        no_gravity: bool,
+        /// A CSV catalog for catalog:ID specs instead of the built-in one.
+        #[arg(long, value_name = "CSV")]
+        catalog: Option<PathBuf>,
+        /// The simulation folder (created if needed).
+        #[arg(long, value_name = "SIM_DIR")]
+        out: PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
     /// Finite elements on your own meshes.
     Fem {
         #[command(subcommand)]
@@ -305,6 +336,38 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             }
         }
         Command::Catalog { command } => catalog(command),
+        Command::Simulate {
+            model,
+            left,
+            right,
+            move_left,
+            move_right,
+            no_gravity,
+            catalog,
+            out,
+            json,
+        } => {
+            let request = |spec: Option<String>, move_mm: Option<[f64; 3]>| {
+                spec.map(|spec| plan::simulate::ImplantRequest {
+                    spec,
+                    move_mm: move_mm.unwrap_or_default().into(),
+                })
+            };
+            let options = plan::simulate::SimulateOptions {
+                left: request(left, move_left),
+                right: request(right, move_right),
+                no_gravity,
+                catalog,
+            };
+            let report = plan::simulate::simulate(&model, &out, &options, progress)?;
+            progress.finish();
+            if json {
+                print_json(&report)
+            } else {
+                print!("{}", summary::simulation(&report));
+                Ok(())
+            }
+        }
         Command::Fem {
             command:
                 FemCommand::Solve {
@@ -456,6 +519,20 @@ fn positive(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(x) if x > 0.0 && x.is_finite() => Ok(x),
         _ => Err(format!("expected a number > 0, got {text:?}")),
+    }
+}
+
+fn vector_mm(text: &str) -> Result<[f64; 3], String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("expected three numbers dx,dy,dz in mm, got {text:?}"))?;
+    match values[..] {
+        [x, y, z] if values.iter().all(|v| v.is_finite()) => Ok([x, y, z]),
+        _ => Err(format!(
+            "expected three numbers dx,dy,dz in mm, got {text:?}"
+        )),
     }
 }
 

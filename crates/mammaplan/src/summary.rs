@@ -87,9 +87,12 @@ pub fn demo(report: &DemoReport) -> String {
     out += &model_figures(&report.model);
     let _ = writeln!(
         out,
-        "breast volume against the phantom's truth: left {:+.1}%, right {:+.1}%\n\nfiles:",
+        "breast volume against the phantom's truth: left {:+.1}%, right {:+.1}%\n",
         report.breast_volume_error_percent.left, report.breast_volume_error_percent.right
     );
+    out += "simulation:\n";
+    out += &simulation_figures(&report.simulation);
+    out += "\nfiles:\n";
     for file in &report.files {
         let _ = writeln!(out, "  {}", file.display());
     }
@@ -258,4 +261,55 @@ pub fn fem_solve(report: &plan::fem_solve::FemSolveReport) -> String {
         report.max_von_mises_kpa,
         report.out.display(),
     )
+}
+
+/// What `simulate` predicted and where it is written.
+pub fn simulation(report: &plan::simulate::SimulateReport) -> String {
+    let mut out = simulation_figures(report);
+    let _ = writeln!(out, "written to {}:", report.out_dir.display());
+    for file in &report.files {
+        let _ = writeln!(out, "  {file}");
+    }
+    out
+}
+
+/// Implants, breast volumes, the solver and the distances of a simulation.
+fn simulation_figures(report: &plan::simulate::SimulateReport) -> String {
+    let mut out = String::new();
+    for (side, implant, before, after) in [
+        (
+            "left",
+            &report.implants.left,
+            report.breast_volume_before_ml.left,
+            report.breast_volume_ml.left,
+        ),
+        (
+            "right",
+            &report.implants.right,
+            report.breast_volume_before_ml.right,
+            report.breast_volume_ml.right,
+        ),
+    ] {
+        let implant = implant.as_ref().map_or_else(
+            || "no implant".to_string(),
+            |i| format!("{} ({:.0} ml)", i.spec, i.volume_ml),
+        );
+        let _ = writeln!(
+            out,
+            "{side:<6} {implant}: breast {before:.1} ml -> {after:.1} ml ({:+.1} ml)",
+            after - before
+        );
+    }
+    let s = &report.solver;
+    let _ = writeln!(
+        out,
+        "solver: {} V-cycles in {:.0} ms, relative residual {:.1e}{}, {} inverted elements",
+        s.vcycles,
+        s.time_ms,
+        s.relative_residual,
+        if s.converged { "" } else { " (not converged)" },
+        s.inverted_elements
+    );
+    out.push_str(&distances(&report.distances));
+    out
 }

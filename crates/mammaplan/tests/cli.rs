@@ -417,6 +417,67 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     for file in MODEL_FILES {
         assert!(dir.path().join("model").join(file).is_file(), "{file}");
     }
+    for file in [
+        "simulated_scan.ply",
+        "simulated_landmarks.json",
+        "fe_result.vtu",
+        "result.json",
+    ] {
+        assert!(dir.path().join("simulation").join(file).is_file(), "{file}");
+    }
+    let simulation = &json["simulation"];
+    let after = &simulation["breast_volume_ml"];
+    let before = &simulation["breast_volume_before_ml"];
+    for side in ["left", "right"] {
+        let implant = simulation["implant_volume_ml"][side].as_f64().unwrap();
+        let gain = after[side].as_f64().unwrap() - before[side].as_f64().unwrap();
+        // Issue 6: the breast grows by the implant's volume within 15%.
+        assert!(
+            (gain - implant).abs() <= 0.15 * implant,
+            "{side}: +{gain} ml for a {implant} ml implant"
+        );
+    }
+    let (left, right) = (
+        after["left"].as_f64().unwrap(),
+        after["right"].as_f64().unwrap(),
+    );
+    // Symmetric phantom, same implants: within 1% (issue 6).
+    assert!((left - right).abs() <= 0.01 * left, "{left} / {right}");
+
+    // Bad implants on the demo's model: clear errors, no simulation folder.
+    let model = dir.path().join("model");
+    let out = dir.path().join("bad_simulation");
+    let simulate = |spec: &str| {
+        mammaplan(&[
+            "simulate",
+            "--model",
+            model.to_str().unwrap(),
+            "--left",
+            spec,
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    assert_clean_failure(&simulate("catalog:NO-SUCH-ID"), "NO-SUCH-ID");
+    assert_clean_failure(&simulate("round:diameter=0,projection=30"), "diameter");
+    assert_clean_failure(
+        &simulate("round:diameter=240,projection=60"),
+        "left implant",
+    );
+    assert_clean_failure(&simulate("oval:width=100"), "oval");
+    assert!(!out.exists());
+    assert_clean_failure(
+        &mammaplan(&[
+            "simulate",
+            "--model",
+            dir.path().join("nowhere").to_str().unwrap(),
+            "--left",
+            "catalog:R-MOD-120",
+            "--out",
+            out.to_str().unwrap(),
+        ]),
+        "model.json",
+    );
 }
 
 #[test]

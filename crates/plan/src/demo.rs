@@ -4,6 +4,7 @@
 use crate::measure::{MeasureReport, measure};
 use crate::model::{ModelOptions, ModelReport, PerSide, build_model, write_model};
 use crate::register::{RegisterReport, register, write_registered_mesh};
+use crate::simulate::{ImplantRequest, Session, SimulateOptions, SimulateReport, run_session};
 use crate::{MarkedScan, Progress, Scan};
 use anatomy::register::RigidTransform;
 use anyhow::{Context, Result};
@@ -42,6 +43,10 @@ fn write_phantom_files(
     Ok(())
 }
 
+/// The demo's implant on both sides: the built-in catalog's moderate-profile round
+/// implant of 120 mm diameter and 33.5 mm projection, 253 ml.
+pub const DEMO_IMPLANT: &str = "catalog:R-MOD-120";
+
 /// What the demo did, for the summary and `--json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct DemoReport {
@@ -58,6 +63,8 @@ pub struct DemoReport {
     pub model: ModelReport,
     /// Its breast volumes against the phantom's truth (per cent, signed).
     pub breast_volume_error_percent: PerSide<f64>,
+    /// A round 250 ml implant ([`DEMO_IMPLANT`]) on both sides, written to `simulation/`.
+    pub simulation: SimulateReport,
     pub files: Vec<PathBuf>,
 }
 
@@ -74,8 +81,9 @@ fn follow_up_motion() -> RigidTransform {
 }
 
 /// Runs the pipeline on the phantom into `out_dir`: phantom scan, measurements, a second
-/// noisy scan in a moved frame and its registration back onto the first, and the breast
-/// model of the first (in `out_dir/model`).
+/// noisy scan in a moved frame and its registration back onto the first, the breast
+/// model of the first (in `out_dir/model`) and the simulation of [`DEMO_IMPLANT`] on both
+/// sides (in `out_dir/simulation`).
 pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let path = |name: &str| out_dir.join(name);
@@ -131,9 +139,32 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
     files.extend([path("followup_registered.ply"), path("registration.json")]);
     progress.step();
 
-    let model = build_model(&fixed, &ModelOptions::default(), progress)?;
-    let model = write_model(&path("model"), &model, progress)?;
+    let patient = build_model(&fixed, &ModelOptions::default(), progress)?;
+    let model = write_model(&path("model"), &patient, progress)?;
     files.extend(model.files.iter().map(|name| path("model").join(name)));
+
+    let session = Session::new(fixed, patient, implant::Catalog::builtin())?;
+    let request = Some(ImplantRequest {
+        spec: DEMO_IMPLANT.to_string(),
+        move_mm: DVec3::ZERO,
+    });
+    let simulation = run_session(
+        session,
+        &path("model"),
+        &path("simulation"),
+        &SimulateOptions {
+            left: request.clone(),
+            right: request,
+            ..Default::default()
+        },
+        progress,
+    )?;
+    files.extend(
+        simulation
+            .files
+            .iter()
+            .map(|name| path("simulation").join(name)),
+    );
     let truth = phantom.breast_volume_ml;
     let breast_volume_error_percent = PerSide {
         left: 100.0 * (model.breast_volume_ml.left / truth.left - 1.0),
@@ -155,6 +186,7 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
         registration_error_mm: error.translation.length(),
         model,
         breast_volume_error_percent,
+        simulation,
         files,
     })
 }

@@ -87,7 +87,12 @@ pub fn fem_solve(mesh: &Path, out: &Path, options: &FemSolveOptions) -> Result<F
     let model = FemModel::new(&input.mesh, materials)
         .with_context(|| format!("{}: the finite-element model", mesh.display()))?;
     let mut constraints = Constraints::new();
-    for (v, (&fixed, &d)) in input.constrained.iter().zip(&input.displacement).enumerate() {
+    for (v, (&fixed, &d)) in input
+        .constrained
+        .iter()
+        .zip(&input.displacement)
+        .enumerate()
+    {
         if fixed {
             constraints.prescribe(v as u32, d);
         }
@@ -103,9 +108,7 @@ pub fn fem_solve(mesh: &Path, out: &Path, options: &FemSolveOptions) -> Result<F
         ..SolveOptions::default()
     };
     let solution = StaticSolver::new(&model, &constraints)
-        .and_then(|mut solver| {
-            solver.solve(&model, &[], Some(&input.displacement), &solve_options)
-        })
+        .and_then(|mut solver| solver.solve(&model, &[], Some(&input.displacement), &solve_options))
         .with_context(|| format!("{}: solving", mesh.display()))?;
     let solve_ms = start.elapsed().as_secs_f64() * 1e3;
     if !solution.converged {

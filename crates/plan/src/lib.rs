@@ -9,6 +9,7 @@ pub mod measure;
 pub mod model;
 pub mod register;
 pub mod scan;
+pub mod simulate;
 
 pub use anatomy::measure::Distance;
 pub use phantom::{Cup, PhantomParams};

@@ -27,7 +27,7 @@ use anatomy::breast::{BreastModel, QuadrantVolumes, Side};
 use anatomy::closed_surface::{ClosedSurface, ClosedSurfaceOptions, build_closed_surface};
 use anatomy::{BreastOptions, ControlPoints, build_breast_model};
 use anyhow::{Context, Result};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -46,7 +46,7 @@ pub const TET_LEVELS: usize = 3;
 /// implant"). Off by default: with 4 mm edges a band round two fill-ins of about
 /// 160 cm² each costs several hundred thousand elements (see the README), six times
 /// the default budget of the interactive solver.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Refinement {
     /// Half-width of the band around each fill-in (mm).
     pub band_mm: f64,
@@ -110,6 +110,8 @@ pub struct PatientModel {
     pub closed_surface: ClosedSurface,
     /// Tetrahedral meshes of the closed surface, `levels[0]` the finest.
     pub tets: tetra::Hierarchy,
+    /// The `--elements` asked for.
+    pub elements_requested: usize,
     /// The figures of each level of `tets`.
     pub levels: Vec<LevelReport>,
     /// The refined level's figures, when `tets.levels[0]` is one.
@@ -174,6 +176,14 @@ impl<T> PerSide<T> {
             right: f(Side::Right),
         }
     }
+
+    /// The value of one side, mutably.
+    pub fn get_mut(&mut self, side: Side) -> &mut T {
+        match side {
+            Side::Left => &mut self.left,
+            Side::Right => &mut self.right,
+        }
+    }
 }
 
 /// The clip planes of the closed surface, as coordinates in the anatomical frame (mm):
@@ -222,6 +232,8 @@ pub struct ModelReport {
     pub breast_volume_ml: PerSide<f64>,
     pub quadrant_volume_ml: PerSide<QuadrantVolumes>,
     pub closed_surface_volume_ml: f64,
+    /// The `--elements` asked for (the uniform finest level's target).
+    pub elements_requested: usize,
     /// The tetrahedral meshes, level 0 the finest (`tets_level{l}.vtu`).
     pub levels: Vec<LevelReport>,
     /// The refinement of level 0 around the fill-ins (`None`: all levels uniform).
@@ -335,6 +347,7 @@ pub fn build_model(
         breasts,
         closed_surface,
         tets,
+        elements_requested: options.elements,
         levels,
         refinement,
         scan_vertices: scan.mesh.vertex_count(),
@@ -441,9 +454,11 @@ impl PatientModel {
             perimeter_mm,
             centre_mm,
         };
+        // Absolute paths, so that the folder can be reopened from anywhere (`load_model`).
+        let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
         ModelReport {
-            scan: self.scan_path.display().to_string(),
-            landmarks: self.landmarks_path.display().to_string(),
+            scan: absolute(&self.scan_path).display().to_string(),
+            landmarks: absolute(&self.landmarks_path).display().to_string(),
             control_points_file: self
                 .control_points_file
                 .as_ref()
@@ -451,6 +466,7 @@ impl PatientModel {
             breast_volume_ml: PerSide::from_fn(|side| model.breast(side).volume_ml),
             quadrant_volume_ml: PerSide::from_fn(|side| model.breast(side).quadrant_volume_ml),
             closed_surface_volume_ml: closed.volume_ml,
+            elements_requested: self.elements_requested,
             levels: self.levels.clone(),
             refinement: self.refinement,
             min_dihedral_deg: self
@@ -595,4 +611,64 @@ pub fn write_closed_polyline(path: &Path, points: &[mesh::DVec3]) -> Result<()> 
         Ok(())
     })?;
     Ok(())
+}
+
+/// What [`load_model`] reads back from `model.json`.
+#[derive(Debug, Deserialize)]
+struct ModelRecord {
+    scan: PathBuf,
+    landmarks: PathBuf,
+    elements_requested: usize,
+    rear_wall_offset_mm: f64,
+    refinement: Option<Refinement>,
+    levels: Vec<LevelRecord>,
+}
+
+#[derive(Debug, Deserialize)]
+struct LevelRecord {
+    elements: usize,
+    nodes: usize,
+}
+
+/// Reopens a model folder written by [`write_model`]: reads the scan and landmarks named
+/// in its `model.json` and rebuilds the model with the folder's `control_points.json` and
+/// the recorded settings (meshing is deterministic, so the result is the folder's; the
+/// level sizes are checked against `model.json`, which catches a scan changed since).
+/// Returns the marked scan with the model.
+pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedScan, PatientModel)> {
+    let report_path = model_dir.join("model.json");
+    let text = std::fs::read_to_string(&report_path).with_context(|| {
+        format!(
+            "reading {} (is {} a model folder written by `mammaplan model`?)",
+            report_path.display(),
+            model_dir.display()
+        )
+    })?;
+    let record: ModelRecord = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a model report", report_path.display()))?;
+    let marked = MarkedScan::load(&record.scan, &record.landmarks, progress)
+        .with_context(|| format!("the scan named in {}", report_path.display()))?;
+    let mut options = ModelOptions {
+        control_points_file: Some(model_dir.join("control_points.json")),
+        elements: record.elements_requested,
+        refinement: record.refinement,
+        ..Default::default()
+    };
+    options.closed_surface.rear_wall_offset_mm = record.rear_wall_offset_mm;
+    let model = build_model(&marked, &options, progress)?;
+    let rebuilt: Vec<(usize, usize)> = model.levels.iter().map(|l| (l.elements, l.nodes)).collect();
+    let recorded: Vec<(usize, usize)> = record
+        .levels
+        .iter()
+        .map(|l| (l.elements, l.nodes))
+        .collect();
+    anyhow::ensure!(
+        rebuilt == recorded,
+        "{}: rebuilding the model from {} gives tetrahedral levels (elements, nodes) {rebuilt:?}, \
+         but the folder has {recorded:?}: the scan or landmarks changed since; run `mammaplan \
+         model` again",
+        model_dir.display(),
+        record.scan.display()
+    );
+    Ok((marked, model))
 }

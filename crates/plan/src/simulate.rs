@@ -1,0 +1,326 @@
+//! `mammaplan simulate`: implants placed on a patient's model, the predicted
+//! post-operative scan (paper V), and the simulation folder.
+//!
+//! [`Session`] is the interactive API (issue 6, item 7): the model is prepared once;
+//! implants are set, changed or moved (the constraints are rebuilt from scratch), single
+//! V-cycles run warm-started, and the current scan positions can be read at any time.
+//! [`simulate`] runs a session to convergence and writes:
+//! - `simulated_scan.ply`: the scan with every vertex moved (same vertex order and count,
+//!   colours and texture coordinates kept);
+//! - `simulated_landmarks.json`: the landmarks moved the same way;
+//! - `fe_result.vtu`: the finest tetrahedral level with point data `displacement` (mm) and
+//!   `constrained` (0/1) and cell data `implant` (1 for implant elements);
+//! - `result.json`: the figures ([`SimulateReport`]), written last.
+
+use crate::measure::measure;
+use crate::model::{PatientModel, PerSide, load_model};
+use crate::{MarkedScan, Progress, Scan};
+use anatomy::breast::Side;
+use anyhow::{Context, Result};
+use glam::DVec3;
+use implant::{Catalog, ImplantShape, ImplantSpec};
+use serde::Serialize;
+use simulation::{PatientInput, Simulation, SimulationOptions};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use tetra::vtu::{CONSTRAINED, DISPLACEMENT, Field};
+
+pub use simulation::{CycleInfo, Placement, RunReport};
+
+/// An implant asked for on one side.
+#[derive(Debug, Clone)]
+pub struct ImplantRequest {
+    /// `round:diameter=115,projection=33`, `anatomic:width=..,height=..,projection=..` or
+    /// `catalog:ID`.
+    pub spec: String,
+    /// Move from the default position (mm, anatomical frame: `x` to the patient's left,
+    /// `y` up along the bed, `z` anterior).
+    pub move_mm: DVec3,
+}
+
+/// Settings of [`simulate`].
+#[derive(Debug, Clone, Default)]
+pub struct SimulateOptions {
+    pub left: Option<ImplantRequest>,
+    pub right: Option<ImplantRequest>,
+    /// Skip the gravity correction (paper V-B).
+    pub no_gravity: bool,
+    /// A CSV catalog for `catalog:ID` specs instead of the built-in one.
+    pub catalog: Option<PathBuf>,
+}
+
+/// A patient's model ready for interactive simulation.
+pub struct Session {
+    pub marked: MarkedScan,
+    pub model: PatientModel,
+    pub simulation: Simulation,
+    catalog: Catalog,
+}
+
+impl Session {
+    /// Prepares the simulation of a built model (the finite-element hierarchy, the
+    /// implant beds, the maps from the scan into the mesh).
+    pub fn new(marked: MarkedScan, model: PatientModel, catalog: Catalog) -> Result<Session> {
+        let simulation = Simulation::new(
+            PatientInput {
+                scan: &marked.scan.mesh,
+                landmarks: &marked.landmarks,
+                frame: &marked.frame,
+                breasts: &model.breasts,
+                closed_surface: &model.closed_surface,
+                tets: &model.tets,
+            },
+            SimulationOptions::default(),
+        )
+        .context("preparing the simulation")?;
+        Ok(Session {
+            marked,
+            model,
+            simulation,
+            catalog,
+        })
+    }
+
+    /// Sets (or replaces) the implant of one side from a spec, placed `move_mm` from
+    /// the default position. On error nothing changes.
+    pub fn set_implant(&mut self, side: Side, spec: &str, move_mm: DVec3) -> Result<ImplantShape> {
+        let entry = ImplantSpec::parse(spec)
+            .and_then(|s| s.resolve(&self.catalog))
+            .with_context(|| format!("{side} implant"))?;
+        let shape = *entry.shape();
+        self.simulation
+            .set_implant(
+                side,
+                shape,
+                Placement::moved(move_mm.x, move_mm.y, move_mm.z),
+            )
+            .with_context(|| format!("{side} implant {spec}"))?;
+        Ok(shape)
+    }
+
+    /// One V-cycle of the current stage, warm-started from the current displacement.
+    pub fn cycle(&mut self) -> Result<CycleInfo> {
+        Ok(self.simulation.cycle()?)
+    }
+
+    /// The scan's vertices as the simulation currently predicts them (mm, file frame,
+    /// the scan's order).
+    pub fn scan_positions(&self) -> Vec<DVec3> {
+        self.simulation.scan_positions()
+    }
+}
+
+/// The finite-element solve of a simulation.
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverReport {
+    /// V-cycles run (both stages).
+    pub vcycles: usize,
+    /// Relative residual before the last cycle of the last stage.
+    pub relative_residual: f64,
+    pub converged: bool,
+    /// Wall-clock time of the solve (ms).
+    pub time_ms: f64,
+    /// Cycles of the implant stage and of the gravity correction.
+    pub implant_stage_vcycles: usize,
+    pub gravity_stage_vcycles: Option<usize>,
+    /// Deformed finest elements with non-positive volume.
+    pub inverted_elements: usize,
+}
+
+/// One side's implant.
+#[derive(Debug, Clone, Serialize)]
+pub struct ImplantSummary {
+    pub spec: String,
+    pub shape: ImplantShape,
+    pub volume_ml: f64,
+    pub move_mm: [f64; 3],
+}
+
+/// The JSON of `simulate` and `result.json` (GUIDE section 5).
+#[derive(Debug, Clone, Serialize)]
+pub struct SimulateReport {
+    pub model: PathBuf,
+    pub implants: PerSide<Option<ImplantSummary>>,
+    /// Breast volumes after the simulation, measured as on a real scan (ml).
+    pub breast_volume_ml: PerSide<f64>,
+    /// Breast volumes of the model before (ml).
+    pub breast_volume_before_ml: PerSide<f64>,
+    /// The implants' volumes (ml; 0 on a side without implant).
+    pub implant_volume_ml: PerSide<f64>,
+    /// Clinical distances on the simulated scan.
+    pub distances: Vec<crate::Distance>,
+    pub solver: SolverReport,
+    pub no_gravity: bool,
+    pub out_dir: PathBuf,
+    pub files: Vec<String>,
+}
+
+/// Runs the simulation of `model_dir` with `options` and writes the simulation folder.
+pub fn simulate(
+    model_dir: &Path,
+    out_dir: &Path,
+    options: &SimulateOptions,
+    progress: &dyn Progress,
+) -> Result<SimulateReport> {
+    anyhow::ensure!(
+        options.left.is_some() || options.right.is_some(),
+        "no implant given: use --left SPEC and/or --right SPEC"
+    );
+    let catalog = crate::catalog::load(options.catalog.as_deref())?;
+    let (marked, model) = load_model(model_dir, progress)?;
+    let session = Session::new(marked, model, catalog)?;
+    run_session(session, model_dir, out_dir, options, progress)
+}
+
+/// Sets the implants of `options` on a prepared session, solves, and writes the
+/// simulation folder (`model_dir` is only reported).
+pub fn run_session(
+    mut session: Session,
+    model_dir: &Path,
+    out_dir: &Path,
+    options: &SimulateOptions,
+    progress: &dyn Progress,
+) -> Result<SimulateReport> {
+    progress.stage("simulation", 2);
+    let mut implants = PerSide {
+        left: None,
+        right: None,
+    };
+    for (side, request) in [(Side::Left, &options.left), (Side::Right, &options.right)] {
+        if let Some(request) = request {
+            let shape = session.set_implant(side, &request.spec, request.move_mm)?;
+            *implants.get_mut(side) = Some(ImplantSummary {
+                spec: request.spec.clone(),
+                shape,
+                volume_ml: shape.volume_ml(),
+                move_mm: request.move_mm.to_array(),
+            });
+        }
+    }
+    let start = Instant::now();
+    let run = session
+        .simulation
+        .run(options.no_gravity)
+        .context("solving the simulation")?;
+    let time_ms = start.elapsed().as_secs_f64() * 1e3;
+    progress.step();
+    let last = run.gravity.as_ref().unwrap_or(&run.implant);
+    let solver = SolverReport {
+        vcycles: run.implant.cycles + run.gravity.as_ref().map_or(0, |g| g.cycles),
+        relative_residual: last.relative_residual,
+        converged: run.implant.converged && run.gravity.as_ref().is_none_or(|g| g.converged),
+        time_ms,
+        implant_stage_vcycles: run.implant.cycles,
+        gravity_stage_vcycles: run.gravity.as_ref().map(|g| g.cycles),
+        inverted_elements: session.simulation.inverted_elements().len(),
+    };
+    if !solver.converged {
+        progress.warn(&format!(
+            "the simulation stopped after {} V-cycles at relative residual {:.1e} without \
+             reaching its tolerance; the prediction is approximate",
+            solver.vcycles, solver.relative_residual
+        ));
+    }
+    let volumes = session.simulation.breast_volumes()?;
+    let simulated_mesh = {
+        let mut mesh = session.marked.scan.mesh.clone();
+        mesh.positions = session.scan_positions();
+        mesh
+    };
+    let simulated = MarkedScan::new(
+        Scan::from_mesh(simulated_mesh, &out_dir.join("simulated_scan.ply"))?,
+        session.simulation.landmarks(),
+        &out_dir.join("simulated_landmarks.json"),
+        &crate::Silent,
+    )
+    .context("the simulated scan")?;
+    let distances = measure(&simulated, &[], progress)?.distances;
+
+    std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let report_path = out_dir.join("result.json");
+    match std::fs::remove_file(&report_path) {
+        Err(error) if error.kind() != std::io::ErrorKind::NotFound => {
+            return Err(error).with_context(|| format!("removing {}", report_path.display()));
+        }
+        _ => {}
+    }
+    let mut files = Vec::new();
+    mesh::io::write_mesh(&out_dir.join("simulated_scan.ply"), &simulated.scan.mesh)?;
+    files.push("simulated_scan.ply".to_string());
+    simulated.landmarks.write(
+        &out_dir.join("simulated_landmarks.json"),
+        Default::default(),
+    )?;
+    files.push("simulated_landmarks.json".to_string());
+    write_fe_result(&out_dir.join("fe_result.vtu"), &session.simulation)?;
+    files.push("fe_result.vtu".to_string());
+    files.push("result.json".to_string());
+    let volume = |side: Side| volumes[side_index(side)].volume_ml;
+    let report = SimulateReport {
+        model: model_dir.to_path_buf(),
+        implant_volume_ml: PerSide {
+            left: implants.left.as_ref().map_or(0.0, |i| i.volume_ml),
+            right: implants.right.as_ref().map_or(0.0, |i| i.volume_ml),
+        },
+        implants,
+        breast_volume_ml: PerSide {
+            left: volume(Side::Left),
+            right: volume(Side::Right),
+        },
+        breast_volume_before_ml: PerSide {
+            left: volumes[0].volume_before_ml,
+            right: volumes[1].volume_before_ml,
+        },
+        distances,
+        solver,
+        no_gravity: options.no_gravity,
+        out_dir: out_dir.to_path_buf(),
+        files,
+    };
+    crate::demo::write_json(&report_path, &report)?;
+    progress.step();
+    Ok(report)
+}
+
+/// Index of a side in [`Simulation::breast_volumes`]' array.
+fn side_index(side: Side) -> usize {
+    match side {
+        Side::Left => 0,
+        Side::Right => 1,
+    }
+}
+
+/// Writes the finest level with its displacement, constrained vertices and implant
+/// elements.
+fn write_fe_result(path: &Path, simulation: &Simulation) -> Result<()> {
+    let mesh = simulation.finest_mesh();
+    let mut constrained = vec![0.0; mesh.vertex_count()];
+    let mut implant_elements = vec![0.0; mesh.tet_count()];
+    for &v in simulation.wall_vertices() {
+        constrained[v as usize] = 1.0;
+    }
+    for side in Side::BOTH {
+        if let Some(placed) = simulation.implant(side) {
+            let template = &placed.template;
+            for &(v, _) in &template.implant_vertices {
+                constrained[v as usize] = 1.0;
+            }
+            for &v in &template.fixed_vertices {
+                constrained[v as usize] = 1.0;
+            }
+            for &e in &template.implant_elements {
+                implant_elements[e as usize] = 1.0;
+            }
+        }
+    }
+    tetra::vtu::write_vtu(
+        path,
+        mesh,
+        &[
+            Field::vectors(DISPLACEMENT, simulation.displacement().to_vec()),
+            Field::scalars(CONSTRAINED, constrained),
+        ],
+        &[Field::scalars("implant", implant_elements)],
+    )
+    .with_context(|| format!("writing {}", path.display()))
+}
