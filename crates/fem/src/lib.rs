@@ -7,6 +7,9 @@
 //! - [`Constraints`] and [`ReducedSystem`]: prescribed displacements eliminated from the
 //!   system; the reduced stiffness is a 3x3 block CSR matrix ([`BlockCsr`]) whose pattern
 //!   and element-to-slot maps are built once and whose values are refilled in parallel.
+//!   Constraints that change (an implant's template) are replaced in O(vertices) by
+//!   [`ReducedSystem::set_constraints`] and [`multigrid::Multigrid::set_constraints`]
+//!   and eliminated symmetrically at assembly, without rebuilding the pattern.
 //! - [`DirectSolver`]: faer sparse Cholesky, symbolic factorisation reused.
 //! - [`StaticSolver`]: the corotational static solve (re-estimate rotations, reassemble,
 //!   solve) to convergence.

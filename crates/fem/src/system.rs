@@ -8,6 +8,18 @@
 //! constrained vertices (so `Δu_c = 0`). With the rotations held fixed `f_int` is linear,
 //! `f_int(u) = K' u - Σ R K X + K' X`, so at `u_f = 0` this right-hand side is exactly the
 //! classical corrected one, `f_f - K'_fc u_c` (plus the corotational terms).
+//!
+//! Changeable constraints: the constraints given to [`ReducedSystem::new`] (or
+//! [`ReducedSystem::with_permanent`]) are permanent and shape the block pattern. Further
+//! constraints, replaced as a whole in O(vertices) by [`ReducedSystem::set_constraints`]
+//! (an implant's displacement template that changes whenever the implant moves), keep
+//! their vertices as unknowns of the pattern and are eliminated symmetrically at every
+//! assembly: their block rows and columns are zeroed, their diagonal blocks set to the
+//! identity and their right-hand side to zero (so their correction is `Δu_c = 0`). The
+//! coupling `K'_fc u_c` is not lost: `u` carries the prescribed values (see
+//! [`ReducedSystem::expand`]), so `f_int(u)` in the right-hand side of the free vertices
+//! contains it. The free rows are therefore exactly those of a system built with all the
+//! constraints permanent.
 
 use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
@@ -170,6 +182,17 @@ pub struct ReducedSystem {
     cores: Vec<ElementCore>,
     /// Twist terms of each element for [`Tangent::Full`] (empty otherwise).
     twists: Vec<ElementTwist>,
+    /// For each unknown, whether a changeable constraint holds it (eliminated at
+    /// assembly).
+    eliminated: Vec<bool>,
+    /// Per-vertex prescribed displacement of the permanent constraints (mm).
+    permanent: Vec<DVec3>,
+    /// Per-vertex: held by a permanent constraint.
+    permanent_held: Vec<bool>,
+    /// Per-vertex: held by a permanent or a changeable constraint.
+    held: Vec<bool>,
+    /// Number of vertices held by a permanent or a changeable constraint.
+    held_count: usize,
 }
 
 impl ReducedSystem {
@@ -178,11 +201,24 @@ impl ReducedSystem {
     /// Errors: a constraint out of range or not finite; no constraint at all
     /// ([`FemError::NoConstraints`]: the system would be singular).
     pub fn new(model: &FemModel, constraints: &Constraints) -> Result<ReducedSystem, FemError> {
-        let n = model.vertex_count();
-        let table = constraints.table(n)?;
-        if table.iter().all(Option::is_none) {
+        if constraints.prescribed.is_empty() {
             return Err(FemError::NoConstraints);
         }
+        ReducedSystem::with_permanent(model, constraints)
+    }
+
+    /// Builds the pattern for `model` with `permanent` constraints, which may be empty:
+    /// the constraints that change are set later with
+    /// [`ReducedSystem::set_constraints`] (the system is singular until some vertex is
+    /// held; [`ReducedSystem::held_count`] tells).
+    ///
+    /// Errors: a constraint out of range or not finite.
+    pub fn with_permanent(
+        model: &FemModel,
+        permanent: &Constraints,
+    ) -> Result<ReducedSystem, FemError> {
+        let n = model.vertex_count();
+        let table = permanent.table(n)?;
         if model.element_count() >= (1 << 27) {
             return Err(FemError::LengthMismatch {
                 what: "tetrahedra (at most 2^27 supported)",
@@ -270,8 +306,15 @@ impl ReducedSystem {
             incident_ptr.push(incident.len());
         }
         let slots = cols.len();
+        let permanent_held: Vec<bool> = table.iter().map(Option::is_some).collect();
+        let held_count = permanent_held.iter().filter(|&&h| h).count();
         Ok(ReducedSystem {
             reduced_of,
+            eliminated: vec![false; free.len()],
+            permanent: prescribed.clone(),
+            held: permanent_held.clone(),
+            permanent_held,
+            held_count,
             prescribed,
             rhs: vec![DVec3::ZERO; free.len()],
             free,
@@ -289,17 +332,110 @@ impl ReducedSystem {
         })
     }
 
-    /// Number of unknown vertices.
+    /// Number of unknown vertices (including those held by changeable constraints).
     pub fn unknowns(&self) -> usize {
         self.free.len()
     }
 
-    /// The displacement field with the prescribed values at constrained vertices and
-    /// `u_free` (one per unknown) elsewhere; vertices used by no element get zero.
+    /// Replaces the changeable constraints by `constraints` (the permanent ones stay; a
+    /// changeable entry on a permanently held vertex overrides its value until the next
+    /// call). O(vertices + constraints); the pattern is kept, the next
+    /// [`ReducedSystem::assemble`] eliminates the held unknowns.
+    ///
+    /// Errors: a constraint out of range or not finite (the system is left unchanged);
+    /// [`FemError::NoConstraints`] if no vertex would be held at all (the change is
+    /// applied, the system is singular until constraints are added).
+    pub fn set_constraints(&mut self, constraints: &Constraints) -> Result<(), FemError> {
+        let n = self.reduced_of.len();
+        for &(v, d) in &constraints.prescribed {
+            let vertex = v as usize;
+            if vertex >= n {
+                return Err(FemError::ConstraintOutOfRange {
+                    vertex,
+                    vertex_count: n,
+                });
+            }
+            if !d.is_finite() {
+                return Err(FemError::NonFiniteInput {
+                    what: "prescribed displacement",
+                    vertex,
+                    value: d.to_array(),
+                });
+            }
+        }
+        self.prescribed.copy_from_slice(&self.permanent);
+        self.held.copy_from_slice(&self.permanent_held);
+        self.eliminated.iter_mut().for_each(|e| *e = false);
+        let mut held = self.permanent_held.iter().filter(|&&h| h).count();
+        for &(v, d) in &constraints.prescribed {
+            let vertex = v as usize;
+            self.prescribed[vertex] = d;
+            if !self.held[vertex] {
+                self.held[vertex] = true;
+                held += 1;
+            }
+            let r = self.reduced_of[vertex];
+            if r != NOT_FREE {
+                self.eliminated[r as usize] = true;
+            }
+        }
+        self.held_count = held;
+        if held == 0 {
+            return Err(FemError::NoConstraints);
+        }
+        Ok(())
+    }
+
+    /// Changes the prescribed displacement (mm) of a vertex that is already held (by a
+    /// permanent or a changeable constraint), until the next
+    /// [`ReducedSystem::set_constraints`].
+    ///
+    /// Errors: the vertex is free or out of range, or `d` is not finite.
+    pub fn set_prescribed(&mut self, vertex: u32, d: DVec3) -> Result<(), FemError> {
+        let v = vertex as usize;
+        if !self.is_held(vertex) {
+            return Err(FemError::ConstraintOutOfRange {
+                vertex: v,
+                vertex_count: self.reduced_of.len(),
+            });
+        }
+        if !d.is_finite() {
+            return Err(FemError::NonFiniteInput {
+                what: "prescribed displacement",
+                vertex: v,
+                value: d.to_array(),
+            });
+        }
+        self.prescribed[v] = d;
+        Ok(())
+    }
+
+    /// Whether `vertex` is held by a permanent or a changeable constraint (false for a
+    /// vertex out of range).
+    pub fn is_held(&self, vertex: u32) -> bool {
+        self.held.get(vertex as usize).copied().unwrap_or(false)
+    }
+
+    /// For each unknown, whether a changeable constraint holds it: its block row and
+    /// column are eliminated (identity diagonal block, zero right-hand side).
+    pub fn eliminated(&self) -> &[bool] {
+        &self.eliminated
+    }
+
+    /// Number of vertices held by a permanent or a changeable constraint.
+    pub fn held_count(&self) -> usize {
+        self.held_count
+    }
+
+    /// The displacement field with the prescribed values at held vertices and `u_free`
+    /// (one per unknown) at the other unknowns; vertices used by no element get their
+    /// prescribed value or zero.
     pub fn expand(&self, u_free: &[DVec3]) -> Vec<DVec3> {
         let mut u = self.prescribed.clone();
         for (k, &v) in self.free.iter().enumerate() {
-            u[v as usize] = u_free[k];
+            if !self.eliminated[k] {
+                u[v as usize] = u_free[k];
+            }
         }
         u
     }
@@ -310,8 +446,12 @@ impl ReducedSystem {
         self.cores.iter().map(|c| &c.force)
     }
 
-    /// Assembles `K'_ff` (with the chosen [`Tangent`]) for the rotations of displacement `u` (mm, all vertices) and the
-    /// right-hand side `r_f = f_ext - f_int(u)` at the free vertices. `f_ext` (mN, one per
+    /// Assembles `K'_ff` (with the chosen [`Tangent`]) for the rotations of displacement
+    /// `u` (mm, all vertices; it should carry the prescribed values, see
+    /// [`ReducedSystem::expand`]) and the right-hand side `r_f = f_ext - f_int(u)` at the
+    /// free vertices; unknowns held by changeable constraints get an identity diagonal
+    /// block, zero off-diagonal blocks in their row and column, and a zero right-hand
+    /// side. `f_ext` (mN, one per
     /// vertex) may be empty for no external force. Parallel: one pass over elements
     /// (rotations, rotated gradients, forces), one pass over block rows gathering each
     /// slot's contributions in a fixed order (so the matrix is exactly symmetric and the
@@ -373,13 +513,31 @@ impl ReducedSystem {
             rest = tail;
         }
         let row_ptr = &m.row_ptr;
+        let cols = &m.cols;
+        let eliminated = &self.eliminated;
         row_values
             .into_par_iter()
             .enumerate()
             .for_each(|(i, vals)| {
+                if eliminated[i] {
+                    // a held unknown: identity diagonal block, zero row
+                    for (k, out) in vals.iter_mut().enumerate() {
+                        *out = if cols[row_ptr[i] + k] as usize == i {
+                            [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+                        } else {
+                            [0.0; 9]
+                        };
+                    }
+                    return;
+                }
                 for (k, out) in vals.iter_mut().enumerate() {
                     let s = row_ptr[i] + k;
                     let mut b = [0.0; 9];
+                    if eliminated[cols[s] as usize] {
+                        // a held unknown's column: eliminated
+                        *out = b;
+                        continue;
+                    }
                     for &c in &contrib[contrib_ptr[s]..contrib_ptr[s + 1]] {
                         let e = (c >> 4) as usize;
                         let a = ((c >> 2) & 3) as usize;
@@ -431,7 +589,12 @@ impl ReducedSystem {
         let incident_ptr = &self.incident_ptr;
         let incident = &self.incident;
         let free = &self.free;
+        let eliminated = &self.eliminated;
         self.rhs.par_iter_mut().enumerate().for_each(|(k, r)| {
+            if eliminated[k] {
+                *r = DVec3::ZERO;
+                return;
+            }
             let mut f = if f_ext.is_empty() {
                 DVec3::ZERO
             } else {
