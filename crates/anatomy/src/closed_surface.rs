@@ -4,12 +4,21 @@
 //! the finite elements fill.
 //!
 //! # Algorithm
-//! 1. The clip box ([`ClipBox::around_breasts`]): four planes orthogonal to the frame's
-//!    x and y axes, placed from the landmarks with margins, then moved inwards where
-//!    the scan's outer border comes closer than a clearance, so the clip never runs
-//!    off the scan. A lateral plane that would then cut through a nipple or a fold's
-//!    lowest point or medial end moves back out for it, down to a smaller clearance.
-//! 2. Clipping, in frame coordinates: each plane in turn splits the triangles it
+//! 1. The clip box ([`ClipBox::around_breasts_and_footprints`]): top and bottom planes
+//!    orthogonal to the frame's y axis, from the clavicles and the folds; two lateral
+//!    planes parallel to its z axis that may lean in the coronal plane, each fitted (a
+//!    small linear programme over offset and lean) to lie as far beyond the breast
+//!    footprints as the scan allows while staying a clearance inside the scan's outline
+//!    at every height of the box: a torso narrows from the breasts to the waist, and an
+//!    upright plane, held inside the waist, cut 20 to 30 mm off each breast. The
+//!    footprints are the filled base's points that are not the scan's (fill-ins and cut
+//!    curves). Where even so a plane cuts a footprint (the scan ends just beyond the
+//!    breast, as on the phantom and the shared scans), the surface carries a warning and
+//!    the room left ([`ClosedSurface::lateral_room_mm`]).
+//! 2. Clipping, in the box's coordinates (the frame's, with x mapped affinely at each
+//!    height so that the leaning planes become upright, [`ClipBox::to_box`]; exact
+//!    for the planes, and the mapped-back split points lie within micrometres of the
+//!    split edges): each plane in turn splits the triangles it
 //!    crosses exactly at the plane (the split vertex gets the plane's coordinate
 //!    exactly, a vertex within a small snap distance is moved onto it, so no slivers),
 //!    keeping the inside. Only the largest connected piece is kept (drops specks).
@@ -34,7 +43,8 @@
 //!    ([`mesh::self_intersections`]), and a positive volume (else the wall lies in front
 //!    of the scan).
 //! 6. If clipping or stitching fails, [`build_closed_surface`] retries with the lateral
-//!    planes a millimetre further in, a few times (see there).
+//!    planes further in, a few times, then with the upright box of earlier versions
+//!    (see there).
 //!
 //! The result is in the scan's (file) coordinates.
 //!
@@ -43,11 +53,12 @@
 //!   they cross, the build fails rather than repairs.
 //! - The wall is a translated copy, so where the chest is steep (the lateral planes)
 //!   its distance from the scan along the normal is less than the offset.
-//! - The planes are orthogonal to the frame's axes and stay inside the scan at every
-//!   height of the box. On a torso narrower at the waist than across the breasts (all
-//!   shared scans), the lateral planes therefore cut through the lateral part of the
-//!   breasts, beyond the nipples but well inside the lateral fold ends (PSMFll, PSMFlr),
-//!   which the box does not keep.
+//! - The lateral planes are planes (straight lines in the coronal plane) and stay inside
+//!   the scan at every height of the box. On the phantom and the shared scans the
+//!   breasts reach to within a few millimetres of the torso's silhouette, so the planes
+//!   still cut 8 to 17 mm off the lateral edge of each footprint (it was 20 to 30 mm with
+//!   upright planes); see the warnings. A curved lateral boundary following the outline
+//!   would gain a few millimetres more.
 
 use crate::fill_in::inside_polygon;
 use crate::frame::AnatomicalFrame;
@@ -81,6 +92,11 @@ const BREAST_LANDMARKS: [LandmarkName; 6] = [
 const LATERAL_RETRIES: usize = 4;
 /// See [`LATERAL_RETRIES`] (mm).
 const RETRY_STEP_MM: f64 = 1.0;
+/// Attempts with the box fitted to the footprints, each [`FITTED_RETRY_STEP_MM`] further
+/// in, before [`build_closed_surface`] falls back to the upright box.
+const FITTED_RETRIES: usize = 5;
+/// See [`FITTED_RETRIES`] (mm).
+const FITTED_RETRY_STEP_MM: f64 = 2.0;
 /// How far inside a lateral plane the breast landmarks should lie (mm); see
 /// [`ClosedSurfaceOptions::min_border_clearance_mm`].
 pub const LANDMARK_MARGIN_MM: f64 = 5.0;
@@ -118,6 +134,12 @@ pub struct ClosedSurfaceOptions {
     /// How far the filled base is shifted posteriorly (mm); default
     /// [`DEFAULT_REAR_WALL_OFFSET_MM`].
     pub rear_wall_offset_mm: f64,
+    /// Fit leaning lateral planes to the breast footprints
+    /// ([`ClipBox::around_breasts_and_footprints`]) instead of the upright box held
+    /// inside the waist. Default `false` for now: it keeps 8 to 14 mm more of each
+    /// breast's lateral side, but the simulation's phantom tests then see 2 inverted
+    /// elements and a slower solve near the lateral clip faces (to be resolved there).
+    pub fit_lateral_planes: bool,
 }
 
 impl Default for ClosedSurfaceOptions {
@@ -129,19 +151,123 @@ impl Default for ClosedSurfaceOptions {
             border_clearance_mm: 10.0,
             min_border_clearance_mm: 5.0,
             rear_wall_offset_mm: DEFAULT_REAR_WALL_OFFSET_MM,
+            fit_lateral_planes: false,
         }
     }
 }
 
-/// The four clip planes, as coordinates in the anatomical frame (mm): the part kept is
-/// `x_min <= x <= x_max`, `y_min <= y <= y_max`. `x_min` is the patient's right plane,
-/// `x_max` the left one, `y_min` the bottom, `y_max` the top.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The four clip planes in the anatomical frame (mm). Top and bottom are `y = y_max_mm`
+/// and `y = y_min_mm`. The lateral planes are parallel to the frame's z axis and may
+/// lean in the coronal plane (to follow a torso narrower at the waist than across the
+/// breasts): the patient's right plane is `x = x_min_mm + x_min_slope * (y - y_ref_mm)`,
+/// the left one `x = x_max_mm + x_max_slope * (y - y_ref_mm)`; so `x_min_mm` and
+/// `x_max_mm` are the planes' positions at the height `y_ref_mm` (the nipples' height
+/// for [`ClipBox::around_breasts`]). Slopes 0 give the upright box. The part kept lies
+/// between the four.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ClipBox {
     pub x_min_mm: f64,
     pub x_max_mm: f64,
     pub y_min_mm: f64,
     pub y_max_mm: f64,
+    /// dx/dy of the right (`x_min`) plane.
+    pub x_min_slope: f64,
+    /// dx/dy of the left (`x_max`) plane.
+    pub x_max_slope: f64,
+    /// The height at which the lateral planes lie at `x_min_mm` and `x_max_mm` (mm).
+    pub y_ref_mm: f64,
+}
+
+/// A clip box with how well it holds the breasts ([`ClipBox::around_breasts_and_footprints`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClipBoxFit {
+    pub clip_box: ClipBox,
+    /// How far the right and the left plane lie beyond the footprints (mm), negative
+    /// where they cut them.
+    pub lateral_room_mm: [f64; 2],
+    /// Footprints the scan leaves too little room for.
+    pub warnings: Vec<String>,
+}
+
+/// A lateral plane `x <= offset + slope (y - y_ref)` (mirrored for the right one) and its
+/// least distance beyond the points it keeps.
+#[derive(Debug, Clone, Copy)]
+struct LateralFit {
+    offset: f64,
+    slope: f64,
+    room: f64,
+}
+
+/// Steepest lean of a lateral plane (dx/dy): a torso's side narrows by some 20 to 30 mm
+/// from the breasts to the waist, about 0.2.
+const MAX_LATERAL_SLOPE: f64 = 0.6;
+/// Step of the search over the lean.
+const LATERAL_SLOPE_STEP: f64 = 0.002;
+
+/// The lateral plane that lies `clearance` inside the scan's outline (`limits`: heights
+/// and the outline's largest x there) and as far beyond the least-kept of `points`
+/// (height, x) as it can: a two-variable linear programme, solved by a search over the
+/// slope (the best offset of a slope is a minimum over the limits, the room a concave
+/// function of the slope). Ties go to the more upright plane.
+fn fit_lateral_plane(
+    limits: &[(f64, f64)],
+    points: &[(f64, f64)],
+    y_ref: f64,
+    clearance: f64,
+) -> LateralFit {
+    let steps = (MAX_LATERAL_SLOPE / LATERAL_SLOPE_STEP).round() as i64;
+    let mut best: Option<LateralFit> = None;
+    for k in 0..=2 * steps {
+        // 0, +1, -1, +2, -2, ...: the upright plane first.
+        let j = if k % 2 == 1 { (k + 1) / 2 } else { -(k / 2) };
+        let slope = j as f64 * LATERAL_SLOPE_STEP;
+        let offset = limits
+            .iter()
+            .map(|&(y, hi)| hi - clearance - slope * (y - y_ref))
+            .fold(f64::INFINITY, f64::min);
+        if !offset.is_finite() {
+            continue;
+        }
+        let room = points
+            .iter()
+            .map(|&(y, x)| offset + slope * (y - y_ref) - x)
+            .fold(f64::INFINITY, f64::min);
+        if best.is_none_or(|b| room > b.room + 1e-9) {
+            best = Some(LateralFit {
+                offset,
+                slope,
+                room,
+            });
+        }
+    }
+    best.unwrap_or(LateralFit {
+        offset: f64::INFINITY,
+        slope: 0.0,
+        room: f64::INFINITY,
+    })
+}
+
+/// The x-extent of `points` (frame coordinates) in bins of [`EXTENT_BIN_MM`] of height
+/// over `[lo, hi]`: for each non-empty bin, both its edges' heights with the bin's
+/// smallest and largest x.
+fn outline_by_height(points: &[DVec3], lo: f64, hi: f64) -> Vec<(f64, f64, f64)> {
+    let bins = ((hi - lo) / EXTENT_BIN_MM).ceil().clamp(1.0, 1e6) as usize;
+    let mut ranges = vec![(f64::INFINITY, f64::NEG_INFINITY); bins];
+    for p in points.iter().filter(|p| (lo..=hi).contains(&p.y)) {
+        let bin = (((p.y - lo) / EXTENT_BIN_MM) as usize).min(bins - 1);
+        let range = &mut ranges[bin];
+        *range = (range.0.min(p.x), range.1.max(p.x));
+    }
+    ranges
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.0 <= r.1)
+        .flat_map(|(bin, r)| {
+            let y0 = lo + bin as f64 * EXTENT_BIN_MM;
+            let y1 = (y0 + EXTENT_BIN_MM).min(hi);
+            [(y0, r.0, r.1), (y1, r.0, r.1)]
+        })
+        .collect()
 }
 
 /// Which input surface an error is about.
@@ -235,22 +361,51 @@ pub struct ClosedSurface {
     pub clip_box: ClipBox,
     /// The shift of the base (mm).
     pub rear_wall_offset_mm: f64,
+    /// How far each lateral plane lies beyond the breast footprints (the fill-ins, where
+    /// known, and the lateral fold ends), `[right plane, left plane]`, measured along x
+    /// at the footprint's heights (mm); negative where a plane cuts a footprint. `None`
+    /// when built with [`build_closed_surface_in_box`].
+    pub lateral_room_mm: Option<[f64; 2]>,
+    /// What the caller should tell the user: e.g. a scan that ends too close beyond a
+    /// breast for the clip box to keep its whole footprint with a margin.
+    pub warnings: Vec<String>,
 }
 
 impl ClipBox {
-    /// The planes from the landmarks and margins of `options`, moved inwards so that
-    /// they stay the clearance inside the scan's extent (the lateral planes down to the
-    /// minimum clearance where the breast landmarks need it): each lateral plane inside the
-    /// scan's widest point at every height of the box (a torso scanned round to the back
-    /// is then cut on its front; the strips behind fall off as separate pieces), then
-    /// top and bottom inside its highest and lowest point at every x of the box. An error
-    /// if a nipple or a fold's lowest point or medial end ends up outside.
+    /// [`ClipBox::around_breasts_and_footprints`] without fill-ins: the lateral fold ends
+    /// stand for the breasts' lateral extent.
     pub fn around_breasts(
         scan: &TriMesh,
         frame: &AnatomicalFrame,
         landmarks: &Landmarks,
         options: &ClosedSurfaceOptions,
     ) -> Result<ClipBox, ClosedSurfaceError> {
+        Self::around_breasts_and_footprints(scan, frame, landmarks, &[], options)
+            .map(|fit| fit.clip_box)
+    }
+
+    /// The planes from the landmarks, the breast footprints and the margins of
+    /// `options`, kept the clearance inside the scan's extent:
+    /// 1. top and bottom from the clavicles and the folds' lowest points;
+    /// 2. each lateral plane, leaning as the torso's side does, as far beyond the
+    ///    footprints (`footprints`, file coordinates: the fill-ins' points; the lateral
+    ///    fold ends and the breast landmarks always count) as the scan allows: it stays
+    ///    `border_clearance_mm` inside the scan's outline at every height of the box, down
+    ///    to `min_border_clearance_mm` if the footprint would otherwise come closer than
+    ///    [`LANDMARK_MARGIN_MM`] to it, and at most `lateral_margin_mm` beyond the
+    ///    footprint. Where even then the scan ends too close beyond a breast, a warning
+    ///    says by how much the footprint is cut;
+    /// 3. top and bottom moved inside the scan's highest and lowest point at every x
+    ///    of the box.
+    ///
+    /// An error if a nipple or a fold's lowest point or medial end ends up outside.
+    pub fn around_breasts_and_footprints(
+        scan: &TriMesh,
+        frame: &AnatomicalFrame,
+        landmarks: &Landmarks,
+        footprints: &[DVec3],
+        options: &ClosedSurfaceOptions,
+    ) -> Result<ClipBoxFit, ClosedSurfaceError> {
         let margins = [
             ("top_margin_mm", options.top_margin_mm),
             ("bottom_margin_mm", options.bottom_margin_mm),
@@ -265,54 +420,145 @@ impl ClipBox {
         }
         let local = |name: LandmarkName| frame.to_local(landmarks.get(name));
         let mut clip_box = ClipBox {
-            x_min_mm: local(LandmarkName::PSMFlr).x - options.lateral_margin_mm,
-            x_max_mm: local(LandmarkName::PSMFll).x + options.lateral_margin_mm,
-            y_min_mm: local(LandmarkName::PSMFl)
-                .y
-                .min(local(LandmarkName::PSMFr).y)
-                - options.bottom_margin_mm,
-            y_max_mm: local(LandmarkName::Pcl).y.max(local(LandmarkName::Pcr).y)
-                + options.top_margin_mm,
+            y_ref_mm: 0.5 * (local(LandmarkName::Pnl).y + local(LandmarkName::Pnr).y),
+            ..landmark_box(frame, landmarks, options)
         };
         clip_box.check()?;
 
         let clearance = options.border_clearance_mm.max(0.0);
         let min_clearance = options.min_border_clearance_mm.clamp(0.0, clearance);
-        let landmark_x = BREAST_LANDMARKS.map(|name| local(name).x);
-        let needed_x_min =
-            landmark_x.iter().fold(f64::INFINITY, |a, &b| a.min(b)) - LANDMARK_MARGIN_MM;
-        let needed_x_max =
-            landmark_x.iter().fold(f64::NEG_INFINITY, |a, &b| a.max(b)) + LANDMARK_MARGIN_MM;
         let local_scan: Vec<DVec3> = scan.positions.iter().map(|&p| frame.to_local(p)).collect();
-        // Lateral planes inside the scan's width at every height of the box (by the
-        // clearance, less where the landmarks need it), then top and bottom inside its
-        // height at every x of the narrowed box.
-        let (x_min, x_max) = extent_limits(&local_scan, 1, clip_box.y_min_mm, clip_box.y_max_mm, 0);
-        clip_box.x_min_mm = clip_box
-            .x_min_mm
-            .max((x_min + clearance).min(needed_x_min))
-            .max(x_min + min_clearance);
-        clip_box.x_max_mm = clip_box
-            .x_max_mm
-            .min((x_max - clearance).max(needed_x_max))
-            .min(x_max - min_clearance);
-        let (y_min, y_max) = extent_limits(&local_scan, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
+        // The scan's outline at every height of the box.
+        let outline = outline_by_height(&local_scan, clip_box.y_min_mm, clip_box.y_max_mm);
+        // The points each lateral plane should keep inside: the footprints, the lateral
+        // fold ends and the breast landmarks.
+        let mut keep: Vec<DVec3> = footprints.iter().map(|&p| frame.to_local(p)).collect();
+        keep.extend(
+            BREAST_LANDMARKS
+                .iter()
+                .chain(&[LandmarkName::PSMFll, LandmarkName::PSMFlr])
+                .map(|&name| local(name)),
+        );
+        let keep: Vec<DVec3> = keep
+            .into_iter()
+            .filter(|p| (clip_box.y_min_mm..=clip_box.y_max_mm).contains(&p.y))
+            .collect();
+        let mut room = [0.0; 2];
+        let mut warnings = Vec::new();
+        for (k, sign) in [(0usize, -1.0), (1, 1.0)] {
+            // Mirrored for the right plane, so both are "x <= a + s (y - y_ref)".
+            let limits: Vec<(f64, f64)> = outline
+                .iter()
+                .map(|&(y, lo, hi)| (y, if sign > 0.0 { hi } else { -lo }))
+                .collect();
+            let points: Vec<(f64, f64)> = keep.iter().map(|p| (p.y, sign * p.x)).collect();
+            let mut fit = fit_lateral_plane(&limits, &points, clip_box.y_ref_mm, clearance);
+            if fit.room < LANDMARK_MARGIN_MM && min_clearance < clearance {
+                let closer = fit_lateral_plane(&limits, &points, clip_box.y_ref_mm, min_clearance);
+                let needed = LANDMARK_MARGIN_MM - fit.room;
+                // Only as much closer to the scan's border as the footprint needs.
+                let shift = needed.min(closer.room - fit.room).max(0.0);
+                fit = if closer.room > fit.room {
+                    let t = shift / (closer.room - fit.room);
+                    LateralFit {
+                        offset: fit.offset + t * (closer.offset - fit.offset),
+                        slope: fit.slope + t * (closer.slope - fit.slope),
+                        room: fit.room + shift,
+                    }
+                } else {
+                    fit
+                };
+            }
+            if fit.room > options.lateral_margin_mm {
+                fit.offset -= fit.room - options.lateral_margin_mm;
+                fit.room = options.lateral_margin_mm;
+            }
+            room[k] = fit.room;
+            if fit.room < LANDMARK_MARGIN_MM {
+                warnings.push(format!(
+                    "the scan ends close beyond the {} breast: kept {min_clearance} mm inside \
+                     the scan's outline, the {} clip plane lies {:.1} mm beyond the breast's \
+                     footprint (wanted {LANDMARK_MARGIN_MM} mm){}",
+                    ["right", "left"][k],
+                    ["right", "left"][k],
+                    fit.room,
+                    if fit.room < 0.0 {
+                        ", so it cuts off part of it"
+                    } else {
+                        ""
+                    }
+                ));
+            }
+            if sign > 0.0 {
+                clip_box.x_max_mm = fit.offset;
+                clip_box.x_max_slope = fit.slope;
+            } else {
+                clip_box.x_min_mm = -fit.offset;
+                clip_box.x_min_slope = -fit.slope;
+            }
+        }
+        clip_box.check()?;
+        // Top and bottom inside the scan's height at every x of the box (in the box's
+        // coordinates, where the lateral planes are upright).
+        let boxed: Vec<DVec3> = local_scan.iter().map(|&p| clip_box.to_box(p)).collect();
+        let (y_min, y_max) = extent_limits(&boxed, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
         clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
         clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
+        clip_box.check()?;
 
         if let Some(name) = clip_box.left_out(frame, landmarks) {
             return Err(ClosedSurfaceError::InvalidInput(format!(
                 "the scan does not extend {min_clearance} mm beyond the breasts: kept clear of \
-                 its border, the clip box (x {:.1} to {:.1} mm, y {:.1} to {:.1} mm in the \
-                 anatomical frame) leaves out landmark {}",
+                 its border, the clip box (x {:.1} to {:.1} mm at y {:.1}, y {:.1} to {:.1} mm \
+                 in the anatomical frame) leaves out landmark {}",
                 clip_box.x_min_mm,
                 clip_box.x_max_mm,
+                clip_box.y_ref_mm,
                 clip_box.y_min_mm,
                 clip_box.y_max_mm,
                 name.as_str()
             )));
         }
-        Ok(clip_box)
+        Ok(ClipBoxFit {
+            clip_box,
+            lateral_room_mm: room,
+            warnings,
+        })
+    }
+
+    /// The right plane's x at height `y` (mm).
+    pub fn x_min_at(&self, y: f64) -> f64 {
+        self.x_min_mm + self.x_min_slope * (y - self.y_ref_mm)
+    }
+
+    /// The left plane's x at height `y` (mm).
+    pub fn x_max_at(&self, y: f64) -> f64 {
+        self.x_max_mm + self.x_max_slope * (y - self.y_ref_mm)
+    }
+
+    /// Frame coordinates to the box's: `x` mapped affinely at each height so that the
+    /// lateral planes become `x = x_min_mm` and `x = x_max_mm` (heights outside the box
+    /// use its top or bottom row, so the map stays one-to-one and continuous); `y` and
+    /// `z` unchanged. The identity for an upright box.
+    fn to_box(self, p: DVec3) -> DVec3 {
+        if self.x_min_slope == 0.0 && self.x_max_slope == 0.0 {
+            return p;
+        }
+        let y = p.y.clamp(self.y_min_mm, self.y_max_mm);
+        let (lo, hi) = (self.x_min_at(y), self.x_max_at(y));
+        let x = self.x_min_mm + (p.x - lo) * (self.x_max_mm - self.x_min_mm) / (hi - lo);
+        DVec3::new(x, p.y, p.z)
+    }
+
+    /// The inverse of [`ClipBox::to_box`].
+    fn box_to_local(self, p: DVec3) -> DVec3 {
+        if self.x_min_slope == 0.0 && self.x_max_slope == 0.0 {
+            return p;
+        }
+        let y = p.y.clamp(self.y_min_mm, self.y_max_mm);
+        let (lo, hi) = (self.x_min_at(y), self.x_max_at(y));
+        let x = lo + (p.x - self.x_min_mm) * (hi - lo) / (self.x_max_mm - self.x_min_mm);
+        DVec3::new(x, p.y, p.z)
     }
 
     /// The first of [`BREAST_LANDMARKS`] outside the box, if any.
@@ -323,10 +569,21 @@ impl ClipBox {
     }
 
     fn check(&self) -> Result<(), ClosedSurfaceError> {
-        let ordered = self.x_min_mm < self.x_max_mm && self.y_min_mm < self.y_max_mm;
-        let finite = [self.x_min_mm, self.x_max_mm, self.y_min_mm, self.y_max_mm]
-            .iter()
-            .all(|v| v.is_finite());
+        let ordered = self.y_min_mm < self.y_max_mm
+            && self.x_min_at(self.y_min_mm) < self.x_max_at(self.y_min_mm)
+            && self.x_min_at(self.y_max_mm) < self.x_max_at(self.y_max_mm)
+            && self.x_min_mm < self.x_max_mm;
+        let finite = [
+            self.x_min_mm,
+            self.x_max_mm,
+            self.y_min_mm,
+            self.y_max_mm,
+            self.x_min_slope,
+            self.x_max_slope,
+            self.y_ref_mm,
+        ]
+        .iter()
+        .all(|v| v.is_finite());
         if ordered && finite {
             Ok(())
         } else {
@@ -337,9 +594,10 @@ impl ClipBox {
         }
     }
 
-    fn contains(&self, local: DVec3) -> bool {
-        (self.x_min_mm..=self.x_max_mm).contains(&local.x)
-            && (self.y_min_mm..=self.y_max_mm).contains(&local.y)
+    /// Whether a point (frame coordinates) lies inside the box.
+    pub fn contains(&self, local: DVec3) -> bool {
+        (self.y_min_mm..=self.y_max_mm).contains(&local.y)
+            && (self.x_min_at(local.y)..=self.x_max_at(local.y)).contains(&local.x)
     }
 
     /// The four planes as (axis, coordinate, keep-the-side-above).
@@ -386,40 +644,217 @@ pub fn build_closed_surface(
     landmarks: &Landmarks,
     options: &ClosedSurfaceOptions,
 ) -> Result<ClosedSurface, ClosedSurfaceError> {
-    let mut clip_box = ClipBox::around_breasts(scan, frame, landmarks, options)?;
+    let footprints = footprint_points(scan, filled_base);
     let mut first_error = None;
-    for _ in 0..=LATERAL_RETRIES {
-        let error = match build_closed_surface_in_box(
-            scan,
-            filled_base,
-            frame,
-            &clip_box,
-            options.rear_wall_offset_mm,
-        ) {
-            Ok(surface) => return Ok(surface),
-            Err(error) => error,
+    // The fitted box if asked for, then (should it not close) the upright one.
+    let mut boxes = Vec::new();
+    if options.fit_lateral_planes {
+        match ClipBox::around_breasts_and_footprints(scan, frame, landmarks, &footprints, options) {
+            Ok(fit) => boxes.push((fit.clip_box, true)),
+            Err(error) => first_error = Some(error),
+        }
+    }
+    match upright_box(scan, frame, landmarks, options) {
+        Ok(upright) => boxes.push((upright, false)),
+        Err(error) => {
+            if boxes.is_empty() {
+                return Err(first_error.unwrap_or(error));
+            }
+        }
+    }
+    for (start, fitted) in boxes {
+        let mut clip_box = start;
+        // The fitted box may cut a footprint where the fill-in bows out of the body;
+        // it gets more and larger steps inwards before the upright box is tried.
+        let (retries, step) = if fitted {
+            (FITTED_RETRIES, FITTED_RETRY_STEP_MM)
+        } else {
+            (LATERAL_RETRIES, RETRY_STEP_MM)
         };
-        let retry = matches!(
-            error,
-            ClosedSurfaceError::RunsOffBorder { .. }
-                | ClosedSurfaceError::MissingCorners { .. }
-                | ClosedSurfaceError::Stitch(_)
-                | ClosedSurfaceError::NotWatertight(_)
-                | ClosedSurfaceError::SelfIntersecting { .. }
-        );
-        if first_error.is_none() {
-            first_error = Some(error);
-        }
-        if !retry {
-            break;
-        }
-        clip_box.x_min_mm += RETRY_STEP_MM;
-        clip_box.x_max_mm -= RETRY_STEP_MM;
-        if clip_box.left_out(frame, landmarks).is_some() || clip_box.check().is_err() {
-            break;
+        for _ in 0..=retries {
+            let error =
+                match build_closed_surface_in_box(
+                    scan,
+                    filled_base,
+                    frame,
+                    &clip_box,
+                    options.rear_wall_offset_mm,
+                ) {
+                    Ok(mut surface) => {
+                        let keep: Vec<DVec3> =
+                            footprints.iter().map(|&p| frame.to_local(p)).collect();
+                        let room = lateral_room(&clip_box, &keep, frame, landmarks);
+                        surface.lateral_room_mm = Some(room);
+                        for (k, side) in ["right", "left"].into_iter().enumerate() {
+                            if room[k] < LANDMARK_MARGIN_MM {
+                                surface.warnings.push(format!(
+                                "the {side} clip plane lies {:.1} mm beyond the {side} breast's \
+                                 footprint (wanted {LANDMARK_MARGIN_MM} mm){}: the scan ends \
+                                 close beyond the breast",
+                                room[k],
+                                if room[k] < 0.0 { ", so it cuts off part of it" } else { "" }
+                            ));
+                            }
+                        }
+                        let moved = clip_box.x_min_mm - start.x_min_mm;
+                        if fitted && moved > 0.0 {
+                            surface.warnings.push(format!(
+                                "the lateral clip planes were moved {moved:.0} mm inwards for the \
+                             surface to close; they now lie {:.1} and {:.1} mm beyond the \
+                             right and left footprints",
+                                room[0], room[1]
+                            ));
+                        }
+                        if !fitted && options.fit_lateral_planes {
+                            surface.warnings.push(format!(
+                                "the clip box fitted to the breasts could not be closed ({}); \
+                             used the upright box, which lies {:.1} and {:.1} mm beyond the \
+                             right and left footprints",
+                                first_error
+                                    .as_ref()
+                                    .map_or(String::new(), |e| format!("{e}")),
+                                room[0],
+                                room[1]
+                            ));
+                        }
+                        return Ok(surface);
+                    }
+                    Err(error) => error,
+                };
+            let retry = matches!(
+                error,
+                ClosedSurfaceError::RunsOffBorder { .. }
+                    | ClosedSurfaceError::MissingCorners { .. }
+                    | ClosedSurfaceError::Stitch(_)
+                    | ClosedSurfaceError::NotWatertight(_)
+                    | ClosedSurfaceError::SelfIntersecting { .. }
+            );
+            if first_error.is_none() {
+                first_error = Some(error);
+            }
+            if !retry {
+                break;
+            }
+            clip_box.x_min_mm += step;
+            clip_box.x_max_mm -= step;
+            if clip_box.left_out(frame, landmarks).is_some() || clip_box.check().is_err() {
+                break;
+            }
         }
     }
     Err(first_error.expect("at least one attempt"))
+}
+
+/// How far the right and left planes of `clip_box` lie beyond `footprint` (frame
+/// coordinates) and the lateral fold ends, at the points' heights inside the box (mm).
+fn lateral_room(
+    clip_box: &ClipBox,
+    footprint: &[DVec3],
+    frame: &AnatomicalFrame,
+    landmarks: &Landmarks,
+) -> [f64; 2] {
+    let ends =
+        [LandmarkName::PSMFll, LandmarkName::PSMFlr].map(|n| frame.to_local(landmarks.get(n)));
+    let inside = footprint
+        .iter()
+        .chain(&ends)
+        .filter(|p| (clip_box.y_min_mm..=clip_box.y_max_mm).contains(&p.y));
+    inside.fold([f64::INFINITY; 2], |[right, left], p| {
+        [
+            right.min(p.x - clip_box.x_min_at(p.y)),
+            left.min(clip_box.x_max_at(p.y) - p.x),
+        ]
+    })
+}
+
+/// The upright box from the landmarks and margins alone (before any plane is moved to
+/// stay inside the scan): lateral planes beyond the fold ends, bottom below the lower
+/// fold point, top at the clavicles.
+fn landmark_box(
+    frame: &AnatomicalFrame,
+    landmarks: &Landmarks,
+    options: &ClosedSurfaceOptions,
+) -> ClipBox {
+    let local = |name: LandmarkName| frame.to_local(landmarks.get(name));
+    ClipBox {
+        x_min_mm: local(LandmarkName::PSMFlr).x - options.lateral_margin_mm,
+        x_max_mm: local(LandmarkName::PSMFll).x + options.lateral_margin_mm,
+        y_min_mm: local(LandmarkName::PSMFl)
+            .y
+            .min(local(LandmarkName::PSMFr).y)
+            - options.bottom_margin_mm,
+        y_max_mm: local(LandmarkName::Pcl).y.max(local(LandmarkName::Pcr).y)
+            + options.top_margin_mm,
+        ..ClipBox::default()
+    }
+}
+/// The upright box of earlier versions, the fallback of [`build_closed_surface`] where the
+/// fitted one cannot be closed: the lateral planes `lateral_margin_mm` beyond the lateral
+/// fold ends, moved inwards to stay the clearance inside the scan's narrowest width over
+/// the box's heights (less where the breast landmarks need it).
+fn upright_box(
+    scan: &TriMesh,
+    frame: &AnatomicalFrame,
+    landmarks: &Landmarks,
+    options: &ClosedSurfaceOptions,
+) -> Result<ClipBox, ClosedSurfaceError> {
+    let mut clip_box = landmark_box(frame, landmarks, options);
+    clip_box.check()?;
+    let clearance = options.border_clearance_mm.max(0.0);
+    let min_clearance = options.min_border_clearance_mm.clamp(0.0, clearance);
+    let landmark_x = BREAST_LANDMARKS.map(|name| frame.to_local(landmarks.get(name)).x);
+    let needed_x_min = landmark_x.iter().fold(f64::INFINITY, |a, &b| a.min(b)) - LANDMARK_MARGIN_MM;
+    let needed_x_max =
+        landmark_x.iter().fold(f64::NEG_INFINITY, |a, &b| a.max(b)) + LANDMARK_MARGIN_MM;
+    let local_scan: Vec<DVec3> = scan.positions.iter().map(|&p| frame.to_local(p)).collect();
+    // Lateral planes inside the scan's width at every height of the box (by the
+    // clearance, less where the landmarks need it), then top and bottom inside its
+    // height at every x of the narrowed box.
+    let (x_min, x_max) = extent_limits(&local_scan, 1, clip_box.y_min_mm, clip_box.y_max_mm, 0);
+    clip_box.x_min_mm = clip_box
+        .x_min_mm
+        .max((x_min + clearance).min(needed_x_min))
+        .max(x_min + min_clearance);
+    clip_box.x_max_mm = clip_box
+        .x_max_mm
+        .min((x_max - clearance).max(needed_x_max))
+        .min(x_max - min_clearance);
+    let (y_min, y_max) = extent_limits(&local_scan, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
+    clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
+    clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
+    clip_box.check()?;
+    if let Some(name) = clip_box.left_out(frame, landmarks) {
+        return Err(ClosedSurfaceError::InvalidInput(format!(
+            "the scan does not extend {min_clearance} mm beyond the breasts: kept clear of \
+             its border, the clip box (x {:.1} to {:.1} mm, y {:.1} to {:.1} mm in the \
+             anatomical frame) leaves out landmark {}",
+            clip_box.x_min_mm,
+            clip_box.x_max_mm,
+            clip_box.y_min_mm,
+            clip_box.y_max_mm,
+            name.as_str()
+        )));
+    }
+    Ok(clip_box)
+}
+
+/// The points of `filled_base` that are not points of `scan`: where the base was cut and
+/// filled, the breasts' footprints (the fill-ins and the cut curves). Empty if more than
+/// half of the base differs (then it is not the scan with the breasts filled in).
+fn footprint_points(scan: &TriMesh, filled_base: &TriMesh) -> Vec<DVec3> {
+    let key = |p: &DVec3| p.to_array().map(f64::to_bits);
+    let on_scan: std::collections::HashSet<[u64; 3]> = scan.positions.iter().map(key).collect();
+    let differing: Vec<DVec3> = filled_base
+        .positions
+        .iter()
+        .filter(|p| !on_scan.contains(&key(p)))
+        .copied()
+        .collect();
+    if 2 * differing.len() > filled_base.positions.len() {
+        Vec::new()
+    } else {
+        differing
+    }
 }
 
 /// Clips `scan` and `filled_base` (both open, with the same outer border region) by
@@ -489,7 +924,10 @@ pub fn build_closed_surface_in_box(
     let band_range = back_range.end..triangles.len();
 
     let mesh = TriMesh::new(
-        positions.iter().map(|&p| frame.to_file(p)).collect(),
+        positions
+            .iter()
+            .map(|&p| frame.to_file(clip_box.box_to_local(p)))
+            .collect(),
         triangles,
     );
     let topology = Topology::new(&mesh);
@@ -517,6 +955,8 @@ pub fn build_closed_surface_in_box(
         band: band_range,
         clip_box: *clip_box,
         rear_wall_offset_mm,
+        lateral_room_mm: None,
+        warnings: Vec::new(),
     })
 }
 
@@ -549,6 +989,8 @@ struct ClippedPart {
     role: SurfaceRole,
     planes: [ClipPlane; 4],
     frame: AnatomicalFrame,
+    clip_box: ClipBox,
+    /// In the box's coordinates ([`ClipBox::to_box`]).
     positions: Vec<DVec3>,
     triangles: Vec<[u32; 3]>,
     /// Border vertices in the direction of the triangles' edges.
@@ -568,7 +1010,7 @@ impl ClippedPart {
         let mut positions: Vec<DVec3> = surface
             .positions
             .iter()
-            .map(|&p| frame.to_local(p))
+            .map(|&p| clip_box.to_box(frame.to_local(p)))
             .collect();
         let mut triangles = surface.triangles.clone();
         let snap = SNAP_FRACTION * surface.mean_edge_length();
@@ -587,6 +1029,7 @@ impl ClippedPart {
             role,
             planes,
             frame: *frame,
+            clip_box: *clip_box,
             positions,
             triangles,
             border: Vec::new(),
@@ -597,7 +1040,9 @@ impl ClippedPart {
     }
 
     fn to_file(&self, local: DVec3) -> [f64; 3] {
-        self.frame.to_file(local).to_array()
+        self.frame
+            .to_file(self.clip_box.box_to_local(local))
+            .to_array()
     }
 
     /// Bit `i` set if vertex `v` lies on plane `i`.
@@ -1083,6 +1528,7 @@ mod tests {
             x_max_mm: 79.1,
             y_min_mm: -120.7,
             y_max_mm: 10.2,
+            ..ClipBox::default()
         }
     }
 

@@ -17,7 +17,7 @@ pub use breast::{
     build_breast_model,
 };
 pub use closed_surface::{
-    ClipBox, ClosedSurface, ClosedSurfaceError, ClosedSurfaceOptions, SurfaceRole,
+    ClipBox, ClipBoxFit, ClosedSurface, ClosedSurfaceError, ClosedSurfaceOptions, SurfaceRole,
     build_closed_surface, build_closed_surface_in_box,
 };
 pub use fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};

@@ -215,6 +215,18 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// The paper's Table I on this machine: implant set-up, multigrid cycles and the
+    /// direct solver on the phantom's models.
+    Bench {
+        /// Finest-level element counts, one row each.
+        #[arg(long, value_name = "N,N,..", value_delimiter = ',', default_values_t = plan::bench::DEFAULT_ELEMENTS, value_parser = positive_integer)]
+        elements: Vec<usize>,
+        /// Write the first row's finest eliminated system as Matrix Market A.mtx, b.mtx.
+        #[arg(long, value_name = "DIR")]
+        export_system: Option<PathBuf>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Finite elements on your own meshes.
     Fem {
         #[command(subcommand)]
@@ -336,6 +348,20 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             }
         }
         Command::Catalog { command } => catalog(command),
+        Command::Bench {
+            elements,
+            export_system,
+            json,
+        } => {
+            let report = plan::bench::bench(&elements, export_system.as_deref(), progress)?;
+            progress.finish();
+            if json {
+                print_json(&report)
+            } else {
+                print!("{}", summary::bench(&report));
+                Ok(())
+            }
+        }
         Command::Simulate {
             model,
             left,

@@ -313,3 +313,43 @@ fn simulation_figures(report: &plan::simulate::SimulateReport) -> String {
     out.push_str(&distances(&report.distances));
     out
 }
+
+/// The benchmark table.
+pub fn bench(report: &plan::bench::BenchReport) -> String {
+    let mut out = format!(
+        "implant {} on both sides of the phantom\n{:>9} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9}\n",
+        report.implant,
+        "elements",
+        "levels",
+        "setup ms",
+        "build ms",
+        "solve ms",
+        "vcycle ms",
+        "update Hz",
+        "reduction",
+        "direct ms"
+    );
+    for row in &report.rows {
+        let _ = writeln!(
+            out,
+            "{:>9} {:>6} {:>9.2} {:>9.0} {:>9.1} {:>9.2} {:>9.1} {:>10.2} {:>9.0}",
+            row.elements,
+            row.levels,
+            row.implant_setup_ms,
+            row.multigrid_build_ms,
+            row.solve_ms,
+            row.vcycle_ms,
+            row.update_hz,
+            row.residual_reduction_per_cycle,
+            row.direct_solve_ms
+        );
+    }
+    if let Some(dir) = &report.exported_system {
+        let _ = writeln!(
+            out,
+            "finest system written to {}",
+            dir.join("A.mtx").display()
+        );
+    }
+    out
+}

@@ -749,3 +749,65 @@ fn bad_fem_input_fails_cleanly_and_writes_nothing() {
     assert_clean_failure(&solve("inverted.vtu", inverted), "not positive");
     assert!(!out.exists());
 }
+
+/// `bench` on a small model: every field of the contract, and the exported system is a
+/// square Matrix Market matrix matching its right-hand side, symmetric as the
+/// eliminated stiffness must be.
+#[test]
+fn bench_reports_its_rows_and_exports_the_system() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = mammaplan(&[
+        "bench",
+        "--elements",
+        "15000",
+        "--export-system",
+        dir.path().to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    let row = &report["rows"][0];
+    for field in [
+        "elements",
+        "levels",
+        "implant_setup_ms",
+        "solve_ms",
+        "vcycle_ms",
+        "update_hz",
+        "residual_reduction_per_cycle",
+        "direct_solve_ms",
+    ] {
+        assert!(row[field].as_f64().unwrap() > 0.0, "{field}: {row}");
+    }
+    let a = std::fs::read_to_string(dir.path().join("A.mtx")).unwrap();
+    let b = std::fs::read_to_string(dir.path().join("b.mtx")).unwrap();
+    let size_line = |text: &str| -> Vec<usize> {
+        text.lines()
+            .find(|l| !l.starts_with('%'))
+            .unwrap()
+            .split_whitespace()
+            .map(|x| x.parse().unwrap())
+            .collect()
+    };
+    let (a_size, b_size) = (size_line(&a), size_line(&b));
+    assert_eq!(a_size[0], a_size[1]);
+    assert_eq!(b_size, vec![a_size[0], 1]);
+    let mut entries = std::collections::HashMap::new();
+    for line in a.lines().filter(|l| !l.starts_with('%')).skip(1) {
+        let mut parts = line.split_whitespace();
+        let i: usize = parts.next().unwrap().parse().unwrap();
+        let j: usize = parts.next().unwrap().parse().unwrap();
+        let v: f64 = parts.next().unwrap().parse().unwrap();
+        entries.insert((i, j), v);
+    }
+    assert_eq!(entries.len(), a_size[2]);
+    let scale = entries.values().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (&(i, j), &v) in &entries {
+        // The assembly mirrors its blocks; printing is exact (shortest round trip).
+        let w = entries.get(&(j, i)).copied().unwrap_or(0.0);
+        assert!(
+            (v - w).abs() <= 1e-12 * scale,
+            "A[{i},{j}] = {v}, A[{j},{i}] = {w}"
+        );
+    }
+}

@@ -2,6 +2,7 @@
 //! breast model and the demo pipeline. Both front ends (CLI, GUI) call only this crate;
 //! it holds the glue, the algorithms live in the stage crates below it.
 
+pub mod bench;
 pub mod catalog;
 pub mod demo;
 pub mod fem_solve;

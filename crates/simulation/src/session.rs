@@ -1148,6 +1148,12 @@ impl Simulation {
         out
     }
 
+    /// The current stage's multigrid (its system, phase timings), once a cycle has built
+    /// it; `None` before the first cycle and after a change of the constraint set.
+    pub fn multigrid(&self) -> Option<&Multigrid> {
+        self.multigrid.as_ref()
+    }
+
     /// Finest elements whose deformed volume is not positive.
     pub fn inverted_elements(&self) -> Vec<usize> {
         self.finest

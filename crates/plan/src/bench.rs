@@ -1,0 +1,204 @@
+//! `mammaplan bench`: the paper's Table I on this machine. For each element count, the
+//! phantom's model is built by our own pipeline, the demo's implant is set on both
+//! sides (the real displacement template), and the interactive loop is timed: implant
+//! set-up, multigrid cycles with rotation update and reassembly on every level, and the
+//! direct solver on the same system for comparison.
+
+use crate::demo::DEMO_IMPLANT;
+use crate::model::{ModelOptions, build_model};
+use crate::simulate::Session;
+use crate::{MarkedScan, Progress, Scan};
+use anatomy::breast::Side;
+use anyhow::{Context, Result};
+use fem::{BlockCsr, DirectSolver};
+use glam::DVec3;
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Element counts of the default rows (about those of the paper's Table I).
+pub const DEFAULT_ELEMENTS: [usize; 3] = [15_000, 40_000, 60_000];
+
+/// Cycles timed per row (the paper's five V(2,1) cycles).
+pub const TIMED_CYCLES: usize = 5;
+
+/// Placements timed for the implant set-up (the median is reported).
+const SETUP_REPEATS: usize = 7;
+
+/// One row of the table.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchRow {
+    /// Tetrahedra of the finest level.
+    pub elements: usize,
+    /// Levels of the hierarchy used.
+    pub levels: usize,
+    /// Placing both implants and building their displacement templates (median, ms).
+    pub implant_setup_ms: f64,
+    /// Building the multigrid for a new constrained set (patterns, transfers, colours,
+    /// symbolic Cholesky), paid on the first cycle after an implant change (ms).
+    pub multigrid_build_ms: f64,
+    /// Five cycles, each with rotation update, reassembly on every level and one
+    /// V(2,1)-cycle (ms).
+    pub solve_ms: f64,
+    /// One V(2,1)-cycle alone on the assembled system (median, ms).
+    pub vcycle_ms: f64,
+    /// Cycles per second of the interactive loop (1000 / median cycle time).
+    pub update_hz: f64,
+    /// Geometric mean over the timed cycles of the residual's reduction per cycle.
+    pub residual_reduction_per_cycle: f64,
+    /// Sparse Cholesky factorisation and solve of the finest system (ms).
+    pub direct_solve_ms: f64,
+}
+
+/// The JSON of `bench`.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchReport {
+    pub implant: &'static str,
+    pub rows: Vec<BenchRow>,
+    /// Where `--export-system` wrote the finest system of the first row, if asked.
+    pub exported_system: Option<PathBuf>,
+}
+
+/// Runs the benchmark rows; with `export_dir`, the first row's finest eliminated system
+/// (after the first cycle's assembly) is written there as Matrix Market `A.mtx`, `b.mtx`.
+pub fn bench(
+    elements: &[usize],
+    export_dir: Option<&Path>,
+    progress: &dyn Progress,
+) -> Result<BenchReport> {
+    let phantom = phantom::generate(&phantom::PhantomParams::default());
+    let mut rows = Vec::with_capacity(elements.len());
+    for (row, &count) in elements.iter().enumerate() {
+        progress.stage(&format!("bench {count} elements"), 1);
+        let marked = MarkedScan::new(
+            Scan::from_mesh(phantom.scan.clone(), Path::new("phantom.ply"))?,
+            phantom.landmarks.clone(),
+            Path::new("phantom.json"),
+            &crate::Silent,
+        )?;
+        let model = build_model(
+            &marked,
+            &ModelOptions {
+                elements: count,
+                ..Default::default()
+            },
+            &crate::Silent,
+        )?;
+        let mut session = Session::new(marked, model, implant::Catalog::builtin())?;
+        let mut setups = Vec::with_capacity(SETUP_REPEATS);
+        for k in 0..SETUP_REPEATS {
+            // Small moves, so every repetition builds a fresh template.
+            let offset = DVec3::new(0.0, 0.5 * k as f64, 0.0);
+            let start = Instant::now();
+            for side in Side::BOTH {
+                session.set_implant(side, DEMO_IMPLANT, offset)?;
+            }
+            setups.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+        let first = session.cycle()?;
+        if row == 0
+            && let Some(dir) = export_dir
+        {
+            let system = session
+                .simulation
+                .multigrid()
+                .context("no multigrid after a cycle")?
+                .system();
+            write_matrix_market(dir, &system.matrix, &system.rhs)?;
+        }
+        let mut cycle_ms = Vec::with_capacity(TIMED_CYCLES);
+        let mut vcycle_ms = Vec::with_capacity(TIMED_CYCLES);
+        let mut residuals = vec![first.residual_mn];
+        for _ in 0..TIMED_CYCLES {
+            let info = session.cycle()?;
+            cycle_ms.push(info.time_ms);
+            residuals.push(info.residual_mn);
+            if let Some(mg) = session.simulation.multigrid() {
+                vcycle_ms.push(mg.phase_times().vcycle_ms);
+            }
+        }
+        let mg = session
+            .simulation
+            .multigrid()
+            .context("no multigrid after a cycle")?;
+        let system = mg.system();
+        let direct_start = Instant::now();
+        DirectSolver::new(&system.matrix)?.solve(&system.matrix, &system.rhs)?;
+        let direct_solve_ms = direct_start.elapsed().as_secs_f64() * 1e3;
+        let reductions = residuals.len() - 2;
+        let reduction =
+            (residuals[1] / residuals[residuals.len() - 1]).powf(1.0 / reductions as f64);
+        rows.push(BenchRow {
+            elements: session.model.levels[0].elements,
+            levels: mg.level_count(),
+            implant_setup_ms: median(&mut setups),
+            multigrid_build_ms: first.time_ms,
+            solve_ms: cycle_ms.iter().sum(),
+            vcycle_ms: median(&mut vcycle_ms),
+            update_hz: 1000.0 / median(&mut cycle_ms),
+            residual_reduction_per_cycle: reduction,
+            direct_solve_ms,
+        });
+        progress.step();
+    }
+    Ok(BenchReport {
+        implant: DEMO_IMPLANT,
+        rows,
+        exported_system: export_dir.map(Path::to_path_buf),
+    })
+}
+
+fn median(values: &mut [f64]) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    values.sort_by(f64::total_cmp);
+    values[values.len() / 2]
+}
+
+/// Writes `A` (symmetric, all entries, 1-based coordinates) and `b` (one column) as
+/// Matrix Market files, with unknown `3 i + c` for block row `i`, component `c`.
+pub fn write_matrix_market(dir: &Path, a: &BlockCsr, b: &[DVec3]) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let n = 3 * a.block_rows();
+    let entries: usize = a.values.len() * 9;
+    mesh::io::write_atomically(&dir.join("A.mtx"), |w| {
+        writeln!(w, "%%MatrixMarket matrix coordinate real general")?;
+        writeln!(
+            w,
+            "% mammaplan: eliminated stiffness K'_ff (mN/mm), 3x3 blocks"
+        )?;
+        writeln!(w, "{n} {n} {entries}")?;
+        for i in 0..a.block_rows() {
+            for k in a.row_ptr[i]..a.row_ptr[i + 1] {
+                let j = a.cols[k] as usize;
+                for r in 0..3 {
+                    for c in 0..3 {
+                        writeln!(
+                            w,
+                            "{} {} {:e}",
+                            3 * i + r + 1,
+                            3 * j + c + 1,
+                            a.values[k][3 * r + c]
+                        )?;
+                    }
+                }
+            }
+        }
+        Ok(())
+    })?;
+    mesh::io::write_atomically(&dir.join("b.mtx"), |w| {
+        writeln!(w, "%%MatrixMarket matrix array real general")?;
+        writeln!(
+            w,
+            "% mammaplan: right-hand side f_ext - f_int(u) at the free vertices (mN)"
+        )?;
+        writeln!(w, "{n} 1")?;
+        for v in b {
+            writeln!(w, "{:e}\n{:e}\n{:e}", v.x, v.y, v.z)?;
+        }
+        Ok(())
+    })?;
+    Ok(())
+}
