@@ -317,12 +317,13 @@ fn simulation_figures(report: &plan::simulate::SimulateReport) -> String {
 /// The benchmark table.
 pub fn bench(report: &plan::bench::BenchReport) -> String {
     let mut out = format!(
-        "implant {} on both sides of the phantom\n{:>9} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9}\n",
+        "implant {} on both sides of the phantom\n{:>9} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9}\n",
         report.implant,
         "elements",
         "levels",
         "setup ms",
         "build ms",
+        "change ms",
         "solve ms",
         "vcycle ms",
         "update Hz",
@@ -332,11 +333,12 @@ pub fn bench(report: &plan::bench::BenchReport) -> String {
     for row in &report.rows {
         let _ = writeln!(
             out,
-            "{:>9} {:>6} {:>9.2} {:>9.0} {:>9.1} {:>9.2} {:>9.1} {:>10.2} {:>9.0}",
+            "{:>9} {:>6} {:>9.2} {:>9.0} {:>9.1} {:>9.1} {:>9.2} {:>9.1} {:>10.2} {:>9.0}",
             row.elements,
             row.levels,
             row.implant_setup_ms,
             row.multigrid_build_ms,
+            row.implant_change_cycle_ms,
             row.solve_ms,
             row.vcycle_ms,
             row.update_hz,

@@ -312,7 +312,8 @@ pub struct Simulation {
     stage: Stage,
     multigrid: Option<Multigrid>,
     /// Sorted constrained vertices of the current stage-1 multigrid.
-    multigrid_key: Vec<u32>,
+    /// Elements the multigrid's finest model currently treats as implant (soft).
+    soft_elements: Vec<u32>,
     /// The constraints changed since the multigrid was built.
     dirty: bool,
     u: Vec<DVec3>,
@@ -578,7 +579,7 @@ impl Simulation {
             implants: [None, None],
             stage: Stage::Implant,
             multigrid: None,
-            multigrid_key: Vec::new(),
+            soft_elements: Vec::new(),
             dirty: true,
             u: vec![DVec3::ZERO; n],
             f_ext: Vec::new(),
@@ -728,7 +729,6 @@ impl Simulation {
     fn constraints_changed(&mut self) {
         if self.stage == Stage::Gravity {
             self.multigrid = None;
-            self.multigrid_key.clear();
         }
         self.stage = Stage::Implant;
         self.f_ext.clear();
@@ -820,9 +820,15 @@ impl Simulation {
         Ok(model)
     }
 
+    /// A multigrid over the hierarchy with the posterior wall as its permanent
+    /// constraints and `finest` set as the changeable ones.
     fn build_multigrid(&self, finest: Constraints) -> Result<Multigrid, SimulationError> {
         let mut levels = Vec::with_capacity(self.levels.len());
-        levels.push((self.finest_model()?, finest));
+        let mut wall = Constraints::new();
+        for &v in &self.wall {
+            wall.fix(v);
+        }
+        levels.push((self.finest_model()?, wall));
         let galerkin = self.coarse_operator == CoarseOperator::Galerkin;
         for (m, wall) in self.levels[1..].iter().zip(&self.coarse_walls) {
             let mut c = Constraints::new();
@@ -837,7 +843,35 @@ impl Simulation {
             coarse_operator: self.coarse_operator,
             ..self.options.multigrid
         };
-        Ok(Multigrid::new(levels, options)?)
+        let mut mg = Multigrid::with_permanent_constraints(levels, options)?;
+        mg.set_constraints(&finest)?;
+        Ok(mg)
+    }
+
+    /// Gives the multigrid's finest model the current implants' soft elements (and the
+    /// tissue back to the elements of earlier implants).
+    fn update_implant_materials(&mut self) -> Result<(), SimulationError> {
+        let t = self.options.tissue;
+        let soft = Material {
+            young_kpa: t.young_kpa * self.options.implant_young_ratio,
+            poisson_ratio: self.options.implant_poisson_ratio,
+            density_kg_m3: self.options.implant_density_kg_m3,
+        };
+        let current: Vec<u32> = self
+            .implants
+            .iter()
+            .flatten()
+            .flat_map(|i| i.template.implant_elements.iter().copied())
+            .collect();
+        let mg = self.multigrid.as_mut().expect("a multigrid");
+        for &e in &self.soft_elements {
+            mg.set_material(e as usize, t)?;
+        }
+        for &e in &current {
+            mg.set_material(e as usize, soft)?;
+        }
+        self.soft_elements = current;
+        Ok(())
     }
 
     /// How often a Galerkin coarse operator turned out singular and the session switched
@@ -854,26 +888,22 @@ impl Simulation {
             return Ok(false);
         }
         let constraints = self.constraints(true);
-        let mut key: Vec<u32> = constraints.prescribed.iter().map(|&(v, _)| v).collect();
-        key.sort_unstable();
-        key.dedup();
-        let reuse =
-            self.stage == Stage::Implant && self.multigrid.is_some() && key == self.multigrid_key;
-        let rebuilt = if reuse {
-            let table = constraints.table(self.finest.positions.len())?;
-            let mg = self.multigrid.as_mut().expect("checked");
-            for (v, d) in table.iter().enumerate() {
-                if let Some(d) = d {
-                    mg.set_prescribed(v as u32, *d)?;
-                }
-            }
+        // A new implant or position changes the constrained set: the hierarchy keeps its
+        // patterns and only swaps the changeable constraints (fem's symmetric
+        // elimination over a fixed pattern) and the implant elements' material.
+        let rebuilt = if self.stage == Stage::Implant && self.multigrid.is_some() {
+            self.multigrid
+                .as_mut()
+                .expect("checked")
+                .set_constraints(&constraints)?;
             false
         } else {
             self.multigrid = None;
             self.multigrid = Some(self.build_multigrid(constraints)?);
-            self.multigrid_key = key;
+            self.soft_elements.clear();
             true
         };
+        self.update_implant_materials()?;
         self.dirty = false;
         Ok(rebuilt)
     }
@@ -891,9 +921,9 @@ impl Simulation {
         }
         let reaction: f64 = f
             .iter()
-            .zip(&sys.reduced_of)
-            .filter(|(_, r)| **r == NOT_FREE)
-            .map(|(x, _)| x.length_squared())
+            .enumerate()
+            .filter(|&(v, _)| sys.is_held(v as u32) || sys.reduced_of[v] == NOT_FREE)
+            .map(|(_, x)| x.length_squared())
             .sum::<f64>();
         let external: f64 = self.f_ext.iter().map(|x| x.length_squared()).sum();
         (reaction + external).sqrt().max(1e-12)
@@ -1068,7 +1098,6 @@ impl Simulation {
         let mg = self.build_multigrid(self.constraints(false))?;
         self.u_before_gravity = Some(self.u.clone());
         self.multigrid = Some(mg);
-        self.multigrid_key.clear();
         self.f_ext = f_ext;
         self.stage = Stage::Gravity;
         self.stage_cycles = 0;
