@@ -891,11 +891,12 @@ impl Simulation {
         // A new implant or position changes the constrained set: the hierarchy keeps its
         // patterns and only swaps the changeable constraints (fem's symmetric
         // elimination over a fixed pattern) and the implant elements' material.
-        let rebuilt = if self.stage == Stage::Implant && self.multigrid.is_some() {
-            self.multigrid
-                .as_mut()
-                .expect("checked")
-                .set_constraints(&constraints)?;
+        let reusable = match self.multigrid.as_mut() {
+            Some(mg) if self.stage == Stage::Implant => Some(mg),
+            _ => None,
+        };
+        let rebuilt = if let Some(mg) = reusable {
+            mg.set_constraints(&constraints)?;
             false
         } else {
             self.multigrid = None;
