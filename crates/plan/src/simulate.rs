@@ -255,7 +255,7 @@ pub fn run_session(
     write_fe_result(&out_dir.join("fe_result.vtu"), &session.simulation)?;
     files.push("fe_result.vtu".to_string());
     files.push("result.json".to_string());
-    let volume = |side: Side| volumes[side_index(side)].volume_ml;
+    let volume = |side: Side| volumes[side as usize].volume_ml;
     let report = SimulateReport {
         model: model_dir.to_path_buf(),
         implant_volume_ml: PerSide {
@@ -268,8 +268,8 @@ pub fn run_session(
             right: volume(Side::Right),
         },
         breast_volume_before_ml: PerSide {
-            left: volumes[0].volume_before_ml,
-            right: volumes[1].volume_before_ml,
+            left: volumes[Side::Left as usize].volume_before_ml,
+            right: volumes[Side::Right as usize].volume_before_ml,
         },
         distances,
         solver,
@@ -280,14 +280,6 @@ pub fn run_session(
     crate::demo::write_json(&report_path, &report)?;
     progress.step();
     Ok(report)
-}
-
-/// Index of a side in [`Simulation::breast_volumes`]' array.
-fn side_index(side: Side) -> usize {
-    match side {
-        Side::Left => 0,
-        Side::Right => 1,
-    }
 }
 
 /// Writes the finest level with its displacement, constrained vertices and implant
