@@ -241,26 +241,9 @@ impl Stuffing<'_> {
 
     /// Numbers the used lattice points and cut points (lattice points first, each in key
     /// order) and builds the mesh.
-    fn compact(&self, mut tets: Vec<[u32; 4]>) -> TetMesh {
-        let mut new_index = vec![u32::MAX; self.signs.len() + self.cuts.len()];
-        for tet in &tets {
-            for &key in tet {
-                new_index[key as usize] = 0;
-            }
-        }
-        let mut used_keys = Vec::new();
-        for (key, slot) in new_index.iter_mut().enumerate() {
-            if *slot == 0 {
-                *slot = used_keys.len() as u32;
-                used_keys.push(key as u32);
-            }
-        }
-        let positions = used_keys
-            .par_iter()
-            .map(|&key| self.position(key))
-            .collect();
-        tets.par_iter_mut()
-            .for_each(|tet| *tet = tet.map(|key| new_index[key as usize]));
-        TetMesh { positions, tets }
+    fn compact(&self, tets: Vec<[u32; 4]>) -> TetMesh {
+        TetMesh::compacted(tets, self.signs.len() + self.cuts.len(), |key| {
+            self.position(key)
+        })
     }
 }

@@ -32,6 +32,32 @@ pub struct BoundarySurface {
 const OUTWARD_FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
 
 impl TetMesh {
+    /// A mesh from tetrahedra over point keys `0..key_count`: the used keys are
+    /// numbered in key order and placed at `position(key)` (mm); unused keys are dropped.
+    pub(crate) fn compacted(
+        mut tets: Vec<[u32; 4]>,
+        key_count: usize,
+        position: impl Fn(u32) -> DVec3 + Sync,
+    ) -> TetMesh {
+        let mut new_index = vec![u32::MAX; key_count];
+        for tet in &tets {
+            for &key in tet {
+                new_index[key as usize] = 0;
+            }
+        }
+        let mut used_keys = Vec::new();
+        for (key, slot) in new_index.iter_mut().enumerate() {
+            if *slot == 0 {
+                *slot = used_keys.len() as u32;
+                used_keys.push(key as u32);
+            }
+        }
+        let positions = used_keys.par_iter().map(|&key| position(key)).collect();
+        tets.par_iter_mut()
+            .for_each(|tet| *tet = tet.map(|key| new_index[key as usize]));
+        TetMesh { positions, tets }
+    }
+
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.positions.len()
