@@ -292,7 +292,15 @@ fn simulation_figures(report: &plan::simulate::SimulateReport) -> String {
     ] {
         let implant = implant.as_ref().map_or_else(
             || "no implant".to_string(),
-            |i| format!("{} ({:.0} ml)", i.spec, i.volume_ml),
+            |i| {
+                let [x, y] = i.fit_shift_mm;
+                let fitted = if x != 0.0 || y != 0.0 {
+                    format!(", moved {x:+.1} mm left, {y:+.1} mm up to fit the breast base")
+                } else {
+                    String::new()
+                };
+                format!("{} ({:.0} ml{fitted})", i.spec, i.volume_ml)
+            },
         );
         let _ = writeln!(
             out,

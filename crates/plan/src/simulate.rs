@@ -20,7 +20,7 @@ use anyhow::{Context, Result};
 use glam::DVec3;
 use implant::{Catalog, ImplantShape, ImplantSpec};
 use serde::Serialize;
-use simulation::{PatientInput, Simulation, SimulationOptions};
+use simulation::{PatientInput, PlacedImplant, Simulation, SimulationOptions};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetra::vtu::{CONSTRAINED, DISPLACEMENT, Field};
@@ -82,8 +82,14 @@ impl Session {
     }
 
     /// Sets (or replaces) the implant of one side from a spec, placed `move_mm` from
-    /// the default position. On error nothing changes.
-    pub fn set_implant(&mut self, side: Side, spec: &str, move_mm: DVec3) -> Result<ImplantShape> {
+    /// the default position (and moved on to where its footprint fits, see
+    /// [`PlacedImplant::fit_shift_mm`]). On error nothing changes.
+    pub fn set_implant(
+        &mut self,
+        side: Side,
+        spec: &str,
+        move_mm: DVec3,
+    ) -> Result<&PlacedImplant> {
         let entry = ImplantSpec::parse(spec)
             .and_then(|s| s.resolve(&self.catalog))
             .with_context(|| format!("{side} implant"))?;
@@ -94,8 +100,7 @@ impl Session {
                 shape,
                 Placement::moved(move_mm.x, move_mm.y, move_mm.z),
             )
-            .with_context(|| format!("{side} implant {spec}"))?;
-        Ok(shape)
+            .with_context(|| format!("{side} implant {spec}"))
     }
 
     /// One V-cycle of the current stage, warm-started from the current displacement.
@@ -133,7 +138,11 @@ pub struct ImplantSummary {
     pub spec: String,
     pub shape: ImplantShape,
     pub volume_ml: f64,
+    /// The move asked for (mm, anatomical frame).
     pub move_mm: [f64; 3],
+    /// The further move of the anchor along the bed that made the footprint fit (mm,
+    /// implant's `x'` to the patient's left and `y'` up; zero when it fitted as asked).
+    pub fit_shift_mm: [f64; 2],
 }
 
 /// The JSON of `simulate` and `result.json` (GUIDE section 5).
@@ -188,12 +197,13 @@ pub fn run_session(
     };
     for (side, request) in [(Side::Left, &options.left), (Side::Right, &options.right)] {
         if let Some(request) = request {
-            let shape = session.set_implant(side, &request.spec, request.move_mm)?;
+            let placed = session.set_implant(side, &request.spec, request.move_mm)?;
             *implants.get_mut(side) = Some(ImplantSummary {
                 spec: request.spec.clone(),
-                shape,
-                volume_ml: shape.volume_ml(),
+                shape: placed.shape,
+                volume_ml: placed.shape.volume_ml(),
                 move_mm: request.move_mm.to_array(),
+                fit_shift_mm: placed.fit_shift_mm.to_array(),
             });
         }
     }

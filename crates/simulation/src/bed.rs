@@ -24,7 +24,7 @@
 use crate::error::SimulationError;
 use anatomy::AnatomicalFrame;
 use anatomy::breast::Side;
-use glam::{DMat3, DVec2, DVec3};
+use glam::{DMat2, DMat3, DVec2, DVec3};
 use mesh::TriMesh;
 
 /// Default backward shift of the implant bed behind the fill-in (mm): skin and
@@ -115,6 +115,23 @@ pub struct BedPoint {
     /// Radial offset `w` of the bed at these parameters (mm).
     pub w: f64,
 }
+
+/// The foot of a point on the bed: where the bed's normal line through it starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Foot {
+    /// Bed parameters of the foot.
+    pub uv: DVec2,
+    /// Signed distance of the point from the bed along `normal` (mm, positive in front).
+    pub height_mm: f64,
+    /// The bed's unit normal at the foot (anterior).
+    pub normal: DVec3,
+}
+
+/// Most iterations of [`ImplantBed::foot`].
+const FOOT_ITERATIONS: usize = 12;
+
+/// Tangential distance at which [`ImplantBed::foot`] stops (mm).
+const FOOT_TOLERANCE_MM: f64 = 1e-4;
 
 /// The implant bed of one breast: the shifted fill-in over its `(u, v)` domain.
 #[derive(Debug, Clone)]
@@ -363,6 +380,65 @@ impl ImplantBed {
         }
     }
 
+    /// The foot of `p` (file frame, mm) on the bed: parameters `s` with
+    /// `p = b(s) + h n(s)`, where `b` is the bed and `n` its interpolated normal, so that
+    /// points are addressed by the same normal-offset coordinates the implant is laid
+    /// off in. Iterates from `p`'s radial projection, moving `s` by the tangential part
+    /// of `p - b(s)` through the bed's tangent map. `None` when the iteration walks off
+    /// the domain (the normal line through `p` misses the bed).
+    ///
+    /// Why not the radial projection itself: where the bed is inclined against the
+    /// cylinder's radius (the lower pole, the fold) two points on one bed normal get
+    /// different radial parameters, hence different implant thicknesses, and a
+    /// template laid off along the normals then folds elements over (measured: 40-60
+    /// prescribed elements of the first tissue layer inverted on v02_average).
+    pub fn foot(&self, p: DVec3) -> Option<Foot> {
+        let c = self.cylinder.to_cylindrical(p);
+        let mut uv = DVec2::new(c.x, c.y);
+        for _ in 0..FOOT_ITERATIONS {
+            let (t, b) = self.locate(uv)?;
+            let at = self.interpolate(t, b);
+            let d = p - at.position;
+            let height_mm = d.dot(at.normal);
+            let tangential = d - at.normal * height_mm;
+            if tangential.length() <= FOOT_TOLERANCE_MM {
+                return Some(Foot {
+                    uv,
+                    height_mm,
+                    normal: at.normal,
+                });
+            }
+            // the triangle's tangent map J = [e1 e2] M⁻¹ from (u, v) to the bed
+            let tri = self.triangles[t];
+            let [pa, pb, pc] = tri.map(|v| self.positions[v as usize]);
+            let [ua, ub, uc] = tri.map(|v| self.uv[v as usize]);
+            let m = DMat2::from_cols(ub - ua, uc - ua);
+            if m.determinant().abs() < 1e-12 {
+                return None;
+            }
+            let m_inv = m.inverse();
+            let (e1, e2) = (pb - pa, pc - pa);
+            let ju = e1 * m_inv.x_axis.x + e2 * m_inv.x_axis.y;
+            let jv = e1 * m_inv.y_axis.x + e2 * m_inv.y_axis.y;
+            // least squares: JᵀJ Δ = Jᵀ t
+            let jtj = DMat2::from_cols(
+                DVec2::new(ju.dot(ju), jv.dot(ju)),
+                DVec2::new(ju.dot(jv), jv.dot(jv)),
+            );
+            if jtj.determinant().abs() < 1e-12 {
+                return None;
+            }
+            uv += jtj.inverse() * DVec2::new(ju.dot(tangential), jv.dot(tangential));
+        }
+        let (t, b) = self.locate(uv)?;
+        let at = self.interpolate(t, b);
+        Some(Foot {
+            uv,
+            height_mm: (p - at.position).dot(at.normal),
+            normal: at.normal,
+        })
+    }
+
     /// Whether `p` lies inside the domain's boundary polygon (even-odd rule).
     pub fn contains(&self, p: DVec2) -> bool {
         let b = &self.boundary;
@@ -380,17 +456,26 @@ impl ImplantBed {
 
     /// Distance from `p` to the domain's boundary polygon (mm in parameters).
     pub fn distance_to_boundary(&self, p: DVec2) -> f64 {
+        p.distance(self.nearest_on_boundary(p))
+    }
+
+    /// The point of the domain's boundary polygon nearest to `p`.
+    pub fn nearest_on_boundary(&self, p: DVec2) -> DVec2 {
         let b = &self.boundary;
-        let mut best = f64::INFINITY;
+        let mut best = (f64::INFINITY, p);
         let mut j = b.len() - 1;
         for i in 0..b.len() {
             let (a, c) = (b[j], b[i]);
             let e = c - a;
             let t = ((p - a).dot(e) / e.length_squared().max(1e-300)).clamp(0.0, 1.0);
-            best = best.min(p.distance(a + e * t));
+            let q = a + e * t;
+            let d = p.distance_squared(q);
+            if d < best.0 {
+                best = (d, q);
+            }
             j = i;
         }
-        best
+        best.1
     }
 
     /// Area centroid of the domain in `(u, v)`.

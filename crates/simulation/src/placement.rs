@@ -4,10 +4,17 @@
 //! # Default anchor
 //! [`AnchorRule::FootprintCentre`] (default): the area centroid of the bed's domain in the
 //! cylinder parameters `(u, v)`, i.e. the implant centred on the breast's footprint (the
-//! region inside the cut curve, seen from the body's axis). On the phantom and the shared
-//! scans it lies 5-15 mm below and slightly medial of the nipple's radial projection, where a
-//! surgeon centres a round implant on the breast base. [`AnchorRule::BehindNipple`]
-//! puts it straight behind the nipple instead (the nipple's `(u, v)`).
+//! region inside the cut curve, seen from the body's axis). On the shared scans, whose
+//! breasts hang a little, it lies 25-30 mm above and 6-12 mm lateral of the nipple's
+//! radial projection (the cut curve reaches far up the chest), so the nipple rides on
+//! the lower half of the implant and moves down and forward even without gravity.
+//! [`AnchorRule::BehindNipple`] puts it straight behind the nipple instead (the
+//! nipple's `(u, v)`); there a 120 mm implant overhangs the fold and is moved up by
+//! about 37 mm to fit.
+//!
+//! When the footprint overhangs the bed at the requested anchor, the session moves the
+//! anchor to the nearest place where it fits (see [`crate::template::fit_footprint`]) and
+//! reports the move.
 //!
 //! # Moves
 //! [`Placement::move_mm`] is in the anatomical frame: `x` towards the patient's left and

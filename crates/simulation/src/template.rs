@@ -8,15 +8,20 @@
 //!    the bed's `(u, v)` grid: every finest vertex near the fill-in has its cylinder
 //!    coordinates computed once per model ([`TemplateIndex`]), so a template costs one
 //!    2D point location per candidate vertex.
-//! 2. Each vertex of a fill-in element gets implant coordinates `(x', y')` and the
-//!    thickness `z'(x', y')`, mollified over about one element ([`SmoothedThickness`]:
-//!    linear tetrahedra of 6-7 mm cannot follow the square-root rim of eqs. 3 and 10,
-//!    which rises by 10 mm within the outer 5% of the radius; unsmoothed, the elements
-//!    over the rim inverted, 40-80 of them on the phantom). A *front* vertex (in front of the bed) with `z' > 0` is an
-//!    *implant vertex*, displaced by `z'` along the bed's normal at its `(u, v)`; a
-//!    *back* vertex with `z' > 0` (inside the footprint) is fixed, and by default
-//!    ([`crate::SimulationOptions::hold_bed`]) every other back vertex of a fill-in
-//!    element too.
+//! 2. Each candidate vertex gets its *foot* on the bed (the start of the bed normal
+//!    through it, [`ImplantBed::foot`]), its height above the bed, implant
+//!    coordinates `(x', y')` of the foot and the thickness `z'(x', y')` there,
+//!    mollified over about two elements ([`SmoothedThickness`]: linear tetrahedra of
+//!    6-7 mm cannot follow the square-root rim of eqs. 3 and 10, which rises by 10 mm
+//!    within the outer 5% of the radius). A *front* vertex (in front of the bed) of a
+//!    fill-in element with `z' > 0` is an *implant vertex*, displaced by `z'` along the
+//!    bed's normal at its foot; so is every front vertex over the footprint within a
+//!    thin layer above the bed (one spacing by default), which smooths the ragged top
+//!    of the paper's set. A *back* vertex with `z' > 0` (inside the footprint) is fixed,
+//!    and by default ([`crate::SimulationOptions::hold_bed`]) every other back vertex of
+//!    a fill-in element too. Laying the thickness off along normals from the foot makes
+//!    the prescribed map `b(s) + h n(s) -> b(s) + (h + z'(s)) n(s)`, which does not
+//!    fold elements over where the bed is inclined.
 //! 3. *Implant elements*: fill-in elements whose four vertices are implant or fixed
 //!    vertices; they get the implant's soft material and density (see
 //!    [`crate::SimulationOptions`]).
@@ -25,12 +30,13 @@
 //! posterior wall and the clip faces are held by [`TemplateIndex::wall_vertices`]
 //! (see [`crate::session`]).
 
-use crate::bed::ImplantBed;
+use crate::bed::{Foot, ImplantBed};
 use crate::error::SimulationError;
-use crate::placement::Anchor;
+use crate::placement::{Anchor, Placement, resolve_anchor};
 use anatomy::breast::Side;
 use glam::{DVec2, DVec3};
 use implant::ImplantShape;
+use rayon::prelude::*;
 use tetra::TetMesh;
 
 /// Points of the implant's outline checked against the bed's domain.
@@ -46,10 +52,8 @@ const DOMAIN_MARGIN_MM: f64 = 15.0;
 pub struct SideCandidates {
     /// Candidate vertices (finest level).
     pub vertices: Vec<u32>,
-    /// `(u, v)` of each candidate.
-    pub uv: Vec<DVec2>,
-    /// Radial offset `w` of each candidate.
-    pub w: Vec<f64>,
+    /// Their positions (file frame, mm).
+    pub positions: Vec<DVec3>,
     /// Tetrahedra whose four vertices are candidates, with their corners as candidate
     /// indices.
     pub tets: Vec<(u32, [u32; 4])>,
@@ -80,8 +84,7 @@ impl TemplateIndex {
                 });
             let mut local = vec![u32::MAX; mesh.positions.len()];
             let mut vertices = Vec::new();
-            let mut uv = Vec::new();
-            let mut w = Vec::new();
+            let mut positions = Vec::new();
             for (i, c) in cyl.iter().enumerate() {
                 let p = DVec2::new(c.x, c.y);
                 let keep = match bed.at(p) {
@@ -95,8 +98,7 @@ impl TemplateIndex {
                 if keep {
                     local[i] = vertices.len() as u32;
                     vertices.push(i as u32);
-                    uv.push(p);
-                    w.push(c.z);
+                    positions.push(mesh.positions[i]);
                 }
             }
             let tets = mesh
@@ -110,8 +112,7 @@ impl TemplateIndex {
                 .collect();
             SideCandidates {
                 vertices,
-                uv,
-                w,
+                positions,
                 tets,
             }
         });
@@ -121,6 +122,25 @@ impl TemplateIndex {
     /// The candidates of one side.
     pub fn side(&self, side: Side) -> &SideCandidates {
         &self.sides[side as usize]
+    }
+}
+
+/// The feet of one side's candidates on its current bed.
+#[derive(Debug, Clone)]
+pub struct BedFeet {
+    pub side: Side,
+    /// Per candidate: its foot ([`ImplantBed::foot`]), `None` off the bed.
+    pub feet: Vec<Option<Foot>>,
+}
+
+impl SideCandidates {
+    /// The feet of the candidates on `bed`. They depend on the bed's shift only, so
+    /// they are computed once per bed, not per implant.
+    pub fn feet(&self, bed: &ImplantBed) -> BedFeet {
+        BedFeet {
+            side: bed.side,
+            feet: self.positions.par_iter().map(|&p| bed.foot(p)).collect(),
+        }
     }
 }
 
@@ -215,8 +235,8 @@ impl SmoothedThickness {
 enum Class {
     /// Not over the bed.
     Off,
-    /// In front of the bed; thickness and normal there.
-    Front(f64, DVec3),
+    /// In front of the bed; thickness and normal there, height above it (mm).
+    Front(f64, DVec3, f64),
     /// Behind the bed; thickness there.
     Back(f64),
 }
@@ -224,6 +244,74 @@ enum Class {
 /// How far the implant's outline may reach beyond the cut curve (mm): its rim has zero
 /// thickness, and the cut curve itself is only as precise as its control points.
 pub const FOOTPRINT_TOLERANCE_MM: f64 = 2.0;
+
+/// Most pushes of [`fit_footprint`].
+const FIT_ITERATIONS: usize = 60;
+
+/// Extra push beyond the tolerance per step of [`fit_footprint`] (mm), so that the
+/// pushes converge in a few steps instead of creeping.
+const FIT_OVERSHOOT_MM: f64 = 0.25;
+
+/// An outline point off the bed's domain.
+#[derive(Clone, Copy)]
+struct Overhang {
+    /// How far outside (mm in bed parameters).
+    outside_mm: f64,
+    /// Its bed parameters.
+    uv: DVec2,
+    /// The nearest point of the domain's boundary.
+    nearest: DVec2,
+}
+
+/// The points of the implant's outline at `anchor` that lie further than
+/// [`FOOTPRINT_TOLERANCE_MM`] outside the bed's domain.
+fn overhangs(bed: &ImplantBed, anchor: &Anchor, shape: &ImplantShape) -> Vec<Overhang> {
+    shape
+        .footprint_outline_mm(OUTLINE_POINTS)
+        .into_iter()
+        .filter_map(|local| {
+            let uv = anchor.uv_of(local);
+            if bed.contains(uv) {
+                return None;
+            }
+            let nearest = bed.nearest_on_boundary(uv);
+            let outside_mm = uv.distance(nearest);
+            (outside_mm > FOOTPRINT_TOLERANCE_MM).then_some(Overhang {
+                outside_mm,
+                uv,
+                nearest,
+            })
+        })
+        .collect()
+}
+
+/// The deepest of `over`, if any.
+fn deepest(over: &[Overhang]) -> Option<&Overhang> {
+    over.iter()
+        .max_by(|a, b| a.outside_mm.total_cmp(&b.outside_mm))
+}
+
+/// The error for an implant whose outline reaches `worst` beyond the bed.
+fn larger_than_footprint(
+    bed: &ImplantBed,
+    shape: &ImplantShape,
+    frame: &anatomy::AnatomicalFrame,
+    worst: &Overhang,
+) -> SimulationError {
+    // where: on the cylinder at the bed's mean offset
+    let radius = bed.cylinder.radius_mm + bed.w.iter().sum::<f64>() / bed.w.len() as f64;
+    let p = bed.cylinder.centre
+        + bed.cylinder.radial(worst.uv.x) * radius
+        + bed.cylinder.axes.z_axis * worst.uv.y;
+    let footprint = shape.footprint();
+    SimulationError::ImplantLargerThanFootprint {
+        side: bed.side,
+        width_mm: footprint.width_mm(),
+        height_mm: footprint.height_mm(),
+        outside_mm: worst.outside_mm,
+        near_mm: frame.to_local(p).to_array(),
+    }
+}
 
 /// Checks that the implant's footprint outline lies on the bed's domain (within
 /// [`FOOTPRINT_TOLERANCE_MM`]).
@@ -236,62 +324,103 @@ pub fn check_footprint(
     shape: &ImplantShape,
     frame: &anatomy::AnatomicalFrame,
 ) -> Result<(), SimulationError> {
-    let mut worst: Option<(f64, DVec2)> = None;
-    for local in shape.footprint_outline_mm(OUTLINE_POINTS) {
-        let uv = anchor.uv_of(local);
-        if !bed.contains(uv) {
-            let d = bed.distance_to_boundary(uv);
-            if d > FOOTPRINT_TOLERANCE_MM && worst.is_none_or(|(w, _)| d > w) {
-                worst = Some((d, uv));
-            }
-        }
-    }
-    match worst {
+    match deepest(&overhangs(bed, anchor, shape)) {
         None => Ok(()),
-        Some((outside_mm, uv)) => {
-            // where: on the cylinder at the bed's mean offset
-            let radius = bed.cylinder.radius_mm + bed.w.iter().sum::<f64>() / bed.w.len() as f64;
-            let p = bed.cylinder.centre
-                + bed.cylinder.radial(uv.x) * radius
-                + bed.cylinder.axes.z_axis * uv.y;
-            let footprint = shape.footprint();
-            Err(SimulationError::ImplantLargerThanFootprint {
-                side: bed.side,
-                width_mm: footprint.width_mm(),
-                height_mm: footprint.height_mm(),
-                outside_mm,
-                near_mm: frame.to_local(p).to_array(),
-            })
-        }
+        Some(worst) => Err(larger_than_footprint(bed, shape, frame, worst)),
     }
 }
 
-/// Builds the template of `shape` anchored at `anchor` on `bed`, over the finest
-/// level `mesh` with its `candidates` (of the bed's side). With `hold_bed`, every back
-/// vertex of a fill-in element is fixed, inside the footprint or not (see
+/// The anchor nearest to `requested` at which the implant's footprint lies on the bed
+/// (within [`FOOTPRINT_TOLERANCE_MM`]): `requested` itself when it fits, else the anchor
+/// pushed along the bed away from the cut curve where the outline overhangs it. Each
+/// push moves the anchor, in bed parameters, along the mean inward direction of the
+/// overhanging outline points by the deepest overhang less the tolerance (plus
+/// [`FIT_OVERSHOOT_MM`]); the implant's frame is re-resolved at every new anchor with
+/// the requested rotation. A breast footprint is not convex (a small breast's cut curve
+/// can be kidney-shaped), so the centroid or the point behind the nipple may leave too
+/// little room on one side although the implant fits a little further in.
+///
+/// Errors: [`SimulationError::ImplantLargerThanFootprint`] for the anchor with the
+/// smallest overhang found when the outline overhangs on opposite sides (the implant is
+/// wider than the footprint there) or the pushes do not settle.
+pub fn fit_footprint(
+    bed: &ImplantBed,
+    frame: &anatomy::AnatomicalFrame,
+    requested: Anchor,
+    rotation_deg: f64,
+    shape: &ImplantShape,
+) -> Result<Anchor, SimulationError> {
+    let mut anchor = requested;
+    let mut over = overhangs(bed, &anchor, shape);
+    let Some(mut best) = deepest(&over).copied() else {
+        return Ok(anchor);
+    };
+    let placement = Placement {
+        move_mm: glam::DVec3::ZERO,
+        rotation_deg,
+    };
+    for _ in 0..FIT_ITERATIONS {
+        let Some(worst) = deepest(&over).copied() else {
+            return Ok(anchor);
+        };
+        if worst.outside_mm < best.outside_mm {
+            best = worst;
+        }
+        let inward = over
+            .iter()
+            .map(|o| (o.nearest - o.uv) / o.outside_mm)
+            .sum::<DVec2>()
+            / over.len() as f64;
+        // overhanging on opposite sides: no push helps
+        if inward.length() < 0.3 {
+            break;
+        }
+        let step_mm = worst.outside_mm - FOOTPRINT_TOLERANCE_MM + FIT_OVERSHOOT_MM;
+        match resolve_anchor(
+            bed,
+            frame,
+            anchor.uv + inward.normalize() * step_mm,
+            &placement,
+        ) {
+            Ok(next) => anchor = next,
+            Err(_) => break,
+        }
+        over = overhangs(bed, &anchor, shape);
+    }
+    if over.is_empty() {
+        return Ok(anchor);
+    }
+    Err(larger_than_footprint(bed, shape, frame, &best))
+}
+
+/// Builds the template of the implant whose mollified thickness is `thickness`,
+/// anchored at `anchor`, over the finest level `mesh` with its `candidates` (of one
+/// side) and their `feet` on that side's bed. With `hold_bed`, every back vertex of a
+/// fill-in element is fixed, inside the footprint or not (see
 /// [`crate::SimulationOptions::hold_bed`]); else only those inside (the paper's rule).
+/// Besides the front vertices of fill-in elements, every front vertex over the
+/// footprint up to `layer_mm` above the bed is displaced (see
+/// [`crate::SimulationOptions::template_layer_mm`]).
 ///
 /// Errors: [`SimulationError::EmptyTemplate`] when no vertex is displaced.
 pub fn build_template(
     mesh: &TetMesh,
     candidates: &SideCandidates,
-    bed: &ImplantBed,
+    feet: &BedFeet,
     anchor: &Anchor,
     thickness: &SmoothedThickness,
     hold_bed: bool,
+    layer_mm: f64,
 ) -> Result<ImplantTemplate, SimulationError> {
-    let classes: Vec<Class> = candidates
-        .uv
+    let classes: Vec<Class> = feet
+        .feet
         .iter()
-        .zip(&candidates.w)
-        .map(|(&uv, &w)| match bed.locate(uv) {
+        .map(|foot| match foot {
             None => Class::Off,
-            Some((t, b)) => {
-                let at = bed.interpolate(t, b);
-                let local = anchor.local(uv);
-                let z = thickness.at(local);
-                if w > at.w {
-                    Class::Front(z, at.normal)
+            Some(f) => {
+                let z = thickness.at(anchor.local(f.uv));
+                if f.height_mm > 0.0 {
+                    Class::Front(z, f.normal, f.height_mm)
                 } else {
                     Class::Back(z)
                 }
@@ -315,7 +444,7 @@ pub fn build_template(
         for (k, class) in corners.iter().zip(&c) {
             let s = &mut state[*k as usize];
             match *class {
-                Class::Front(z, n) if z > 0.0 => {
+                Class::Front(z, n, _) if z > 0.0 => {
                     interior += 1;
                     if *s == 0 {
                         *s = 1;
@@ -341,7 +470,7 @@ pub fn build_template(
             template.implant_elements.push(t);
             let p = mesh.tets[t as usize].map(|v| mesh.positions[v as usize]);
             let d = corners.map(|k| match classes[k as usize] {
-                Class::Front(z, n) => n * z,
+                Class::Front(z, n, _) => n * z,
                 _ => DVec3::ZERO,
             });
             let rest = tetra::quality::signed_volume(p);
@@ -350,8 +479,21 @@ pub fn build_template(
             added_mm3 += moved - rest;
         }
     }
+    // the rest of the tissue layer up to `layer_mm` over the footprint moves with it
+    for (k, class) in classes.iter().enumerate() {
+        if let Class::Front(z, n, h) = *class
+            && z > 0.0
+            && h <= layer_mm
+            && state[k] == 0
+        {
+            state[k] = 1;
+            template
+                .implant_vertices
+                .push((candidates.vertices[k], n * z));
+        }
+    }
     if template.implant_vertices.is_empty() {
-        return Err(SimulationError::EmptyTemplate { side: bed.side });
+        return Err(SimulationError::EmptyTemplate { side: feet.side });
     }
     template.template_volume_ml = added_mm3 / 1000.0;
     Ok(template)

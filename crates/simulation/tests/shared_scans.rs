@@ -1,7 +1,8 @@
 //! The simulation on the shared scans (`/work/shared/scans` or `$MAMMAPLAN_SCANS`;
-//! skipped when absent): both breasts with the catalog's R-MOD-120, no gravity, then
-//! the gravity correction. Prints the volume figures; checks the issue's 15% volume
-//! criterion, no inverted elements and the nipple's direction.
+//! skipped when absent): both breasts with a moderate-profile round implant sized to the
+//! breast base, no gravity, then the gravity correction. Prints the volume figures;
+//! checks the issue's 15% volume criterion, convergence and the nipple's direction
+//! (forwards without gravity, down with it); reports inverted elements.
 //! `cargo test --release -p simulation --test shared_scans -- --nocapture`
 
 mod common;
@@ -15,13 +16,30 @@ fn run(name: &str) {
         println!("{name}: not found, skipped");
         return;
     };
-    // the largest moderate-profile round implant from 120 mm down that fits both
+    // Implant sizing as a surgeon does it: the base width at most the breast's base
+    // width less a margin (here 85% of the bed's narrower width across the body), the
+    // largest moderate-profile round implant of the catalog below that (from 120 mm
+    // down; under the catalog's 90 mm the same profile, projection 0.28 x width).
     let catalog = Catalog::builtin();
     let mut sim = p.session(SimulationOptions::default());
+    let base_width_mm = Side::BOTH
+        .iter()
+        .map(|&side| {
+            let b = &sim.bed(side).boundary;
+            let (lo, hi) = b
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, c), p| {
+                    (a.min(p.x), c.max(p.x))
+                });
+            hi - lo
+        })
+        .fold(f64::INFINITY, f64::min);
     let mut chosen = None;
     for width in [120, 115, 110, 105, 100, 95, 90, 85, 80, 75, 70] {
+        if width as f64 > 0.85 * base_width_mm {
+            continue;
+        }
         let id = format!("R-MOD-{width}");
-        // below the catalog's 90 mm: the same moderate profile (projection 0.28 x width)
         let shape = match catalog.get(&id) {
             Some(entry) => *entry.shape(),
             None => implant::RoundImplant::new(width as f64, 0.28 * width as f64)
@@ -31,14 +49,20 @@ fn run(name: &str) {
         let placed: Result<Vec<_>, _> = Side::BOTH
             .iter()
             .map(|&side| {
-                sim.set_implant(side, shape, Placement::default())
-                    .map(|p| (p.template.template_volume_ml, p.setup_ms))
+                sim.set_implant(side, shape, Placement::default()).map(|p| {
+                    (
+                        p.template.template_volume_ml,
+                        p.setup_ms,
+                        p.fit_shift_mm.to_array(),
+                    )
+                })
             })
             .collect();
         match placed {
             Ok(t) => {
                 println!(
-                    "{name}: {id} ({:.1} ml): templates {t:.1?} (ml, ms)",
+                    "{name}: base width {base_width_mm:.0} mm, {id} ({:.1} ml): templates {t:.1?} \
+                     (ml, ms, anchor moved to fit mm)",
                     shape.volume_ml()
                 );
                 chosen = Some(shape);
@@ -47,15 +71,7 @@ fn run(name: &str) {
             Err(e) => println!("{name}: {id}: {e}"),
         }
     }
-    let Some(shape) = chosen else {
-        // Known shortfall on pair1_pre (65 ml breasts): even a 70 mm implant reaches 4 mm
-        // beyond its bed at the default anchor, always near the same point; the bed's
-        // domain there needs a look (see the crate docs). Reported, not failed.
-        println!(
-            "{name}: KNOWN ISSUE: no implant from 120 mm down to 70 mm fits at the default anchor"
-        );
-        return;
-    };
+    let shape = chosen.expect("an implant of at most 85% of the base width fits");
     let v = shape.volume_ml();
     let report = sim.run(true).unwrap();
     let volumes = sim.breast_volumes().unwrap();
@@ -78,8 +94,8 @@ fn run(name: &str) {
         assert!(d.z > 0.3 * shape.projection_mm(), "{name} {side}");
     }
     assert!(report.implant.converged);
-    // Known shortfall: on v02_average about a hundred elements over the implant's rim
-    // invert (none on the phantom); reported, not yet asserted.
+    // Known shortfall: a few elements of the tissue compressed over the implant invert
+    // (none on the phantom); reported, not yet asserted.
     if inverted > 0 {
         println!("{name}: WARNING {inverted} inverted elements");
     }
@@ -102,6 +118,11 @@ fn run(name: &str) {
 #[test]
 fn v02_average() {
     run("v02_average");
+}
+
+#[test]
+fn pair1_post() {
+    run("pair1_post");
 }
 
 #[test]
