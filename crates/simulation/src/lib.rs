@@ -17,22 +17,21 @@
 //! This crate knows nothing about files or command lines; `plan` builds the patient
 //! model and calls it.
 //!
-//! # Measured (phantom, 60,575 elements, 2 cores)
-//! Implant setup (placement + template) 1.5 ms (criterion, `benches/template.rs`); one
-//! interactive cycle 53 ms; a new constraint set rebuilds the multigrid (about 0.2-0.4 s
-//! for the first cycle after it). Round 120 x 33.6 mm (252.6 ml) on both sides, no
-//! gravity: breasts +234.4 / +236.0 ml, nipples 16.5 mm forward (0.49 x projection),
-//! no inverted element, largest scan edge stretch 2.2x; gravity correction: nipple
-//! 8.5 mm lower.
+//! # Measured (60,000-element models, 2 cores)
+//! Phantom, round 120 x 33.6 mm (252.6 ml) on both sides, no gravity: breasts
+//! +227.2 / +227.2 ml (-10.1%), nipples 17.1 mm forward (0.51 x projection), no
+//! inverted element, largest scan edge stretch 2.6x, mirror asymmetry at most 0.16 mm
+//! (rms 0.005 mm); gravity correction: nipple 9.0 mm lower. Shared scans with a
+//! moderate-profile implant sized to the breast base (`tests/shared_scans.rs`):
+//! volume within 10% of the implant's, 3-17 inverted elements of 60,000.
 //!
 //! # Known shortfalls
-//! - Mirror symmetry on the symmetric phantom: rms 0.21 mm, 95th percentile 0.41 mm,
-//!   but up to 1.7 mm at the lateral clip plane (the goal is 0.5 mm everywhere).
+//! - A few elements of the tissue compressed over a large implant invert (corotated
+//!   linear elasticity does not resist a collapse to zero volume).
 //! - The lateral clip planes of the closed surface cut 20-30 mm off every breast so far;
 //!   the implant's lateral part can lie outside the model (its volume is then lost).
-//! - `v02_average` (R-MOD-110): about a hundred inverted elements over the implant's rim;
-//!   `pair1_pre`: no implant down to 70 mm fits at the default anchor (the outline always
-//!   leaves the bed near the same point, to be investigated).
+//! - The gravity correction converges slowly (40 cycles reach a relative residual of
+//!   3e-3 to 0.17).
 //! - Galerkin coarse operators of `fem` can turn singular for some constraint sets
 //!   (two levels on the phantom; three levels with both implants before the bed was
 //!   held); the session then falls back to rediscretised coarse operators.

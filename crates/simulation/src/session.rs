@@ -74,7 +74,7 @@ pub const DEFAULT_IMPLANT_YOUNG_RATIO: f64 = 0.01;
 /// Default radius of the implant rim's mollifier in finest lattice spacings. Linear
 /// tetrahedra cannot follow a rim that rises by 10 mm within 3 mm (the square-root edge
 /// of eqs. 3 and 10): measured on v02_average with R-MOD-110 at 60,000 elements, the
-/// elements over the rim inverted: 32 with one spacing, 5 with two, 3 with three.
+/// elements over the rim inverted: 32 with one spacing, 5 with two or two and a half.
 /// Two spacings (12-14 mm) is also about the rounded edge of a real round implant.
 pub const RIM_SMOOTHING_SPACINGS: f64 = 2.0;
 

@@ -59,13 +59,14 @@ pub(crate) struct Lattice {
 impl Lattice {
     /// A lattice of spacing `spacing_mm` whose outer layer of points lies at least half a
     /// spacing outside the box `lo..hi`: every point of the box is inside a lattice
-    /// tetrahedron, and the outermost points are outside the box.
+    /// tetrahedron, and the outermost points are outside the box. The lattice is
+    /// centred on the box, so a box symmetric about a coordinate plane gets a lattice
+    /// mirror symmetric about it (a symmetric body gets a symmetric mesh).
     pub fn around(lo: DVec3, hi: DVec3, spacing_mm: f64) -> Result<Lattice, TetraError> {
         if !(spacing_mm.is_finite() && spacing_mm > 0.0) {
             return Err(TetraError::InvalidSpacing { spacing_mm });
         }
-        let origin = lo - DVec3::splat(spacing_mm);
-        let cubes_f = ((hi - origin) / spacing_mm).ceil() + 1.0;
+        let (origin, cubes_f) = centred_cubes(lo, hi, spacing_mm, 1.0);
         let corners = (cubes_f + 1.0).element_product();
         let points = corners + cubes_f.element_product();
         if points.is_nan() || points > MAX_LATTICE_POINTS as f64 {
@@ -217,6 +218,15 @@ impl Lattice {
             }
         }
     }
+}
+
+/// Origin and number of cubes per axis of a grid of cubes of side `spacing_mm` centred
+/// on the box `lo..hi`, with at least `margin` cubes beyond it on each side. Centred, so
+/// that a box symmetric about a coordinate plane gets a grid mirror symmetric about it;
+/// the same box gives the same grid points for every margin.
+pub(crate) fn centred_cubes(lo: DVec3, hi: DVec3, spacing_mm: f64, margin: f64) -> (DVec3, DVec3) {
+    let cubes = ((hi - lo) / spacing_mm).ceil() + 2.0 * margin;
+    ((lo + hi) * 0.5 - cubes * (0.5 * spacing_mm), cubes)
 }
 
 /// Offset from a centre to corner `k` (bit 0: +x, bit 1: +y, bit 2: +z) of its cube, in

@@ -49,7 +49,7 @@
 //! worst-case bound holds would cost eight times the elements for a few near the skin.
 
 use crate::error::TetraError;
-use crate::lattice::LatticePoint;
+use crate::lattice::{LatticePoint, centred_cubes};
 use crate::quality::{dihedral_angles, signed_volume};
 use crate::stencils::{Sign, StencilContext, StencilVertex, fill};
 use crate::stuffing::{ALPHA_LONG, ALPHA_SHORT, stuff};
@@ -259,8 +259,7 @@ impl Octree {
         // Region cubes stop at level 1; level 0 is the reserve for repairs.
         let depth = region.depth(spacing_mm) + 1;
         let fine = spacing_mm / f64::from(1u32 << depth);
-        let origin = lo - DVec3::splat(2.0 * spacing_mm);
-        let roots_f = ((hi - origin) / spacing_mm).ceil() + 2.0;
+        let (origin, roots_f) = centred_cubes(lo, hi, spacing_mm, 2.0);
         if roots_f.element_product() > MAX_POINTS as f64 {
             return Err(TetraError::LatticeTooLarge {
                 spacing_mm,
