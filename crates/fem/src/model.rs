@@ -341,27 +341,17 @@ impl FemModel {
     ) -> ElementState {
         let el = &self.elements[e];
         let du = self.displacement_gradient(e, u);
-        let (r, g, svd) = match formulation {
-            Formulation::Linear => (DMat3::IDENTITY, du, None),
-            Formulation::Corotated => {
-                let f = DMat3::IDENTITY + du;
-                let (r, svd) = match tangent {
-                    Tangent::Full => {
-                        let (r, v, s) = rotation_variant_svd(f);
-                        (r, Some((v, s)))
-                    }
-                    Tangent::Warped => (polar_rotation(f), None),
-                };
-                let g = (r.transpose() - DMat3::IDENTITY) + r.transpose() * du;
-                (r, g, svd)
+        let (r, svd) = match (formulation, tangent) {
+            (Formulation::Linear, _) => (DMat3::IDENTITY, None),
+            (Formulation::Corotated, Tangent::Full) => {
+                let (r, v, s) = rotation_variant_svd(DMat3::IDENTITY + du);
+                (r, Some((v, s)))
+            }
+            (Formulation::Corotated, Tangent::Warped) => {
+                (polar_rotation(DMat3::IDENTITY + du), None)
             }
         };
-        let eps = (g + g.transpose()) * 0.5;
-        let tr = eps.x_axis.x + eps.y_axis.y + eps.z_axis.z;
-        // volume times stress
-        let vsigma =
-            DMat3::from_diagonal(DVec3::splat(el.vol_lambda * tr)) + eps * (2.0 * el.vol_mu);
-        let rs = r * vsigma;
+        let (rotated_grad, force) = self.rotated_forces(e, formulation, r, du);
         let mut twist = [[DVec3::ZERO; 4]; 3];
         let mut twist_coef = [0.0; 3];
         if let Some((v, s)) = svd {
@@ -384,11 +374,58 @@ impl FemModel {
         }
         ElementState {
             rotation: r,
-            rotated_grad: el.grad.map(|g| r * g),
-            force: el.grad.map(|g| rs * g),
+            rotated_grad,
+            force,
             twist,
             twist_coef,
         }
+    }
+
+    /// The rotated gradients `R gᵢ` and internal forces `V R σ gᵢ` (mN) of element `e`
+    /// for the [`Tangent::Warped`] rotation of displacement `u`: the part of
+    /// [`FemModel::element_state`] that the warped assembly reads.
+    #[inline]
+    pub(crate) fn element_warped(
+        &self,
+        e: usize,
+        u: &[DVec3],
+        formulation: Formulation,
+    ) -> ([DVec3; 4], [DVec3; 4]) {
+        let du = self.displacement_gradient(e, u);
+        let r = match formulation {
+            Formulation::Linear => DMat3::IDENTITY,
+            Formulation::Corotated => polar_rotation(DMat3::IDENTITY + du),
+        };
+        self.rotated_forces(e, formulation, r, du)
+    }
+
+    /// Rotated gradients and forces of element `e` for rotation `r` and displacement
+    /// gradient `du`; the corner 0 terms are minus the sum of the others (the gradients
+    /// sum to zero).
+    #[inline]
+    fn rotated_forces(
+        &self,
+        e: usize,
+        formulation: Formulation,
+        r: DMat3,
+        du: DMat3,
+    ) -> ([DVec3; 4], [DVec3; 4]) {
+        let el = &self.elements[e];
+        let g = match formulation {
+            Formulation::Linear => du,
+            // Rᵀ(I + ∇u) - I = (Rᵀ - I) + Rᵀ ∇u, accurate for small ∇u
+            Formulation::Corotated => (r.transpose() - DMat3::IDENTITY) + r.transpose() * du,
+        };
+        let eps = (g + g.transpose()) * 0.5;
+        let tr = eps.x_axis.x + eps.y_axis.y + eps.z_axis.z;
+        // volume times stress
+        let vsigma =
+            DMat3::from_diagonal(DVec3::splat(el.vol_lambda * tr)) + eps * (2.0 * el.vol_mu);
+        let rs = r * vsigma;
+        let [_, g1, g2, g3] = el.grad;
+        let (h1, h2, h3) = (r * g1, r * g2, r * g3);
+        let (f1, f2, f3) = (rs * g1, rs * g2, rs * g3);
+        ([-(h1 + h2 + h3), h1, h2, h3], [-(f1 + f2 + f3), f1, f2, f3])
     }
 
     /// Elastic energy of element `e` (mN·mm = µJ): `V (μ ‖ε‖² + λ/2 tr(ε)²)` with the
@@ -442,7 +479,7 @@ impl FemModel {
         self.check_vertex_field("displacement", u)?;
         let states: Vec<[DVec3; 4]> = (0..self.tets.len())
             .into_par_iter()
-            .map(|e| self.element_state(e, u, formulation, Tangent::Warped).force)
+            .map(|e| self.element_warped(e, u, formulation).1)
             .collect();
         let mut f = vec![DVec3::ZERO; self.rest.len()];
         for (t, fe) in self.tets.iter().zip(&states) {

@@ -67,21 +67,21 @@
 //! # Where the time goes
 //! One interactive [`Multigrid::cycle`] on the benchmark box (`benches/kernels.rs`, three
 //! Galerkin levels, 60,984 tetrahedra, 10,580 / 1,584 / 216 unknowns, 8 / 14 / 23
-//! colours), medians of [`Multigrid::phase_times`] on this 2-core machine at a quiet
-//! moment: 26.5 ms in all, of which finest assembly 11.4 ms (element rotations and
-//! forces about 4 ms, the gather of the `R K Rᵀ` blocks and the right-hand side the
-//! rest), Galerkin products 3.7 ms, coarsest Cholesky 2.0 ms (216 unknowns, but the
-//! twice-Galerkin stencil is nearly dense), smoother set-up 0.3 ms, V-cycle 8.3 ms (six
-//! block SOR sweeps and a residual on the two finer levels: memory-bound, the finest
-//! matrix is 11.5 MB); five cycles from rest 132 ms. 15,288 tetrahedra: 6.4 ms a cycle
-//! (assembly 2.8, Galerkin 0.9, Cholesky 0.5, V-cycle 1.7), five cycles 32 ms. Before
-//! the rework (Jacobi-SVD rotations everywhere, Galerkin entries found by binary search,
-//! parallel loops started from outside the pool, every colour in parallel) the same box
-//! took 222 ms / 52 ms for five cycles. Still far from the 45 ms / 12 ms; what
-//! is left is mostly memory traffic (3x3 blocks in f64, rebuilt and swept every cycle).
-//! Not done yet: computing only the upper block triangle in the gather and the Galerkin
-//! product, f32 blocks for the smoother, a coarsest level small enough (or factorised
-//! less often) that its Cholesky is negligible.
+//! colours). Before the upper-triangle rework, medians of [`Multigrid::phase_times`] at
+//! a quiet moment: 26.5 ms in all, of which finest assembly 11.4 ms, Galerkin products
+//! 3.7 ms, coarsest Cholesky 2.0 ms (216 unknowns, but the twice-Galerkin stencil is
+//! nearly dense), smoother set-up 0.3 ms, V-cycle 8.3 ms. The finest assembly now reads
+//! each incident element once per block row and computes only the blocks on and right
+//! of the diagonal (the rest is mirrored), and the Galerkin product only its upper
+//! triangle; measured on one thread (CPU time per cycle, the machine was busy): 45 ms
+//! before, 35 ms after, of which element rotations and forces 12 ms before (polar
+//! Newton steps about half of it), row gather 5.4 ms, mirror 1.2 ms, Galerkin 8 ms before
+//! and 5 ms after, V-cycle 9-10 ms (six block SOR sweeps and a residual on the two finer
+//! levels, about 1.2 ms per finest sweep: half arithmetic, half traffic of the 11.5 MB
+//! finest matrix), Cholesky 1.5 ms. Still far from the 45 ms / 12 ms for five
+//! cycles. Not done yet: f32 blocks for the smoother (needs the correction form to keep
+//! stand-alone cycles converging to the f64 solution), unknowns renumbered by colour, a
+//! coarsest level small enough that its Cholesky is negligible.
 //!
 //! Use: [`Multigrid::cycle`] does one interactive step (reassemble every level at the
 //! current displacement, one V-cycle on the correction from zero, i.e. warm-started from
@@ -93,7 +93,9 @@
 use crate::direct::DirectSolver;
 use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
-use crate::system::{BlockCsr, Constraints, NOT_FREE, ReducedSystem, block_mul};
+use crate::system::{
+    BlockCsr, Constraints, IDENTITY_BLOCK, NOT_FREE, ReducedSystem, UpperTriangle,
+};
 use crate::transfer::Prolongation;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -195,7 +197,7 @@ struct Level {
     /// Number of unknowns.
     unknowns: usize,
     /// The Galerkin operator (coarse levels with [`CoarseOperator::Galerkin`]).
-    galerkin: Option<BlockCsr>,
+    galerkin: Option<Galerkin>,
     /// Unknowns grouped by colour (no two of one colour share a matrix block).
     colours: Vec<Vec<u32>>,
     /// Slot of the diagonal block of each row.
@@ -351,7 +353,7 @@ impl Level {
     /// The operator smoothed and solved on this level.
     fn op(&self) -> &BlockCsr {
         match (&self.galerkin, &self.system) {
-            (Some(g), _) => g,
+            (Some(g), _) => &g.op,
             (None, Some(s)) => &s.matrix,
             (None, None) => unreachable!("a level has a Galerkin operator or a system"),
         }
@@ -438,65 +440,67 @@ fn galerkin_pattern(a: &BlockCsr, t: &Transfer) -> BlockCsr {
     }
 }
 
-/// Fills `c = Pᵀ A P` on its pattern (parallel over coarse rows), with an identity
-/// diagonal block in the (otherwise zero) rows of inactive coarse unknowns. Each worker
-/// keeps a map from coarse column to slot of the current row (`u32::MAX` elsewhere), so
-/// the inner loop is a multiply-add without a search.
-fn galerkin_values(a: &BlockCsr, t: &Transfer, active: &[bool], c: &mut BlockCsr) {
-    let nc = c.block_rows();
-    let row_ptr = &c.row_ptr;
-    let cols = &c.cols;
-    let mut row_values: Vec<&mut [[f64; 9]]> = Vec::with_capacity(nc);
-    let mut rest: &mut [[f64; 9]] = &mut c.values;
-    for i in 0..nc {
-        let (head, tail) = rest.split_at_mut(row_ptr[i + 1] - row_ptr[i]);
-        row_values.push(head);
-        rest = tail;
-    }
-    row_values.into_par_iter().enumerate().for_each_init(
-        || vec![u32::MAX; nc],
-        |pos, (i, vals)| {
-            let rc = &cols[row_ptr[i]..row_ptr[i + 1]];
-            if !active[i] {
-                for (out, &j) in vals.iter_mut().zip(rc) {
-                    *out = if j as usize == i {
-                        [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-                    } else {
-                        [0.0; 9]
-                    };
+/// A Galerkin operator `Pᵀ A P` on its fixed pattern, with its upper triangle (the part
+/// computed; the rest is mirrored).
+#[derive(Debug, Clone)]
+struct Galerkin {
+    op: BlockCsr,
+    upper: UpperTriangle,
+}
+
+/// Fills `g = Pᵀ A P` on its pattern, with an identity diagonal block in the (otherwise
+/// zero) rows of inactive coarse unknowns: the upper triangle in parallel over coarse
+/// rows, then mirrored (exactly symmetric). Each worker keeps a map from coarse column
+/// to upper block of the current row (`u32::MAX` elsewhere), so the inner loop is a
+/// multiply-add without a search.
+fn galerkin_values(a: &BlockCsr, t: &Transfer, active: &[bool], g: &mut Galerkin) {
+    let nc = g.op.block_rows();
+    let row_ptr = &g.op.row_ptr;
+    let cols = &g.op.cols;
+    g.upper
+        .rows_mut()
+        .into_par_iter()
+        .enumerate()
+        .for_each_init(
+            || vec![u32::MAX; nc],
+            |pos, (i, vals)| {
+                vals.fill([0.0; 9]);
+                if !active[i] {
+                    vals[0] = IDENTITY_BLOCK;
+                    return;
                 }
-                return;
-            }
-            for (k, &j) in rc.iter().enumerate() {
-                pos[j as usize] = k as u32;
-            }
-            vals.iter_mut().for_each(|v| *v = [0.0; 9]);
-            for k in t.pt_ptr[i]..t.pt_ptr[i + 1] {
-                let f = t.pt_cols[k] as usize;
-                let wf = t.pt_w[k];
-                if wf == 0.0 {
-                    continue;
+                let rc = &cols[row_ptr[i + 1] - vals.len()..row_ptr[i + 1]];
+                for (k, &j) in rc.iter().enumerate() {
+                    pos[j as usize] = k as u32;
                 }
-                for s in a.row_ptr[f]..a.row_ptr[f + 1] {
-                    let g = a.cols[s] as usize;
-                    let blk = &a.values[s];
-                    for m in t.p_ptr[g]..t.p_ptr[g + 1] {
-                        let w = wf * t.p_w[m];
-                        if w == 0.0 {
-                            continue;
-                        }
-                        let out = &mut vals[pos[t.p_cols[m] as usize] as usize];
-                        for q in 0..9 {
-                            out[q] += w * blk[q];
+                for k in t.pt_ptr[i]..t.pt_ptr[i + 1] {
+                    let f = t.pt_cols[k] as usize;
+                    let wf = t.pt_w[k];
+                    if wf == 0.0 {
+                        continue;
+                    }
+                    for s in a.row_ptr[f]..a.row_ptr[f + 1] {
+                        let blk = &a.values[s];
+                        let g = a.cols[s] as usize;
+                        for m in t.p_ptr[g]..t.p_ptr[g + 1] {
+                            let j = t.p_cols[m] as usize;
+                            let w = wf * t.p_w[m];
+                            if j < i || w == 0.0 {
+                                continue;
+                            }
+                            let out = &mut vals[pos[j] as usize];
+                            for q in 0..9 {
+                                out[q] += w * blk[q];
+                            }
                         }
                     }
                 }
-            }
-            for &j in rc {
-                pos[j as usize] = u32::MAX;
-            }
-        },
-    );
+                for &j in rc {
+                    pos[j as usize] = u32::MAX;
+                }
+            },
+        );
+    g.upper.mirror_into(&mut g.op);
 }
 
 fn ms(d: Duration) -> f64 {
@@ -517,13 +521,9 @@ fn norm(a: &[DVec3]) -> f64 {
 
 /// `r = b - A x`.
 fn residual(a: &BlockCsr, x: &[DVec3], b: &[DVec3], r: &mut [DVec3]) {
-    r.par_iter_mut().enumerate().for_each(|(i, ri)| {
-        let mut s = b[i];
-        for k in a.row_ptr[i]..a.row_ptr[i + 1] {
-            s -= block_mul(&a.values[k], x[a.cols[k] as usize]);
-        }
-        *ri = s;
-    });
+    r.par_iter_mut()
+        .enumerate()
+        .for_each(|(i, ri)| *ri = b[i] - a.row_mul(i, x));
 }
 
 /// Colours with fewer rows than this are relaxed serially (in place): below it the
@@ -542,13 +542,7 @@ fn sor_colour(
     b: &[DVec3],
     buf: &mut Vec<DVec3>,
 ) {
-    let relax = |x: &[DVec3], i: usize| {
-        let mut s = b[i];
-        for k in a.row_ptr[i]..a.row_ptr[i + 1] {
-            s -= block_mul(&a.values[k], x[a.cols[k] as usize]);
-        }
-        x[i] + inv_diag[i] * (s * omega)
-    };
+    let relax = |x: &[DVec3], i: usize| x[i] + inv_diag[i] * ((b[i] - a.row_mul(i, x)) * omega);
     if rows.len() < SERIAL_COLOUR_ROWS {
         for &i in rows {
             x[i as usize] = relax(x, i as usize);
@@ -703,8 +697,11 @@ impl Multigrid {
         }
         for l in 0..built.len() {
             if l > 0 && galerkin {
-                let pattern = galerkin_pattern(built[l - 1].op(), &transfers[l - 1]);
-                built[l].galerkin = Some(pattern);
+                let op = galerkin_pattern(built[l - 1].op(), &transfers[l - 1]);
+                built[l].galerkin = Some(Galerkin {
+                    upper: UpperTriangle::new(&op),
+                    op,
+                });
             }
             let a = built[l].op();
             let colours = colour_rows(a);
@@ -926,7 +923,7 @@ impl Multigrid {
             }
             let level = &mut self.levels[l];
             let a = match (&level.galerkin, &level.system) {
-                (Some(g), _) => g,
+                (Some(g), _) => &g.op,
                 (None, Some(s)) => &s.matrix,
                 (None, None) => unreachable!("a level has a Galerkin operator or a system"),
             };
@@ -953,7 +950,7 @@ impl Multigrid {
             let g = level.galerkin.as_mut().expect("Galerkin operator");
             for &s in &level.diag_slot {
                 for q in [0, 4, 8] {
-                    g.values[s][q] *= 1.0 + COARSEST_SHIFT;
+                    g.op.values[s][q] *= 1.0 + COARSEST_SHIFT;
                 }
             }
         }

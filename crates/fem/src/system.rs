@@ -103,15 +103,21 @@ impl BlockCsr {
             .map(|k| r.start + k)
     }
 
+    /// `(A x)ᵢ`, row `i` of `A x`.
+    #[inline]
+    pub fn row_mul(&self, i: usize, x: &[DVec3]) -> DVec3 {
+        let r = self.row_ptr[i]..self.row_ptr[i + 1];
+        self.values[r.clone()]
+            .iter()
+            .zip(&self.cols[r])
+            .fold(DVec3::ZERO, |s, (b, &j)| s + block_mul(b, x[j as usize]))
+    }
+
     /// `y = A x` (parallel over rows).
     pub fn mul_vec(&self, x: &[DVec3], y: &mut [DVec3]) {
-        y.par_iter_mut().enumerate().for_each(|(i, yi)| {
-            let mut s = DVec3::ZERO;
-            for k in self.row_ptr[i]..self.row_ptr[i + 1] {
-                s += block_mul(&self.values[k], x[self.cols[k] as usize]);
-            }
-            *yi = s;
-        });
+        y.par_iter_mut()
+            .enumerate()
+            .for_each(|(i, yi)| *yi = self.row_mul(i, x));
     }
 
     /// The dense matrix (for tests on small systems), row-major, `3n x 3n`.
@@ -142,11 +148,13 @@ pub fn block_mul(b: &[f64; 9], x: DVec3) -> DVec3 {
     )
 }
 
-/// Per-element data the block gather reads: rotated gradients and forces.
+/// Per-element data the block gather reads: rotated gradients, forces, `V λ`, `V μ`.
 #[derive(Debug, Clone, Copy, Default)]
 struct ElementCore {
     rotated_grad: [DVec3; 4],
     force: [DVec3; 4],
+    vol_lambda: f64,
+    vol_mu: f64,
 }
 
 /// Per-element twist (geometric stiffness) term of [`Tangent::Full`].
@@ -171,13 +179,15 @@ pub struct ReducedSystem {
     pub matrix: BlockCsr,
     /// The reduced right-hand side `r_f = f_ext - f_int(u)` at the free vertices (mN).
     pub rhs: Vec<DVec3>,
-    /// For each block slot, its contributions `contrib_ptr[s]..contrib_ptr[s + 1]` in
-    /// `contrib`, each `element << 4 | a << 2 | b` (local corners), sorted by element.
-    contrib_ptr: Vec<usize>,
-    contrib: Vec<u32>,
     /// For each unknown, the incident elements `element << 2 | a`, sorted by element.
     incident_ptr: Vec<usize>,
     incident: Vec<u32>,
+    /// For each incidence `(element, a)` of row `i`, and each corner `b`, the index of
+    /// the block `(i, t[b])` within row `i`'s upper part (diagonal first), or
+    /// [`NOT_FREE`] where `t[b]` is no unknown or left of the diagonal.
+    incident_slots: Vec<[u32; 4]>,
+    /// The upper block triangle of `matrix`, which the assembly computes.
+    upper: UpperTriangle,
     /// Rotated gradients and forces of each element, latest assembly.
     cores: Vec<ElementCore>,
     /// Twist terms of each element for [`Tangent::Full`] (empty otherwise).
@@ -255,48 +265,44 @@ impl ReducedSystem {
             }
         }
         let prescribed: Vec<DVec3> = table.iter().map(|d| d.unwrap_or(DVec3::ZERO)).collect();
-        // per free row: (column, contribution) sorted by column then element
-        let rows: Vec<(Vec<u32>, Vec<usize>, Vec<u32>)> = free
+        // per free row: its sorted columns, and the slots of its incidences
+        let rows: Vec<(Vec<u32>, Vec<[u32; 4]>)> = free
             .par_iter()
-            .map(|&v| {
-                let mut entries: Vec<(u32, u32)> = Vec::new();
-                for &ea in &vertex_inc[vertex_ptr[v as usize]..vertex_ptr[v as usize + 1]] {
-                    let e = (ea >> 2) as usize;
-                    let a = ea & 3;
-                    for (b, &w) in tets[e].iter().enumerate() {
-                        let col = reduced_of[w as usize];
-                        if col != NOT_FREE {
-                            entries.push((col, ((e as u32) << 4) | (a << 2) | b as u32));
-                        }
-                    }
-                }
-                entries.sort_unstable();
-                let mut cols = Vec::new();
-                let mut ptr = vec![0usize];
-                let mut contrib = Vec::with_capacity(entries.len());
-                for (k, &(c, x)) in entries.iter().enumerate() {
-                    if k > 0 && entries[k - 1].0 != c {
-                        ptr.push(contrib.len());
-                    }
-                    if k == 0 || entries[k - 1].0 != c {
-                        cols.push(c);
-                    }
-                    contrib.push(x);
-                }
-                ptr.push(contrib.len());
-                (cols, ptr, contrib)
+            .enumerate()
+            .map(|(i, &v)| {
+                let inc = &vertex_inc[vertex_ptr[v as usize]..vertex_ptr[v as usize + 1]];
+                let mut cols: Vec<u32> = inc
+                    .iter()
+                    .flat_map(|&ea| tets[(ea >> 2) as usize])
+                    .map(|w| reduced_of[w as usize])
+                    .filter(|&c| c != NOT_FREE)
+                    .collect();
+                cols.sort_unstable();
+                cols.dedup();
+                let diag = cols.partition_point(|&c| (c as usize) < i);
+                let slots = inc
+                    .iter()
+                    .map(|&ea| {
+                        tets[(ea >> 2) as usize].map(|w| {
+                            let c = reduced_of[w as usize];
+                            if c == NOT_FREE || (c as usize) < i {
+                                NOT_FREE
+                            } else {
+                                cols[diag..].binary_search(&c).expect("column in row") as u32
+                            }
+                        })
+                    })
+                    .collect();
+                (cols, slots)
             })
             .collect();
         let mut row_ptr = vec![0usize];
         let mut cols = Vec::new();
-        let mut contrib_ptr = vec![0usize];
-        let mut contrib = Vec::new();
-        for (c, p, x) in rows {
+        let mut incident_slots = Vec::new();
+        for (c, sl) in rows {
             cols.extend_from_slice(&c);
             row_ptr.push(cols.len());
-            let base = contrib.len();
-            contrib_ptr.extend(p[1..].iter().map(|k| base + k));
-            contrib.extend_from_slice(&x);
+            incident_slots.extend_from_slice(&sl);
         }
         let mut incident_ptr = vec![0usize];
         let mut incident = Vec::new();
@@ -308,7 +314,14 @@ impl ReducedSystem {
         let slots = cols.len();
         let permanent_held: Vec<bool> = table.iter().map(Option::is_some).collect();
         let held_count = permanent_held.iter().filter(|&&h| h).count();
+        let matrix = BlockCsr {
+            row_ptr,
+            cols,
+            values: vec![[0.0; 9]; slots],
+        };
         Ok(ReducedSystem {
+            upper: UpperTriangle::new(&matrix),
+            matrix,
             reduced_of,
             eliminated: vec![false; free.len()],
             permanent: prescribed.clone(),
@@ -318,15 +331,9 @@ impl ReducedSystem {
             prescribed,
             rhs: vec![DVec3::ZERO; free.len()],
             free,
-            matrix: BlockCsr {
-                row_ptr,
-                cols,
-                values: vec![[0.0; 9]; slots],
-            },
-            contrib_ptr,
-            contrib,
             incident_ptr,
             incident,
+            incident_slots,
             cores: Vec::new(),
             twists: Vec::new(),
         })
@@ -453,9 +460,10 @@ impl ReducedSystem {
     /// block, zero off-diagonal blocks in their row and column, and a zero right-hand
     /// side. `f_ext` (mN, one per
     /// vertex) may be empty for no external force. Parallel: one pass over elements
-    /// (rotations, rotated gradients, forces), one pass over block rows gathering each
-    /// slot's contributions in a fixed order (so the matrix is exactly symmetric and the
-    /// result is deterministic).
+    /// (rotations, rotated gradients, forces); one pass over block rows that reads each
+    /// incident element once and adds its blocks on and right of the diagonal (each
+    /// block sums its elements in element order: deterministic) and its forces to the
+    /// right-hand side; one pass mirroring the lower triangle (exactly symmetric).
     pub fn assemble(
         &mut self,
         model: &FemModel,
@@ -470,6 +478,13 @@ impl ReducedSystem {
         }
         let ne = model.element_count();
         let full = formulation == Formulation::Corotated && tangent == Tangent::Full;
+        let elements = model.elements();
+        let core = |e: usize, (rotated_grad, force)| ElementCore {
+            rotated_grad,
+            force,
+            vol_lambda: elements[e].vol_lambda,
+            vol_mu: elements[e].vol_mu,
+        };
         self.cores.resize(ne, ElementCore::default());
         if full {
             self.twists.resize(ne, ElementTwist::default());
@@ -479,10 +494,7 @@ impl ReducedSystem {
                 .enumerate()
                 .for_each(|(e, (c, t))| {
                     let s = model.element_state(e, u, formulation, tangent);
-                    *c = ElementCore {
-                        rotated_grad: s.rotated_grad,
-                        force: s.force,
-                    };
+                    *c = core(e, (s.rotated_grad, s.force));
                     *t = ElementTwist {
                         twist: s.twist,
                         coef: s.twist_coef,
@@ -491,120 +503,189 @@ impl ReducedSystem {
         } else {
             self.twists.clear();
             self.cores.par_iter_mut().enumerate().for_each(|(e, c)| {
-                let s = model.element_state(e, u, formulation, tangent);
-                *c = ElementCore {
-                    rotated_grad: s.rotated_grad,
-                    force: s.force,
-                };
+                *c = core(e, model.element_warped(e, u, formulation));
             });
         }
-        let states = &self.cores;
+        let cores = &self.cores;
         let twists = &self.twists;
-        let elements = model.elements();
-        let m = &mut self.matrix;
-        let contrib_ptr = &self.contrib_ptr;
-        let contrib = &self.contrib;
-        // rows are independent: split the value array by rows
-        let mut row_values: Vec<&mut [[f64; 9]]> = Vec::with_capacity(m.block_rows());
-        let mut rest: &mut [[f64; 9]] = &mut m.values;
-        for i in 0..m.row_ptr.len() - 1 {
-            let (head, tail) = rest.split_at_mut(m.row_ptr[i + 1] - m.row_ptr[i]);
-            row_values.push(head);
-            rest = tail;
-        }
-        let row_ptr = &m.row_ptr;
-        let cols = &m.cols;
+        let row_ptr = &self.matrix.row_ptr;
+        let cols = &self.matrix.cols;
         let eliminated = &self.eliminated;
-        row_values
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(i, vals)| {
-                if eliminated[i] {
-                    // a held unknown: identity diagonal block, zero row
-                    for (k, out) in vals.iter_mut().enumerate() {
-                        *out = if cols[row_ptr[i] + k] as usize == i {
-                            [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-                        } else {
-                            [0.0; 9]
-                        };
-                    }
-                    return;
-                }
-                for (k, out) in vals.iter_mut().enumerate() {
-                    let s = row_ptr[i] + k;
-                    let mut b = [0.0; 9];
-                    if eliminated[cols[s] as usize] {
-                        // a held unknown's column: eliminated
-                        *out = b;
-                        continue;
-                    }
-                    for &c in &contrib[contrib_ptr[s]..contrib_ptr[s + 1]] {
-                        let e = (c >> 4) as usize;
-                        let a = ((c >> 2) & 3) as usize;
-                        let bb = (c & 3) as usize;
-                        let h = &states[e].rotated_grad;
-                        let (ha, hb) = (h[a], h[bb]);
-                        let vm = elements[e].vol_mu;
-                        let d = vm * ha.dot(hb);
-                        // V λ hₐ h_bᵀ + V μ h_b hₐᵀ from the nine products hₐ[p] h_b[q],
-                        // rounded alike for the blocks (a, b) and (b, a): the matrix
-                        // stays exactly symmetric
-                        let vl = elements[e].vol_lambda;
-                        let ha = ha.to_array();
-                        let hb = hb.to_array();
-                        let mut prod = [0.0; 9];
-                        for p in 0..3 {
-                            for q in 0..3 {
-                                prod[3 * p + q] = ha[p] * hb[q];
-                            }
-                        }
-                        for p in 0..3 {
-                            for q in 0..3 {
-                                b[3 * p + q] += vl * prod[3 * p + q] + vm * prod[3 * q + p];
-                            }
-                        }
-                        b[0] += d;
-                        b[4] += d;
-                        b[8] += d;
-                        if !full {
-                            continue;
-                        }
-                        let st = &twists[e];
-                        for m in 0..3 {
-                            let c = st.coef[m];
-                            if c != 0.0 {
-                                let ta = st.twist[m][a].to_array();
-                                let tb = st.twist[m][bb].to_array();
-                                for p in 0..3 {
-                                    for q in 0..3 {
-                                        b[3 * p + q] += c * (ta[p] * tb[q]);
-                                    }
-                                }
-                            }
-                        }
-                    }
-                    *out = b;
-                }
-            });
         let incident_ptr = &self.incident_ptr;
         let incident = &self.incident;
+        let incident_slots = &self.incident_slots;
         let free = &self.free;
-        let eliminated = &self.eliminated;
-        self.rhs.par_iter_mut().enumerate().for_each(|(k, r)| {
-            if eliminated[k] {
-                *r = DVec3::ZERO;
-                return;
-            }
-            let mut f = if f_ext.is_empty() {
-                DVec3::ZERO
-            } else {
-                f_ext[free[k] as usize]
-            };
-            for &ea in &incident[incident_ptr[k]..incident_ptr[k + 1]] {
-                f -= states[(ea >> 2) as usize].force[(ea & 3) as usize];
-            }
-            *r = f;
-        });
+        // the upper block triangle and the right-hand side, row by row: each block sums
+        // its elements' contributions in element order (deterministic)
+        self.upper
+            .rows_mut()
+            .into_par_iter()
+            .zip(self.rhs.par_iter_mut())
+            .enumerate()
+            .for_each(|(i, (vals, r))| {
+                vals.fill([0.0; 9]);
+                if eliminated[i] {
+                    // a held unknown: identity diagonal block, zero row and right-hand side
+                    vals[0] = IDENTITY_BLOCK;
+                    *r = DVec3::ZERO;
+                    return;
+                }
+                let ucols = &cols[row_ptr[i + 1] - vals.len()..row_ptr[i + 1]];
+                let mut f = if f_ext.is_empty() {
+                    DVec3::ZERO
+                } else {
+                    f_ext[free[i] as usize]
+                };
+                for k in incident_ptr[i]..incident_ptr[i + 1] {
+                    let e = (incident[k] >> 2) as usize;
+                    let a = (incident[k] & 3) as usize;
+                    let c = &cores[e];
+                    f -= c.force[a];
+                    for (b, &s) in incident_slots[k].iter().enumerate() {
+                        // a held unknown's column stays zero (eliminated)
+                        if s == NOT_FREE || eliminated[ucols[s as usize] as usize] {
+                            continue;
+                        }
+                        let out = &mut vals[s as usize];
+                        add_element_block(out, c, a, b);
+                        if full {
+                            add_twist_block(out, &twists[e], a, b);
+                        }
+                    }
+                }
+                *r = f;
+            });
+        self.upper.mirror_into(&mut self.matrix);
         Ok(())
+    }
+}
+
+/// The identity 3x3 block.
+pub(crate) const IDENTITY_BLOCK: [f64; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+
+/// The transpose of a row-major 3x3 block.
+#[inline]
+pub(crate) fn transposed(b: &[f64; 9]) -> [f64; 9] {
+    [b[0], b[3], b[6], b[1], b[4], b[7], b[2], b[5], b[8]]
+}
+
+/// The upper block triangle (diagonal and right of it) of a symmetric [`BlockCsr`]
+/// pattern, filled row by row and mirrored into the full matrix: the lower blocks are
+/// the transposes of the upper ones, so the matrix is exactly symmetric.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct UpperTriangle {
+    /// Row `i`'s upper blocks are `ptr[i]..ptr[i + 1]` of `values`, diagonal first.
+    ptr: Vec<usize>,
+    /// Block values, row-major 3x3.
+    values: Vec<[f64; 9]>,
+    /// For each block left of the diagonal of the full matrix, in row order, the index
+    /// in `values` of its transpose.
+    lower_src: Vec<u32>,
+}
+
+impl UpperTriangle {
+    /// The upper triangle of the pattern of `a` (structurally symmetric, every diagonal
+    /// block present).
+    pub(crate) fn new(a: &BlockCsr) -> UpperTriangle {
+        let n = a.block_rows();
+        let mut ptr = vec![0usize];
+        for i in 0..n {
+            let row = &a.cols[a.row_ptr[i]..a.row_ptr[i + 1]];
+            ptr.push(ptr[i] + row.len() - row.partition_point(|&j| (j as usize) < i));
+        }
+        // rows i ascending meet the blocks (j, i), j < i, of row j in column order
+        let mut next = ptr.clone();
+        let mut lower_src = Vec::with_capacity(a.cols.len() - ptr[n]);
+        for i in 0..n {
+            for &j in &a.cols[a.row_ptr[i]..a.row_ptr[i + 1]] {
+                let j = j as usize;
+                if j < i {
+                    next[j] += 1;
+                    lower_src.push(next[j] as u32);
+                }
+            }
+        }
+        UpperTriangle {
+            values: vec![[0.0; 9]; ptr[n]],
+            ptr,
+            lower_src,
+        }
+    }
+
+    /// The rows of the upper triangle, to be filled (row `i` starts with its diagonal
+    /// block, then the columns right of it in the order of the full pattern).
+    pub(crate) fn rows_mut(&mut self) -> Vec<&mut [[f64; 9]]> {
+        split_rows(&mut self.values, &self.ptr)
+    }
+
+    /// Writes the full matrix `a` (the pattern given to [`UpperTriangle::new`]): upper
+    /// blocks copied, lower blocks transposed (parallel over rows).
+    pub(crate) fn mirror_into(&self, a: &mut BlockCsr) {
+        let (ptr, values, lower_src) = (&self.ptr, &self.values, &self.lower_src);
+        let row_ptr = &a.row_ptr;
+        split_rows(&mut a.values, row_ptr)
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(i, row)| {
+                let (lower, upper) = row.split_at_mut(row.len() - (ptr[i + 1] - ptr[i]));
+                let src = &lower_src[row_ptr[i] - ptr[i]..];
+                for (out, &s) in lower.iter_mut().zip(src) {
+                    *out = transposed(&values[s as usize]);
+                }
+                upper.copy_from_slice(&values[ptr[i]..ptr[i + 1]]);
+            });
+    }
+}
+
+/// `values` split into the rows of `ptr` (row `i` is `ptr[i]..ptr[i + 1]`).
+fn split_rows<'a, T>(mut values: &'a mut [T], ptr: &[usize]) -> Vec<&'a mut [T]> {
+    let mut rows = Vec::with_capacity(ptr.len().saturating_sub(1));
+    for w in ptr.windows(2) {
+        let (head, tail) = values.split_at_mut(w[1] - w[0]);
+        rows.push(head);
+        values = tail;
+    }
+    rows
+}
+
+/// Adds the element's block `(a, b)` of `R K Rᵀ`, `V λ hₐ h_bᵀ + V μ h_b hₐᵀ +
+/// V μ (hₐ·h_b) I`, to `out`; the nine products `hₐ[p] h_b[q]` are rounded alike for
+/// the blocks `(a, b)` and `(b, a)`.
+#[inline]
+fn add_element_block(out: &mut [f64; 9], c: &ElementCore, a: usize, b: usize) {
+    let (ha, hb) = (c.rotated_grad[a], c.rotated_grad[b]);
+    let d = c.vol_mu * ha.dot(hb);
+    let ha = ha.to_array();
+    let hb = hb.to_array();
+    let mut prod = [0.0; 9];
+    for p in 0..3 {
+        for q in 0..3 {
+            prod[3 * p + q] = ha[p] * hb[q];
+        }
+    }
+    for p in 0..3 {
+        for q in 0..3 {
+            out[3 * p + q] += c.vol_lambda * prod[3 * p + q] + c.vol_mu * prod[3 * q + p];
+        }
+    }
+    out[0] += d;
+    out[4] += d;
+    out[8] += d;
+}
+
+/// Adds the twist term `Σ coef · t_a t_bᵀ` of [`Tangent::Full`] to block `(a, b)`.
+#[inline]
+fn add_twist_block(out: &mut [f64; 9], t: &ElementTwist, a: usize, b: usize) {
+    for m in 0..3 {
+        let c = t.coef[m];
+        if c != 0.0 {
+            let ta = t.twist[m][a].to_array();
+            let tb = t.twist[m][b].to_array();
+            for p in 0..3 {
+                for q in 0..3 {
+                    out[3 * p + q] += c * (ta[p] * tb[q]);
+                }
+            }
+        }
     }
 }
