@@ -37,6 +37,32 @@
 //!   step, 5.97 / 7.9e-4; the same with ω = 1.3: 6.74 / 3.8e-4; ω = 1.5: 6.94 / 2.8e-4.
 //!   Over-relaxation helps the smooth error near free surfaces that the coarse P1 space
 //!   represents poorly (the slowest mode on the box is concentrated there).
+//! - Smoothed prolongation ([`MultigridOptions::prolongation_smoothing`], off by
+//!   default): the finest transfer becomes `P_s = (I - ω_P D⁻¹ A) P` (one damped block
+//!   Jacobi step on the barycentric `P`, 3x3 blocks, recomputed at every assembly) and
+//!   the first coarse operator `P_sᵀ A P_s`. The slowest error of the plain cycle is a
+//!   smooth, nearly incompressible mode spread over the free surface around the pushed
+//!   patch (on the box, about 60% of its energy lies in the top 20 mm outside the
+//!   patch): a coarse P1 hat function represents it only with a large volumetric
+//!   (λ-weighted) energy, so the Galerkin correction misses it and the point smoother
+//!   cannot reach it either. The Jacobi step widens every coarse basis function by one
+//!   fine ring and removes most of that energy (smoothed aggregation's idea); rigid
+//!   motions stay in the coarse space (`A` annihilates them at free rows). Measured with
+//!   ω_P = 0.5 (V(2,1), ν = 0.45, residual reduction of cycles 1-5 from zero): box
+//!   62,208 tetrahedra, 3 levels 12.1, 7.7, 6.3, 5.8, 5.07 (plain 10.3, 4.8, 3.3, 2.8,
+//!   2.6); real hierarchy of `v02_average` (59,506 tetrahedra, 2 levels) 26.0, 10.6, 8.9,
+//!   6.8, 5.6 (plain 23.8, 7.9, 5.2, 4.3, 3.9); error after five cycles 3.0e-5 and
+//!   3.5e-5 (plain 2.2e-3, 2.8e-4). Smoothing every transfer instead of the finest
+//!   only gains nothing (box 5.10 in cycle 5) and costs far more. Local extra sweeps near the held patch, its rim, the
+//!   free boundary or extrapolated rows, other ω, W-cycles on the coarse levels, twice
+//!   the sweeps, and `P_s` restricted to the pattern of `P` all stay below 5 per cycle
+//!   on the box. The price is density: `P_s` has about 12-14 blocks a row instead of 4,
+//!   and the first coarse operator, its Galerkin product and (with two levels) its
+//!   Cholesky factor grow accordingly. Medians of one interactive [`Multigrid::cycle`]
+//!   (corotated) on this 2-core machine under a load of about 5, plain / smoothed: box
+//!   60 / 136-154 ms (Galerkin 16 / 73-78, V-cycle 12 / 23-28); `v02_average` with 2
+//!   levels 111-118 / 235-255 ms (coarsest Cholesky 61-63 / 144-162), with its 3 levels
+//!   64-70 / 106-120 ms: about 1.7-2.6 times the plain cycle, hence off by default.
 //! - Changeable constraints ([`Multigrid::set_constraints`], issue 6: the implant's
 //!   displacement template changes whenever the implant moves): the hierarchy is built
 //!   once with the permanent constraints only ([`Multigrid::with_permanent_constraints`],
@@ -94,7 +120,7 @@ use crate::direct::DirectSolver;
 use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
 use crate::system::{
-    BlockCsr, Constraints, IDENTITY_BLOCK, NOT_FREE, ReducedSystem, UpperTriangle,
+    BlockCsr, Constraints, IDENTITY_BLOCK, NOT_FREE, ReducedSystem, UpperTriangle, split_rows,
 };
 use crate::transfer::Prolongation;
 use glam::{DMat3, DVec3};
@@ -118,6 +144,11 @@ pub struct MultigridOptions {
     pub relaxation: f64,
     /// How the coarse operators are built.
     pub coarse_operator: CoarseOperator,
+    /// Damping ω_P of the smoothed finest prolongation `P_s = (I - ω_P D⁻¹ A) P`
+    /// (dimensionless, `D` the 3x3 diagonal blocks of the finest operator); 0 (the
+    /// default) keeps the barycentric `P`. Galerkin only; 0.5 measured best (see the
+    /// module documentation), at a much higher coarse-operator cost.
+    pub prolongation_smoothing: f64,
 }
 
 /// How the coarse levels' operators are built.
@@ -145,6 +176,7 @@ impl Default for MultigridOptions {
             sweeps_per_step: 2,
             relaxation: 1.5,
             coarse_operator: CoarseOperator::Galerkin,
+            prolongation_smoothing: 0.0,
         }
     }
 }
@@ -230,6 +262,28 @@ struct Transfer {
     pt_src: Vec<usize>,
     /// Coarse vertices located in the fine mesh (rows: coarse vertices).
     sample: Prolongation,
+    /// The smoothed prolongation replacing `P` in the cycle and the Galerkin product
+    /// (finest transfer with [`MultigridOptions::prolongation_smoothing`] > 0).
+    smoothed: Option<SmoothedProlongation>,
+}
+
+/// `P_s = (I - ω D⁻¹ A) P` with 3x3 blocks (rows: fine unknowns, columns: coarse
+/// unknowns), its transpose's pattern, and `Q = A P_s` for the Galerkin product. The
+/// patterns are built once; the values follow every assembly of `A` (and the masked `P`).
+#[derive(Debug, Clone)]
+struct SmoothedProlongation {
+    omega: f64,
+    ptr: Vec<usize>,
+    cols: Vec<u32>,
+    w: Vec<DMat3>,
+    /// `P_sᵀ`: rows are coarse unknowns; `t_src` gives the entry of `P_s`.
+    t_ptr: Vec<usize>,
+    t_cols: Vec<u32>,
+    t_src: Vec<usize>,
+    /// `Q = A P_s` (rows: fine unknowns).
+    q_ptr: Vec<usize>,
+    q_cols: Vec<u32>,
+    q: Vec<DMat3>,
 }
 
 /// Geometric multigrid over non-nested tetrahedral levels, see the module documentation.
@@ -295,6 +349,7 @@ impl Transfer {
             pt_w,
             pt_src,
             sample,
+            smoothed: None,
         }
     }
 
@@ -406,6 +461,195 @@ fn galerkin_unknowns(p: &Prolongation, fine_reduced_of: &[u32], coarse: &FemMode
         .collect()
 }
 
+/// CSR rows `i` of `a` (block pattern) times the rows of `(b_ptr, b_cols)`: for each
+/// row the sorted union of the `b` columns over the columns of `a`'s row.
+fn product_pattern(a: &BlockCsr, b_ptr: &[usize], b_cols: &[u32]) -> (Vec<usize>, Vec<u32>) {
+    let rows: Vec<Vec<u32>> = (0..a.block_rows())
+        .into_par_iter()
+        .map(|i| {
+            let mut cols = Vec::new();
+            for s in a.row_ptr[i]..a.row_ptr[i + 1] {
+                let g = a.cols[s] as usize;
+                cols.extend_from_slice(&b_cols[b_ptr[g]..b_ptr[g + 1]]);
+            }
+            cols.sort_unstable();
+            cols.dedup();
+            cols
+        })
+        .collect();
+    let mut ptr = vec![0usize];
+    let mut cols = Vec::new();
+    for r in rows {
+        cols.extend_from_slice(&r);
+        ptr.push(cols.len());
+    }
+    (ptr, cols)
+}
+
+impl SmoothedProlongation {
+    /// The patterns for the fine operator pattern `a` and the transfer `t`.
+    fn new(a: &BlockCsr, t: &Transfer, omega: f64) -> SmoothedProlongation {
+        let (ptr, cols) = product_pattern(a, &t.p_ptr, &t.p_cols);
+        let nc = t.pt_ptr.len() - 1;
+        let mut t_ptr = vec![0usize; nc + 1];
+        for &c in &cols {
+            t_ptr[c as usize + 1] += 1;
+        }
+        for i in 0..nc {
+            t_ptr[i + 1] += t_ptr[i];
+        }
+        let mut fill = t_ptr.clone();
+        let mut t_cols = vec![0u32; cols.len()];
+        let mut t_src = vec![0usize; cols.len()];
+        for f in 0..ptr.len() - 1 {
+            for (k, &c) in cols.iter().enumerate().take(ptr[f + 1]).skip(ptr[f]) {
+                let c = c as usize;
+                t_cols[fill[c]] = f as u32;
+                t_src[fill[c]] = k;
+                fill[c] += 1;
+            }
+        }
+        let (q_ptr, q_cols) = product_pattern(a, &ptr, &cols);
+        SmoothedProlongation {
+            omega,
+            w: vec![DMat3::ZERO; cols.len()],
+            ptr,
+            cols,
+            t_ptr,
+            t_cols,
+            t_src,
+            q: vec![DMat3::ZERO; q_cols.len()],
+            q_ptr,
+            q_cols,
+        }
+    }
+
+    /// Recomputes `P_s` from the masked `P` of `t`, the fine operator `a` and its inverse
+    /// diagonal blocks, then `Q = A P_s` (parallel over fine rows).
+    fn update(&mut self, a: &BlockCsr, inv_diag: &[DMat3], t: &Transfer) {
+        let nc = t.pt_ptr.len() - 1;
+        let omega = self.omega;
+        let (ptr, cols) = (&self.ptr, &self.cols);
+        split_rows(&mut self.w, ptr)
+            .into_par_iter()
+            .enumerate()
+            .for_each_init(
+                || vec![u32::MAX; nc],
+                |pos, (f, out)| {
+                    let rc = &cols[ptr[f]..ptr[f + 1]];
+                    for (k, &c) in rc.iter().enumerate() {
+                        pos[c as usize] = k as u32;
+                    }
+                    out.fill(DMat3::ZERO);
+                    for k in t.p_ptr[f]..t.p_ptr[f + 1] {
+                        out[pos[t.p_cols[k] as usize] as usize] +=
+                            DMat3::from_diagonal(DVec3::splat(t.p_w[k]));
+                    }
+                    for s in a.row_ptr[f]..a.row_ptr[f + 1] {
+                        let g = a.cols[s] as usize;
+                        let m = inv_diag[f] * block_of(&a.values[s]) * omega;
+                        for k in t.p_ptr[g]..t.p_ptr[g + 1] {
+                            if t.p_w[k] != 0.0 {
+                                out[pos[t.p_cols[k] as usize] as usize] -= m * t.p_w[k];
+                            }
+                        }
+                    }
+                    for &c in rc {
+                        pos[c as usize] = u32::MAX;
+                    }
+                },
+            );
+        let (w, q_ptr, q_cols) = (&self.w, &self.q_ptr, &self.q_cols);
+        split_rows(&mut self.q, q_ptr)
+            .into_par_iter()
+            .enumerate()
+            .for_each_init(
+                || vec![u32::MAX; nc],
+                |pos, (f, out)| {
+                    let rc = &q_cols[q_ptr[f]..q_ptr[f + 1]];
+                    for (k, &c) in rc.iter().enumerate() {
+                        pos[c as usize] = k as u32;
+                    }
+                    out.fill(DMat3::ZERO);
+                    for s in a.row_ptr[f]..a.row_ptr[f + 1] {
+                        let g = a.cols[s] as usize;
+                        let blk = block_of(&a.values[s]);
+                        for k in ptr[g]..ptr[g + 1] {
+                            out[pos[cols[k] as usize] as usize] += blk * w[k];
+                        }
+                    }
+                    for &c in rc {
+                        pos[c as usize] = u32::MAX;
+                    }
+                },
+            );
+    }
+
+    /// Pattern of `P_sᵀ A P_s` (rows: coarse unknowns), values zero.
+    fn galerkin_pattern(&self) -> BlockCsr {
+        let nc = self.t_ptr.len() - 1;
+        let rows: Vec<Vec<u32>> = (0..nc)
+            .into_par_iter()
+            .map(|i| {
+                let mut cols = vec![i as u32];
+                for k in self.t_ptr[i]..self.t_ptr[i + 1] {
+                    let f = self.t_cols[k] as usize;
+                    cols.extend_from_slice(&self.q_cols[self.q_ptr[f]..self.q_ptr[f + 1]]);
+                }
+                cols.sort_unstable();
+                cols.dedup();
+                cols
+            })
+            .collect();
+        zero_matrix(rows)
+    }
+
+    /// Fills `c = P_sᵀ Q` on its pattern (parallel over coarse rows), with an identity
+    /// diagonal block in the rows of inactive coarse unknowns.
+    fn galerkin_values(&self, active: &[bool], c: &mut BlockCsr) {
+        let nc = c.block_rows();
+        let (row_ptr, cols) = (&c.row_ptr, &c.cols);
+        split_rows(&mut c.values, row_ptr)
+            .into_par_iter()
+            .enumerate()
+            .for_each_init(
+                || (vec![u32::MAX; nc], Vec::new()),
+                |(pos, acc), (i, vals)| {
+                    let rc = &cols[row_ptr[i]..row_ptr[i + 1]];
+                    if !active[i] {
+                        for (out, &j) in vals.iter_mut().zip(rc) {
+                            *out = if j as usize == i {
+                                IDENTITY_BLOCK
+                            } else {
+                                [0.0; 9]
+                            };
+                        }
+                        return;
+                    }
+                    for (k, &j) in rc.iter().enumerate() {
+                        pos[j as usize] = k as u32;
+                    }
+                    acc.clear();
+                    acc.resize(rc.len(), DMat3::ZERO);
+                    for k in self.t_ptr[i]..self.t_ptr[i + 1] {
+                        let f = self.t_cols[k] as usize;
+                        let wt = self.w[self.t_src[k]].transpose();
+                        for m in self.q_ptr[f]..self.q_ptr[f + 1] {
+                            acc[pos[self.q_cols[m] as usize] as usize] += wt * self.q[m];
+                        }
+                    }
+                    for (out, m) in vals.iter_mut().zip(acc.iter()) {
+                        // row-major, as `block_of` reads it
+                        *out = m.transpose().to_cols_array();
+                    }
+                    for &j in rc {
+                        pos[j as usize] = u32::MAX;
+                    }
+                },
+            );
+    }
+}
+
 /// Pattern of `Pᵀ A P` (rows: coarse unknowns), values zero.
 fn galerkin_pattern(a: &BlockCsr, t: &Transfer) -> BlockCsr {
     let nc = t.pt_ptr.len() - 1;
@@ -426,6 +670,11 @@ fn galerkin_pattern(a: &BlockCsr, t: &Transfer) -> BlockCsr {
             cols
         })
         .collect();
+    zero_matrix(rows)
+}
+
+/// A block matrix with the sorted columns `rows` per row, values zero.
+fn zero_matrix(rows: Vec<Vec<u32>>) -> BlockCsr {
     let mut row_ptr = vec![0usize];
     let mut cols = Vec::new();
     for r in rows {
@@ -591,8 +840,9 @@ impl Multigrid {
     /// with [`CoarseOperator::Rediscretised`] every level needs its own.
     ///
     /// Errors: see [`ReducedSystem::new`]; a level without tetrahedra;
-    /// [`FemError::InvalidOptions`] if `options.sweeps_per_step` is zero or
-    /// `options.relaxation` is outside (0, 2).
+    /// [`FemError::InvalidOptions`] if `options.sweeps_per_step` is zero,
+    /// `options.relaxation` is outside (0, 2), or `options.prolongation_smoothing` is
+    /// outside [0, 1] or positive with rediscretised coarse operators.
     pub fn new(
         levels: Vec<(FemModel, Constraints)>,
         options: MultigridOptions,
@@ -641,6 +891,15 @@ impl Multigrid {
             });
         }
         let galerkin = options.coarse_operator == CoarseOperator::Galerkin;
+        let ps = options.prolongation_smoothing;
+        if !(0.0..=1.0).contains(&ps) || (ps > 0.0 && !galerkin) {
+            return Err(FemError::InvalidOptions {
+                what: format!(
+                    "multigrid prolongation_smoothing {ps}, need 0 <= ω_P <= 1 and Galerkin \
+                     coarse operators when positive"
+                ),
+            });
+        }
         let empty = || FemError::LengthMismatch {
             what: "tetrahedra of a multigrid level",
             expected: 1,
@@ -697,7 +956,16 @@ impl Multigrid {
         }
         for l in 0..built.len() {
             if l > 0 && galerkin {
-                let op = galerkin_pattern(built[l - 1].op(), &transfers[l - 1]);
+                let fine = built[l - 1].op();
+                let t = &mut transfers[l - 1];
+                let op = if l == 1 && ps > 0.0 {
+                    let smoothed = SmoothedProlongation::new(fine, t, ps);
+                    let pattern = smoothed.galerkin_pattern();
+                    t.smoothed = Some(smoothed);
+                    pattern
+                } else {
+                    galerkin_pattern(fine, t)
+                };
                 built[l].galerkin = Some(Galerkin {
                     upper: UpperTriangle::new(&op),
                     op,
@@ -905,7 +1173,15 @@ impl Multigrid {
                 let (fine, coarse) = self.levels.split_at_mut(l);
                 let level = &mut coarse[0];
                 let c = level.galerkin.as_mut().expect("Galerkin pattern");
-                galerkin_values(fine[l - 1].op(), &self.transfers[l - 1], &level.active, c);
+                let t = &mut self.transfers[l - 1];
+                match t.smoothed.take() {
+                    Some(mut smoothed) => {
+                        smoothed.update(fine[l - 1].op(), &fine[l - 1].inv_diag, t);
+                        smoothed.galerkin_values(&level.active, &mut c.op);
+                        t.smoothed = Some(smoothed);
+                    }
+                    None => galerkin_values(fine[l - 1].op(), t, &level.active, c),
+                }
             } else {
                 let level = &mut self.levels[l];
                 let f = if l == 0 { f_ext } else { &[] };
@@ -1011,17 +1287,27 @@ impl Multigrid {
             residual(level.op(), &self.xs[l], &self.bs[l], &mut self.rs[l]);
             let t = &self.transfers[l];
             let r = &self.rs[l];
+            let restrict = |(c, bc): (usize, &mut DVec3)| {
+                let mut s = DVec3::ZERO;
+                match &t.smoothed {
+                    Some(p) => {
+                        for k in p.t_ptr[c]..p.t_ptr[c + 1] {
+                            s += p.w[p.t_src[k]].transpose() * r[p.t_cols[k] as usize];
+                        }
+                    }
+                    None => {
+                        for k in t.pt_ptr[c]..t.pt_ptr[c + 1] {
+                            s += r[t.pt_cols[k] as usize] * t.pt_w[k];
+                        }
+                    }
+                }
+                *bc = s;
+            };
             self.bs[l + 1]
                 .par_iter_mut()
                 .enumerate()
                 .with_min_len(256)
-                .for_each(|(c, bc)| {
-                    let mut s = DVec3::ZERO;
-                    for k in t.pt_ptr[c]..t.pt_ptr[c + 1] {
-                        s += r[t.pt_cols[k] as usize] * t.pt_w[k];
-                    }
-                    *bc = s;
-                });
+                .for_each(restrict);
             self.xs[l + 1].fill(DVec3::ZERO);
         }
         // coarsest
@@ -1037,9 +1323,16 @@ impl Multigrid {
                 .par_iter_mut()
                 .enumerate()
                 .with_min_len(256)
-                .for_each(|(f, xf)| {
-                    for k in t.p_ptr[f]..t.p_ptr[f + 1] {
-                        *xf += xc[t.p_cols[k] as usize] * t.p_w[k];
+                .for_each(|(f, xf)| match &t.smoothed {
+                    Some(p) => {
+                        for k in p.ptr[f]..p.ptr[f + 1] {
+                            *xf += p.w[k] * xc[p.cols[k] as usize];
+                        }
+                    }
+                    None => {
+                        for k in t.p_ptr[f]..t.p_ptr[f + 1] {
+                            *xf += xc[t.p_cols[k] as usize] * t.p_w[k];
+                        }
                     }
                 });
             let level = &self.levels[l];

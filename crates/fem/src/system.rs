@@ -638,7 +638,7 @@ impl UpperTriangle {
 }
 
 /// `values` split into the rows of `ptr` (row `i` is `ptr[i]..ptr[i + 1]`).
-fn split_rows<'a, T>(mut values: &'a mut [T], ptr: &[usize]) -> Vec<&'a mut [T]> {
+pub(crate) fn split_rows<'a, T>(mut values: &'a mut [T], ptr: &[usize]) -> Vec<&'a mut [T]> {
     let mut rows = Vec::with_capacity(ptr.len().saturating_sub(1));
     for w in ptr.windows(2) {
         let (head, tail) = values.split_at_mut(w[1] - w[0]);
