@@ -42,7 +42,7 @@
 
 use crate::bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 use crate::error::SimulationError;
-use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap};
+use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap, SurfaceSmoother};
 use crate::placement::{Anchor, AnchorRule, Placement, resolve_anchor};
 use crate::template::{
     BedFeet, ImplantTemplate, SmoothedThickness, TemplateIndex, build_template, check_footprint,
@@ -84,6 +84,10 @@ pub const RIM_SMOOTHING_SPACINGS: f64 = 2.0;
 /// ones lagged and folded their elements over (v02_average, R-MOD-110: 11 inverted
 /// with the paper's set, 5 with one spacing, 3 with one and a half).
 pub const TEMPLATE_LAYER_SPACINGS: f64 = 1.0;
+
+/// Largest [`SimulationOptions::scan_smoothing_mm`] (mm): the smoothing is meant for
+/// the element scale, and its cost grows with the radius squared.
+pub const MAX_SCAN_SMOOTHING_MM: f64 = 20.0;
 
 /// Default implant density (kg/m³): silicone gel, 0.97 g/cm³.
 pub const DEFAULT_IMPLANT_DENSITY_KG_M3: f64 = 970.0;
@@ -172,6 +176,9 @@ pub struct SimulationOptions {
     pub relative_tolerance: f64,
     /// Fade length of the displacement beyond the finest mesh (mm), see [`crate::field`].
     pub falloff_mm: f64,
+    /// Radius over which the displacement is smoothed on the scan (mm, see
+    /// [`SurfaceSmoother`]); `None`: half the finest lattice spacing; `Some(0.0)`: none.
+    pub scan_smoothing_mm: Option<f64>,
     /// Fill-in parameters for re-measuring the simulated breasts (the cylinder axis
     /// defaults to the frame's `y`, as when the model was built).
     pub fill_in: FillInParams,
@@ -198,6 +205,7 @@ impl Default for SimulationOptions {
             max_cycles: DEFAULT_MAX_CYCLES,
             relative_tolerance: DEFAULT_RELATIVE_TOLERANCE,
             falloff_mm: DEFAULT_FALLOFF_MM,
+            scan_smoothing_mm: None,
             fill_in: FillInParams::default(),
         }
     }
@@ -368,6 +376,7 @@ pub struct Simulation {
     last_step: f64,
     scan_rest: Vec<DVec3>,
     scan_map: PointMap,
+    scan_smoother: SurfaceSmoother,
     landmarks: Landmarks,
     landmark_map: PointMap,
     base: TriMesh,
@@ -461,6 +470,30 @@ impl Simulation {
             options.falloff_mm > 0.0,
             "a positive length",
         )?;
+        for (what, value, max, expected) in [
+            (
+                "rim_smoothing_mm",
+                options.rim_smoothing_mm,
+                f64::INFINITY,
+                "a length of at least 0 mm",
+            ),
+            (
+                "template_layer_mm",
+                options.template_layer_mm,
+                f64::INFINITY,
+                "a length of at least 0 mm",
+            ),
+            (
+                "scan_smoothing_mm",
+                options.scan_smoothing_mm,
+                MAX_SCAN_SMOOTHING_MM,
+                "a length from 0 to 20 mm",
+            ),
+        ] {
+            if let Some(v) = value {
+                check_option(what, v, (0.0..=max).contains(&v), expected)?;
+            }
+        }
         options
             .tissue
             .check()
@@ -595,6 +628,10 @@ impl Simulation {
         })?;
         let scan_rest = input.scan.positions.clone();
         let scan_map = PointMap::new(&locator, &scan_rest, options.falloff_mm);
+        let scan_smoother = SurfaceSmoother::new(
+            input.scan,
+            options.scan_smoothing_mm.unwrap_or(0.5 * spacing_mm),
+        );
         let landmark_points: Vec<DVec3> = input.landmarks.iter().map(|(_, p)| p).collect();
         let landmark_map = PointMap::new(&locator, &landmark_points, options.falloff_mm);
         let n = finest.positions.len();
@@ -632,6 +669,7 @@ impl Simulation {
             last_step: 1.0,
             scan_rest,
             scan_map,
+            scan_smoother,
             landmarks: input.landmarks.clone(),
             landmark_map,
             base: input.breasts.base.mesh.clone(),
@@ -1215,12 +1253,19 @@ impl Simulation {
 
     /// Where each scan vertex is now (same order and count as the scan).
     pub fn scan_positions(&self) -> Vec<DVec3> {
-        self.scan_map.moved(&self.scan_rest, &self.u)
+        self.scan_displacements()
+            .into_iter()
+            .zip(&self.scan_rest)
+            .map(|(d, p)| *p + d)
+            .collect()
     }
 
-    /// The displacement of each scan vertex (mm).
+    /// The displacement of each scan vertex (mm): the finest level's, smoothed over the
+    /// scan ([`SimulationOptions::scan_smoothing_mm`]).
     pub fn scan_displacements(&self) -> Vec<DVec3> {
-        self.scan_map.displacements(&self.u)
+        let mut d = self.scan_map.displacements(&self.u);
+        self.scan_smoother.apply(&mut d);
+        d
     }
 
     /// The displacement of any points (mm), mapped like the scan (slower: locates them).
