@@ -149,6 +149,10 @@ pub struct MultigridOptions {
     /// default) keeps the barycentric `P`. Galerkin only; 0.5 measured best (see the
     /// module documentation), at a much higher coarse-operator cost.
     pub prolongation_smoothing: f64,
+    /// The corotated tangent assembled every cycle: the paper's warped stiffness
+    /// `R K Rᵀ` (default), or [`Tangent::Full`] with the positive part of the geometric
+    /// term (a Newton-like step where tissue is stretched and turned hard).
+    pub tangent: Tangent,
 }
 
 /// How the coarse levels' operators are built.
@@ -177,6 +181,7 @@ impl Default for MultigridOptions {
             relaxation: 1.5,
             coarse_operator: CoarseOperator::Galerkin,
             prolongation_smoothing: 0.0,
+            tangent: Tangent::Warped,
         }
     }
 }
@@ -1189,7 +1194,13 @@ impl Multigrid {
                     .system
                     .as_mut()
                     .expect("a level without a Galerkin operator has its system")
-                    .assemble(&level.model, &self.us[l], f, formulation, Tangent::Warped)?;
+                    .assemble(
+                        &level.model,
+                        &self.us[l],
+                        f,
+                        formulation,
+                        self.options.tangent,
+                    )?;
             }
             let t1 = Instant::now();
             if l == 0 {
