@@ -20,8 +20,8 @@
 //! # Measured (60,000-element models, 2 cores)
 //! Phantom, round 120 x 33.6 mm (252.6 ml) on both sides, no gravity: breasts
 //! +227.2 / +227.2 ml (-10.1%), nipples 17.1 mm forward (0.51 x projection), no
-//! inverted element, largest scan edge stretch 2.6x, mirror asymmetry at most 0.16 mm
-//! (rms 0.005 mm); gravity correction: nipple 9.0 mm lower. Shared scans with a
+//! inverted element, largest scan edge stretch 2.5x, mirror asymmetry at most 0.06 mm
+//! (rms 0.003 mm); gravity correction (13 cycles): nipple 9.0 mm lower. Shared scans with a
 //! moderate-profile implant sized to the breast base (`tests/shared_scans.rs`):
 //! volume within 10% of the implant's, 3-17 inverted elements of 60,000.
 //!
@@ -30,8 +30,8 @@
 //!   linear elasticity does not resist a collapse to zero volume).
 //! - The lateral clip planes of the closed surface cut 20-30 mm off every breast so far;
 //!   the implant's lateral part can lie outside the model (its volume is then lost).
-//! - The gravity correction converges slowly (40 cycles reach a relative residual of
-//!   3e-3 to 0.17).
+//! - The gravity correction converges in 13-16 cycles on the phantom and v02_average,
+//!   but on pair1 (with a few inverted elements) 40 cycles reach only 3e-3 and 1e-2.
 //! - Galerkin coarse operators of `fem` can turn singular for some constraint sets
 //!   (two levels on the phantom; three levels with both implants before the bed was
 //!   held); the session then falls back to rediscretised coarse operators.
