@@ -224,6 +224,10 @@ enum Command {
         /// Write the first row's finest eliminated system as Matrix Market A.mtx, b.mtx.
         #[arg(long, value_name = "DIR")]
         export_system: Option<PathBuf>,
+        /// Smooth the multigrid's finest prolongation with this damping (0 to 1; 0.5
+        /// gives a residual reduction of at least 5 per cycle at about twice the cost).
+        #[arg(long, value_name = "W", default_value_t = 0.0, value_parser = unit_interval)]
+        prolongation_smoothing: f64,
         #[arg(long)]
         json: bool,
     },
@@ -351,9 +355,15 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
         Command::Bench {
             elements,
             export_system,
+            prolongation_smoothing,
             json,
         } => {
-            let report = plan::bench::bench(&elements, export_system.as_deref(), progress)?;
+            let report = plan::bench::bench(
+                &elements,
+                prolongation_smoothing,
+                export_system.as_deref(),
+                progress,
+            )?;
             progress.finish();
             if json {
                 print_json(&report)

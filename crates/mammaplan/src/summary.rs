@@ -325,8 +325,9 @@ fn simulation_figures(report: &plan::simulate::SimulateReport) -> String {
 /// The benchmark table.
 pub fn bench(report: &plan::bench::BenchReport) -> String {
     let mut out = format!(
-        "implant {} on both sides of the phantom\n{:>9} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9}\n",
+        "implant {} on both sides of the phantom, prolongation smoothing {}\n{:>9} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9}\n",
         report.implant,
+        report.prolongation_smoothing,
         "elements",
         "levels",
         "setup ms",

@@ -13,6 +13,7 @@ use anyhow::{Context, Result};
 use fem::{BlockCsr, DirectSolver};
 use glam::DVec3;
 use serde::Serialize;
+use simulation::SimulationOptions;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -58,15 +59,20 @@ pub struct BenchRow {
 #[derive(Debug, Clone, Serialize)]
 pub struct BenchReport {
     pub implant: &'static str,
+    /// The multigrid's prolongation smoothing ω_P (0: the barycentric prolongation).
+    pub prolongation_smoothing: f64,
     pub rows: Vec<BenchRow>,
     /// Where `--export-system` wrote the finest system of the first row, if asked.
     pub exported_system: Option<PathBuf>,
 }
 
-/// Runs the benchmark rows; with `export_dir`, the first row's finest eliminated system
-/// (after the first cycle's assembly) is written there as Matrix Market `A.mtx`, `b.mtx`.
+/// Runs the benchmark rows with the multigrid's prolongation smoothing
+/// `prolongation_smoothing` (see `fem::multigrid::MultigridOptions`); with `export_dir`,
+/// the first row's finest eliminated system (after the first cycle's assembly) is
+/// written there as Matrix Market `A.mtx`, `b.mtx`.
 pub fn bench(
     elements: &[usize],
+    prolongation_smoothing: f64,
     export_dir: Option<&Path>,
     progress: &dyn Progress,
 ) -> Result<BenchReport> {
@@ -88,7 +94,9 @@ pub fn bench(
             },
             &crate::Silent,
         )?;
-        let mut session = Session::new(marked, model, implant::Catalog::builtin())?;
+        let mut options = SimulationOptions::default();
+        options.multigrid.prolongation_smoothing = prolongation_smoothing;
+        let mut session = Session::new(marked, model, implant::Catalog::builtin(), options)?;
         let mut setups = Vec::with_capacity(SETUP_REPEATS);
         for k in 0..SETUP_REPEATS {
             // Small moves, so every repetition builds a fresh template.
@@ -152,6 +160,7 @@ pub fn bench(
     }
     Ok(BenchReport {
         implant: DEMO_IMPLANT,
+        prolongation_smoothing,
         rows,
         exported_system: export_dir.map(Path::to_path_buf),
     })

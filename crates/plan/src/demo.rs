@@ -143,7 +143,12 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
     let model = write_model(&path("model"), &patient, progress)?;
     files.extend(model.files.iter().map(|name| path("model").join(name)));
 
-    let session = Session::new(fixed, patient, implant::Catalog::builtin())?;
+    let session = Session::new(
+        fixed,
+        patient,
+        implant::Catalog::builtin(),
+        simulation::SimulationOptions::default(),
+    )?;
     let request = Some(ImplantRequest {
         spec: DEMO_IMPLANT.to_string(),
         move_mm: DVec3::ZERO,

@@ -59,8 +59,13 @@ pub struct Session {
 
 impl Session {
     /// Prepares the simulation of a built model (the finite-element hierarchy, the
-    /// implant beds, the maps from the scan into the mesh).
-    pub fn new(marked: MarkedScan, model: PatientModel, catalog: Catalog) -> Result<Session> {
+    /// implant beds, the maps from the scan into the mesh) with `options`.
+    pub fn new(
+        marked: MarkedScan,
+        model: PatientModel,
+        catalog: Catalog,
+        options: SimulationOptions,
+    ) -> Result<Session> {
         let simulation = Simulation::new(
             PatientInput {
                 scan: &marked.scan.mesh,
@@ -70,7 +75,7 @@ impl Session {
                 closed_surface: &model.closed_surface,
                 tets: &model.tets,
             },
-            SimulationOptions::default(),
+            options,
         )
         .context("preparing the simulation")?;
         Ok(Session {
@@ -177,7 +182,7 @@ pub fn simulate(
     );
     let catalog = crate::catalog::load(options.catalog.as_deref())?;
     let (marked, model) = load_model(model_dir, progress)?;
-    let session = Session::new(marked, model, catalog)?;
+    let session = Session::new(marked, model, catalog, SimulationOptions::default())?;
     run_session(session, model_dir, out_dir, options, progress)
 }
 

@@ -30,7 +30,13 @@ fn multigrid_matches_the_direct_solver_on_shared_scans() {
         )
         .unwrap();
         let model = build_model(&marked, &ModelOptions::default(), &Silent).unwrap();
-        let mut session = Session::new(marked, model, implant::Catalog::builtin()).unwrap();
+        let mut session = Session::new(
+            marked,
+            model,
+            implant::Catalog::builtin(),
+            simulation::SimulationOptions::default(),
+        )
+        .unwrap();
         for side in anatomy::breast::Side::BOTH {
             session
                 .set_implant(side, "catalog:R-MOD-110", DVec3::ZERO)
