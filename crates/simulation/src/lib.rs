@@ -23,7 +23,7 @@
 //! inverted element, largest scan edge stretch 2.5x, mirror asymmetry at most 0.06 mm
 //! (rms 0.003 mm); gravity correction (13 cycles): nipple 9.0 mm lower. Shared scans with a
 //! moderate-profile implant sized to the breast base (`tests/shared_scans.rs`):
-//! volume within 10% of the implant's, 3-17 inverted elements of 60,000.
+//! volume within 10% of the implant's, 3-10 inverted elements of 60,000.
 //!
 //! # Known shortfalls
 //! - A few elements of the tissue compressed over a large implant invert (corotated

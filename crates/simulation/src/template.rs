@@ -245,6 +245,13 @@ enum Class {
 /// thickness, and the cut curve itself is only as precise as its control points.
 pub const FOOTPRINT_TOLERANCE_MM: f64 = 2.0;
 
+/// Passes of releasing corners of fully held elements that the template folds.
+const UNFOLD_PASSES: usize = 3;
+
+/// A fully held element counts as folded when the template leaves it less than this
+/// fraction of its volume.
+const UNFOLD_VOLUME_RATIO: f64 = 0.1;
+
 /// Most pushes of [`fit_footprint`].
 const FIT_ITERATIONS: usize = 60;
 
@@ -427,7 +434,9 @@ pub fn build_template(
             }
         })
         .collect();
-    let mut state = vec![0u8; classes.len()]; // 1 implant vertex, 2 fixed, 4 seen
+    const DISPLACED: u8 = 1;
+    const FIXED: u8 = 2;
+    let mut state = vec![0u8; classes.len()];
     let mut template = ImplantTemplate::default();
     let mut added_mm3 = 0.0;
     for &(t, corners) in &candidates.tets {
@@ -444,12 +453,10 @@ pub fn build_template(
         for (k, class) in corners.iter().zip(&c) {
             let s = &mut state[*k as usize];
             match *class {
-                Class::Front(z, n, _) if z > 0.0 => {
+                Class::Front(z, _, _) if z > 0.0 => {
                     interior += 1;
                     if *s == 0 {
-                        *s = 1;
-                        let v = candidates.vertices[*k as usize];
-                        template.implant_vertices.push((v, n * z));
+                        *s = DISPLACED;
                     }
                 }
                 Class::Back(z) if z > 0.0 || hold_bed => {
@@ -457,10 +464,7 @@ pub fn build_template(
                         interior += 1;
                     }
                     if *s == 0 {
-                        *s = 2;
-                        template
-                            .fixed_vertices
-                            .push(candidates.vertices[*k as usize]);
+                        *s = FIXED;
                     }
                 }
                 _ => {}
@@ -481,15 +485,66 @@ pub fn build_template(
     }
     // the rest of the tissue layer up to `layer_mm` over the footprint moves with it
     for (k, class) in classes.iter().enumerate() {
-        if let Class::Front(z, n, h) = *class
+        if let Class::Front(z, _, h) = *class
             && z > 0.0
             && h <= layer_mm
             && state[k] == 0
         {
-            state[k] = 1;
-            template
-                .implant_vertices
-                .push((candidates.vertices[k], n * z));
+            state[k] = DISPLACED;
+        }
+    }
+    // An element whose four corners are all held cannot change what the template does
+    // to it; where that folds it over (a tilted face pushed past its fourth corner),
+    // release one corner: a fixed one if any (the muscle under the implant may follow),
+    // else the highest displaced one (the tissue above the layer may lag).
+    let displacement = |state: &[u8], k: usize| match classes[k] {
+        Class::Front(z, n, _) if state[k] == DISPLACED => n * z,
+        _ => DVec3::ZERO,
+    };
+    let mut release = Vec::new();
+    for _ in 0..UNFOLD_PASSES {
+        release.clear();
+        for &(t, corners) in &candidates.tets {
+            if !corners.iter().all(|&k| state[k as usize] != 0) {
+                continue;
+            }
+            let p = mesh.tets[t as usize].map(|v| mesh.positions[v as usize]);
+            let d = corners.map(|k| displacement(&state, k as usize));
+            let rest = tetra::quality::signed_volume(p);
+            let moved =
+                tetra::quality::signed_volume([p[0] + d[0], p[1] + d[1], p[2] + d[2], p[3] + d[3]]);
+            if moved > UNFOLD_VOLUME_RATIO * rest {
+                continue;
+            }
+            let height = |k: u32| match classes[k as usize] {
+                Class::Front(_, _, h) => h,
+                _ => f64::NEG_INFINITY,
+            };
+            let corner = corners
+                .iter()
+                .copied()
+                .find(|&k| state[k as usize] == FIXED)
+                .or_else(|| {
+                    corners
+                        .iter()
+                        .copied()
+                        .max_by(|&a, &b| height(a).total_cmp(&height(b)))
+                });
+            release.extend(corner);
+        }
+        if release.is_empty() {
+            break;
+        }
+        for &k in &release {
+            state[k as usize] = 0;
+        }
+    }
+    for (k, &st) in state.iter().enumerate() {
+        let v = candidates.vertices[k];
+        match (st, classes[k]) {
+            (DISPLACED, Class::Front(z, n, _)) => template.implant_vertices.push((v, n * z)),
+            (FIXED, _) => template.fixed_vertices.push(v),
+            _ => {}
         }
     }
     if template.implant_vertices.is_empty() {
