@@ -407,7 +407,9 @@ pub fn fit_footprint(
 /// [`crate::SimulationOptions::hold_bed`]); else only those inside (the paper's rule).
 /// Besides the front vertices of fill-in elements, every front vertex over the
 /// footprint up to `layer_mm` above the bed is displaced (see
-/// [`crate::SimulationOptions::template_layer_mm`]).
+/// [`crate::SimulationOptions::template_layer_mm`]). An element all of whose corners end
+/// up held and which the template would fold (leave under a tenth of its volume) gets
+/// one corner released: a fixed one if any, else its highest displaced one.
 ///
 /// Errors: [`SimulationError::EmptyTemplate`] when no vertex is displaced.
 pub fn build_template(
