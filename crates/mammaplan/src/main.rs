@@ -203,6 +203,13 @@ enum Command {
         /// Move the right implant, as --move-left.
         #[arg(long, value_name = "DX,DY,DZ", value_parser = vector_mm, requires = "right", allow_hyphen_values = true)]
         move_right: Option<[f64; 3]>,
+        /// Turn the left implant about the chest wall's normal (degrees, counter-clockwise
+        /// seen from the front; for anatomic implants).
+        #[arg(long, value_name = "DEG", value_parser = angle_deg, requires = "left", allow_hyphen_values = true)]
+        rotate_left: Option<f64>,
+        /// Turn the right implant, as --rotate-left.
+        #[arg(long, value_name = "DEG", value_parser = angle_deg, requires = "right", allow_hyphen_values = true)]
+        rotate_right: Option<f64>,
         /// Skip the gravity correction.
         #[arg(long)]
         no_gravity: bool,
@@ -378,20 +385,24 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             right,
             move_left,
             move_right,
+            rotate_left,
+            rotate_right,
             no_gravity,
             catalog,
             out,
             json,
         } => {
-            let request = |spec: Option<String>, move_mm: Option<[f64; 3]>| {
-                spec.map(|spec| plan::simulate::ImplantRequest {
-                    spec,
-                    move_mm: move_mm.unwrap_or_default().into(),
-                })
-            };
+            let request =
+                |spec: Option<String>, move_mm: Option<[f64; 3]>, rotation: Option<f64>| {
+                    spec.map(|spec| plan::simulate::ImplantRequest {
+                        spec,
+                        move_mm: move_mm.unwrap_or_default().into(),
+                        rotation_deg: rotation.unwrap_or(0.0),
+                    })
+                };
             let options = plan::simulate::SimulateOptions {
-                left: request(left, move_left),
-                right: request(right, move_right),
+                left: request(left, move_left, rotate_left),
+                right: request(right, move_right, rotate_right),
                 no_gravity,
                 catalog,
             };
@@ -555,6 +566,15 @@ fn positive(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(x) if x > 0.0 && x.is_finite() => Ok(x),
         _ => Err(format!("expected a number > 0, got {text:?}")),
+    }
+}
+
+fn angle_deg(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(x) if (-360.0..=360.0).contains(&x) => Ok(x),
+        _ => Err(format!(
+            "expected an angle from -360 to 360 degrees, got {text:?}"
+        )),
     }
 }
 

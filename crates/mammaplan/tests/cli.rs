@@ -465,6 +465,20 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
         "left implant",
     );
     assert_clean_failure(&simulate("oval:width=100"), "oval");
+    assert_clean_failure(
+        &mammaplan(&[
+            "simulate",
+            "--model",
+            model.to_str().unwrap(),
+            "--left",
+            "catalog:R-MOD-120",
+            "--rotate-left",
+            "400",
+            "--out",
+            out.to_str().unwrap(),
+        ]),
+        "angle",
+    );
     assert!(!out.exists());
     assert_clean_failure(
         &mammaplan(&[

@@ -6,7 +6,7 @@
 
 use crate::demo::DEMO_IMPLANT;
 use crate::model::{ModelOptions, build_model};
-use crate::simulate::Session;
+use crate::simulate::{Placement, Session};
 use crate::{MarkedScan, Progress, Scan};
 use anatomy::breast::Side;
 use anyhow::{Context, Result};
@@ -100,16 +100,16 @@ pub fn bench(
         let mut setups = Vec::with_capacity(SETUP_REPEATS);
         for k in 0..SETUP_REPEATS {
             // Small moves, so every repetition builds a fresh template.
-            let offset = DVec3::new(0.0, 0.5 * k as f64, 0.0);
+            let offset = 0.5 * k as f64;
             let start = Instant::now();
             for side in Side::BOTH {
-                session.set_implant(side, DEMO_IMPLANT, offset)?;
+                session.set_implant(side, DEMO_IMPLANT, Placement::moved(0.0, offset, 0.0))?;
             }
             setups.push(start.elapsed().as_secs_f64() * 1e3);
         }
         let built = session.cycle()?;
         for side in Side::BOTH {
-            session.set_implant(side, DEMO_IMPLANT, DVec3::new(2.0, 3.0, 0.0))?;
+            session.set_implant(side, DEMO_IMPLANT, Placement::moved(2.0, 3.0, 0.0))?;
         }
         let first = session.cycle()?;
         if row == 0

@@ -152,6 +152,7 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
     let request = Some(ImplantRequest {
         spec: DEMO_IMPLANT.to_string(),
         move_mm: DVec3::ZERO,
+        rotation_deg: 0.0,
     });
     let simulation = run_session(
         session,

@@ -36,6 +36,9 @@ pub struct ImplantRequest {
     /// Move from the default position (mm, anatomical frame: `x` to the patient's left,
     /// `y` up along the bed, `z` anterior).
     pub move_mm: DVec3,
+    /// Turn about the bed's normal, counter-clockwise seen from the front (degrees; for
+    /// anatomic implants).
+    pub rotation_deg: f64,
 }
 
 /// Settings of [`simulate`].
@@ -86,25 +89,21 @@ impl Session {
         })
     }
 
-    /// Sets (or replaces) the implant of one side from a spec, placed `move_mm` from
-    /// the default position (and moved on to where its footprint fits, see
+    /// Sets (or replaces) the implant of one side from a spec at `placement` (moved and
+    /// turned from the default position, then moved on to where its footprint fits, see
     /// [`PlacedImplant::fit_shift_mm`]). On error nothing changes.
     pub fn set_implant(
         &mut self,
         side: Side,
         spec: &str,
-        move_mm: DVec3,
+        placement: Placement,
     ) -> Result<&PlacedImplant> {
         let entry = ImplantSpec::parse(spec)
             .and_then(|s| s.resolve(&self.catalog))
             .with_context(|| format!("{side} implant"))?;
         let shape = *entry.shape();
         self.simulation
-            .set_implant(
-                side,
-                shape,
-                Placement::moved(move_mm.x, move_mm.y, move_mm.z),
-            )
+            .set_implant(side, shape, placement)
             .with_context(|| format!("{side} implant {spec}"))
     }
 
@@ -145,6 +144,9 @@ pub struct ImplantSummary {
     pub volume_ml: f64,
     /// The move asked for (mm, anatomical frame).
     pub move_mm: [f64; 3],
+    /// The turn asked for about the bed's normal (degrees, counter-clockwise from the
+    /// front).
+    pub rotation_deg: f64,
     /// The further move of the anchor along the bed that made the footprint fit (mm,
     /// implant's `x'` to the patient's left and `y'` up; zero when it fitted as asked).
     pub fit_shift_mm: [f64; 2],
@@ -202,12 +204,17 @@ pub fn run_session(
     };
     for (side, request) in [(Side::Left, &options.left), (Side::Right, &options.right)] {
         if let Some(request) = request {
-            let placed = session.set_implant(side, &request.spec, request.move_mm)?;
+            let placement = Placement {
+                move_mm: request.move_mm,
+                rotation_deg: request.rotation_deg,
+            };
+            let placed = session.set_implant(side, &request.spec, placement)?;
             *implants.get_mut(side) = Some(ImplantSummary {
                 spec: request.spec.clone(),
                 shape: placed.shape,
                 volume_ml: placed.shape.volume_ml(),
                 move_mm: request.move_mm.to_array(),
+                rotation_deg: request.rotation_deg,
                 fit_shift_mm: placed.fit_shift_mm.to_array(),
             });
         }

@@ -39,7 +39,9 @@ fn multigrid_matches_the_direct_solver_on_shared_scans() {
             let mut session =
                 Session::new(marked, model, implant::Catalog::builtin(), options).unwrap();
             for side in anatomy::breast::Side::BOTH {
-                session.set_implant(side, implant, DVec3::ZERO).unwrap();
+                session
+                    .set_implant(side, implant, plan::simulate::Placement::default())
+                    .unwrap();
             }
             session.cycle().unwrap();
             session
