@@ -8,7 +8,7 @@
 
 use crate::error::FemError;
 use crate::material::Material;
-use crate::polar::{polar_rotation, rotation_variant_svd};
+use crate::polar::{POLAR_LANES, polar_rotation, polar_rotations, rotation_variant_svd};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use tetra::TetMesh;
@@ -381,22 +381,47 @@ impl FemModel {
         }
     }
 
-    /// The rotated gradients `R gᵢ` and internal forces `V R σ gᵢ` (mN) of element `e`
-    /// for the [`Tangent::Warped`] rotation of displacement `u`: the part of
-    /// [`FemModel::element_state`] that the warped assembly reads.
+    /// Displacement gradients and rotations of the elements `first..` (at most
+    /// [`POLAR_LANES`], fewer at the end of the mesh; the rest of the arrays is unused),
+    /// the rotations computed together by [`polar_rotations`].
     #[inline]
-    pub(crate) fn element_warped(
+    fn chunk_rotations(
         &self,
-        e: usize,
+        first: usize,
         u: &[DVec3],
         formulation: Formulation,
-    ) -> ([DVec3; 4], [DVec3; 4]) {
-        let du = self.displacement_gradient(e, u);
+    ) -> (usize, [DMat3; POLAR_LANES], [DMat3; POLAR_LANES]) {
+        let count = POLAR_LANES.min(self.tets.len() - first);
+        let du: [DMat3; POLAR_LANES] = std::array::from_fn(|l| {
+            if l < count {
+                self.displacement_gradient(first + l, u)
+            } else {
+                DMat3::ZERO
+            }
+        });
         let r = match formulation {
-            Formulation::Linear => DMat3::IDENTITY,
-            Formulation::Corotated => polar_rotation(DMat3::IDENTITY + du),
+            Formulation::Linear => [DMat3::IDENTITY; POLAR_LANES],
+            Formulation::Corotated => polar_rotations(&du.map(|d| DMat3::IDENTITY + d)),
         };
-        self.rotated_forces(e, formulation, r, du)
+        (count, du, r)
+    }
+
+    /// The rotated gradients `R gᵢ` and internal forces `V R σ gᵢ` (mN) of the elements
+    /// `first..` (at most [`POLAR_LANES`]) for the [`Tangent::Warped`] rotations of
+    /// displacement `u`, handed to `emit(lane, (gradients, forces))`: the part of
+    /// [`FemModel::element_state`] that the warped assembly reads.
+    #[inline]
+    pub(crate) fn elements_warped(
+        &self,
+        first: usize,
+        u: &[DVec3],
+        formulation: Formulation,
+        mut emit: impl FnMut(usize, ([DVec3; 4], [DVec3; 4])),
+    ) {
+        let (count, du, r) = self.chunk_rotations(first, u, formulation);
+        for l in 0..count {
+            emit(l, self.rotated_forces(first + l, formulation, r[l], du[l]));
+        }
     }
 
     /// Rotated gradients and forces of element `e` for rotation `r` and displacement
@@ -434,12 +459,19 @@ impl FemModel {
     /// (the derivative of the polar rotation drops out), so the forces are conservative.
     pub fn element_energy(&self, e: usize, u: &[DVec3], formulation: Formulation) -> f64 {
         let du = self.displacement_gradient(e, u);
+        let r = match formulation {
+            Formulation::Linear => DMat3::IDENTITY,
+            Formulation::Corotated => polar_rotation(DMat3::IDENTITY + du),
+        };
+        self.energy_of(e, formulation, r, du)
+    }
+
+    /// [`FemModel::element_energy`] for rotation `r` and displacement gradient `du`.
+    #[inline]
+    fn energy_of(&self, e: usize, formulation: Formulation, r: DMat3, du: DMat3) -> f64 {
         let g = match formulation {
             Formulation::Linear => du,
-            Formulation::Corotated => {
-                let r = polar_rotation(DMat3::IDENTITY + du);
-                (r.transpose() - DMat3::IDENTITY) + r.transpose() * du
-            }
+            Formulation::Corotated => (r.transpose() - DMat3::IDENTITY) + r.transpose() * du,
         };
         let el = &self.elements[e];
         let eps = (g + g.transpose()) * 0.5;
@@ -451,9 +483,15 @@ impl FemModel {
 
     /// Total potential energy `Σₑ Ψₑ(u) - f_ext · u` (mN·mm); `f_ext` may be empty.
     pub fn potential_energy(&self, u: &[DVec3], f_ext: &[DVec3], formulation: Formulation) -> f64 {
-        let elastic: f64 = (0..self.tets.len())
+        let elastic: f64 = (0..self.tets.len().div_ceil(POLAR_LANES))
             .into_par_iter()
-            .map(|e| self.element_energy(e, u, formulation))
+            .map(|k| {
+                let first = k * POLAR_LANES;
+                let (count, du, r) = self.chunk_rotations(first, u, formulation);
+                (0..count)
+                    .map(|l| self.energy_of(first + l, formulation, r[l], du[l]))
+                    .sum::<f64>()
+            })
             .sum();
         let work: f64 = f_ext.iter().zip(u).map(|(f, u)| f.dot(*u)).sum();
         elastic - work
@@ -477,12 +515,17 @@ impl FemModel {
         formulation: Formulation,
     ) -> Result<Vec<DVec3>, FemError> {
         self.check_vertex_field("displacement", u)?;
-        let states: Vec<[DVec3; 4]> = (0..self.tets.len())
-            .into_par_iter()
-            .map(|e| self.element_warped(e, u, formulation).1)
-            .collect();
+        let mut forces = vec![[DVec3::ZERO; 4]; self.tets.len()];
+        forces
+            .par_chunks_mut(POLAR_LANES)
+            .enumerate()
+            .for_each(|(k, chunk)| {
+                self.elements_warped(k * POLAR_LANES, u, formulation, |l, (_, fe)| {
+                    chunk[l] = fe;
+                });
+            });
         let mut f = vec![DVec3::ZERO; self.rest.len()];
-        for (t, fe) in self.tets.iter().zip(&states) {
+        for (t, fe) in self.tets.iter().zip(&forces) {
             for a in 0..4 {
                 f[t[a] as usize] += fe[a];
             }

@@ -23,6 +23,7 @@
 
 use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
+use crate::polar::POLAR_LANES;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -106,11 +107,17 @@ impl BlockCsr {
     /// `(A x)ᵢ`, row `i` of `A x`.
     #[inline]
     pub fn row_mul(&self, i: usize, x: &[DVec3]) -> DVec3 {
+        self.row_mul_by(i, |j| x[j])
+    }
+
+    /// `(A x)ᵢ` with the entries of `x` read by `x_at(j)`.
+    #[inline]
+    pub(crate) fn row_mul_by(&self, i: usize, x_at: impl Fn(usize) -> DVec3) -> DVec3 {
         let r = self.row_ptr[i]..self.row_ptr[i + 1];
         self.values[r.clone()]
             .iter()
             .zip(&self.cols[r])
-            .fold(DVec3::ZERO, |s, (b, &j)| s + block_mul(b, x[j as usize]))
+            .fold(DVec3::ZERO, |s, (b, &j)| s + block_mul(b, x_at(j as usize)))
     }
 
     /// `y = A x` (parallel over rows).
@@ -502,9 +509,15 @@ impl ReducedSystem {
                 });
         } else {
             self.twists.clear();
-            self.cores.par_iter_mut().enumerate().for_each(|(e, c)| {
-                *c = core(e, model.element_warped(e, u, formulation));
-            });
+            self.cores
+                .par_chunks_mut(POLAR_LANES)
+                .enumerate()
+                .for_each(|(k, chunk)| {
+                    let first = k * POLAR_LANES;
+                    model.elements_warped(first, u, formulation, |l, w| {
+                        chunk[l] = core(first + l, w);
+                    });
+                });
         }
         let cores = &self.cores;
         let twists = &self.twists;
@@ -541,13 +554,15 @@ impl ReducedSystem {
                     let a = (incident[k] & 3) as usize;
                     let c = &cores[e];
                     f -= c.force[a];
+                    let lambda_ha = (c.rotated_grad[a] * c.vol_lambda).to_array();
+                    let mu_ha = (c.rotated_grad[a] * c.vol_mu).to_array();
                     for (b, &s) in incident_slots[k].iter().enumerate() {
                         // a held unknown's column stays zero (eliminated)
                         if s == NOT_FREE || eliminated[ucols[s as usize] as usize] {
                             continue;
                         }
                         let out = &mut vals[s as usize];
-                        add_element_block(out, c, a, b);
+                        add_element_block(out, c, a, b, lambda_ha, mu_ha);
                         if full {
                             add_twist_block(out, &twists[e], a, b);
                         }
@@ -649,23 +664,33 @@ pub(crate) fn split_rows<'a, T>(mut values: &'a mut [T], ptr: &[usize]) -> Vec<&
 }
 
 /// Adds the element's block `(a, b)` of `R K Rᵀ`, `V λ hₐ h_bᵀ + V μ h_b hₐᵀ +
-/// V μ (hₐ·h_b) I`, to `out`; the nine products `hₐ[p] h_b[q]` are rounded alike for
-/// the blocks `(a, b)` and `(b, a)`.
+/// V μ (hₐ·h_b) I`, to `out`, given `lambda_ha = V λ hₐ` and `mu_ha = V μ hₐ` (computed
+/// once per incidence). A diagonal block (`a = b`) is formed from the products
+/// `hₐ[p] hₐ[q]`, which round alike in both orders, so it is exactly symmetric.
 #[inline]
-fn add_element_block(out: &mut [f64; 9], c: &ElementCore, a: usize, b: usize) {
-    let (ha, hb) = (c.rotated_grad[a], c.rotated_grad[b]);
-    let d = c.vol_mu * ha.dot(hb);
-    let ha = ha.to_array();
-    let hb = hb.to_array();
-    let mut prod = [0.0; 9];
-    for p in 0..3 {
-        for q in 0..3 {
-            prod[3 * p + q] = ha[p] * hb[q];
+fn add_element_block(
+    out: &mut [f64; 9],
+    c: &ElementCore,
+    a: usize,
+    b: usize,
+    lambda_ha: [f64; 3],
+    mu_ha: [f64; 3],
+) {
+    let ha = c.rotated_grad[a].to_array();
+    let hb = c.rotated_grad[b].to_array();
+    let d = mu_ha[0] * hb[0] + mu_ha[1] * hb[1] + mu_ha[2] * hb[2];
+    if a == b {
+        let w = c.vol_lambda + c.vol_mu;
+        for p in 0..3 {
+            for q in 0..3 {
+                out[3 * p + q] += w * (ha[p] * ha[q]);
+            }
         }
-    }
-    for p in 0..3 {
-        for q in 0..3 {
-            out[3 * p + q] += c.vol_lambda * prod[3 * p + q] + c.vol_mu * prod[3 * q + p];
+    } else {
+        for p in 0..3 {
+            for q in 0..3 {
+                out[3 * p + q] += lambda_ha[p] * hb[q] + hb[p] * mu_ha[q];
+            }
         }
     }
     out[0] += d;

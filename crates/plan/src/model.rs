@@ -1,6 +1,6 @@
 //! `mammaplan model`: the breast model of a scan (cut curves, breast patches, fill-ins,
 //! breast and quadrant volumes), the closed surface around the breasts, its tetrahedral
-//! meshes (a hierarchy of [`TET_LEVELS`] levels for the multigrid solver, plus on request
+//! meshes (a hierarchy of up to [`MAX_TET_LEVELS`] levels for the multigrid solver, plus on request
 //! a finest level refined around the fill-ins, where the implant sits), and the model
 //! folder a researcher opens.
 //!
@@ -37,9 +37,17 @@ pub use anatomy::closed_surface::DEFAULT_REAR_WALL_OFFSET_MM;
 
 /// Default number of tetrahedra of the finest level (`--elements`).
 pub const DEFAULT_ELEMENTS: usize = 60_000;
-/// Levels of the uniform tetrahedral hierarchy; each coarser level has twice the lattice
-/// spacing and about 1/8 the elements. A refined level, when asked for, comes on top.
-pub const TET_LEVELS: usize = 3;
+/// Most levels of the uniform tetrahedral hierarchy; each coarser level has twice the
+/// lattice spacing and about 1/8 the elements, down to the last with at least
+/// [`MIN_COARSEST_NODES`] nodes. A refined level, when asked for, comes on top.
+pub const MAX_TET_LEVELS: usize = 4;
+
+/// Nodes the coarsest uniform level keeps at least (unless it is the second level). The
+/// multigrid factorises the coarsest level's nearly dense Galerkin operator at every
+/// cycle: the phantom's 60k-element model has 208 coarsest unknowns with three levels
+/// (a 1.5-2 ms Cholesky per cycle) and a few dozen with four (0.1 ms), at the same
+/// convergence (residual reduction 4.51 and 4.49 per cycle in `mammaplan bench`).
+pub const MIN_COARSEST_NODES: usize = 24;
 
 /// Local refinement of the finest tetrahedral level in a band around both fill-ins, the
 /// surfaces the implant sits on (paper V-A: "the region which may be covered by an
@@ -361,7 +369,7 @@ pub fn build_model(
     })
 }
 
-/// The [`TET_LEVELS`] tetrahedral meshes of the closed surface, the finest with about
+/// The (up to [`MAX_TET_LEVELS`]) tetrahedral meshes of the closed surface, the finest with about
 /// `elements` tetrahedra, and their figures; with a refinement, a level refined around
 /// the breasts' fill-ins comes first, at the uniform finest level's spacing elsewhere.
 /// Fails on an element of non-positive volume.
@@ -371,7 +379,8 @@ fn tetrahedra(
     refinement: Option<(Refinement, &BreastModel)>,
 ) -> Result<(tetra::Hierarchy, Vec<LevelReport>, Option<RefinementReport>)> {
     let surface = tetra::ClosedSurface::new(&closed.mesh)?;
-    let mut hierarchy = tetra::build_hierarchy_with_elements(&surface, elements, TET_LEVELS)?;
+    let mut hierarchy =
+        tetra::build_hierarchy_down_to(&surface, elements, MAX_TET_LEVELS, MIN_COARSEST_NODES)?;
     let refinement = match refinement {
         None => None,
         Some((refinement, breasts)) => {

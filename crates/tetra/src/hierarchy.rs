@@ -42,7 +42,7 @@ pub fn build_hierarchy(
         spacing_mm: finest_spacing_mm,
         mesh: stuff(surface, finest_spacing_mm)?,
     };
-    coarsen(surface, finest, levels)
+    coarsen(surface, finest, levels, None)
 }
 
 /// Like [`build_hierarchy`], with the finest spacing chosen by [`level_with_elements`].
@@ -60,16 +60,51 @@ pub fn build_hierarchy_with_elements(
         surface,
         level_with_elements(surface, finest_elements)?,
         levels,
+        None,
     )
 }
 
-fn coarsen(surface: &ClosedSurface, finest: Level, levels: usize) -> Result<Hierarchy, TetraError> {
+/// Like [`build_hierarchy_with_elements`] with at most `max_levels` levels: coarsening
+/// stops, without an error, before the first level that would have no tetrahedron or
+/// fewer than `min_vertices` vertices (a multigrid's coarsest level should be small, but
+/// not emptier than the shape allows).
+pub fn build_hierarchy_down_to(
+    surface: &ClosedSurface,
+    finest_elements: usize,
+    max_levels: usize,
+    min_vertices: usize,
+) -> Result<Hierarchy, TetraError> {
+    if max_levels == 0 {
+        return Err(TetraError::ZeroCount {
+            what: "the number of levels",
+        });
+    }
+    coarsen(
+        surface,
+        level_with_elements(surface, finest_elements)?,
+        max_levels,
+        Some(min_vertices),
+    )
+}
+
+/// Adds coarser levels to `finest` up to `levels` in all; with `stop_below` (a vertex
+/// count) a level that is too coarse ends the hierarchy instead of failing it.
+fn coarsen(
+    surface: &ClosedSurface,
+    finest: Level,
+    levels: usize,
+    stop_below: Option<usize>,
+) -> Result<Hierarchy, TetraError> {
     let mut hierarchy = Hierarchy {
         levels: vec![finest],
     };
     for level in 1..levels {
         let spacing_mm = hierarchy.levels[0].spacing_mm * 2f64.powi(level as i32);
-        let mesh = stuff(surface, spacing_mm)?;
+        let mesh = match (stuff(surface, spacing_mm), stop_below) {
+            (Ok(mesh), Some(min)) if mesh.vertex_count() < min => break,
+            (Err(TetraError::NoTetrahedra { .. }), Some(_)) => break,
+            (result, _) => result?,
+        };
         hierarchy.levels.push(Level { spacing_mm, mesh });
     }
     Ok(hierarchy)

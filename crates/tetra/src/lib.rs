@@ -36,7 +36,8 @@ mod winding;
 
 pub use error::TetraError;
 pub use hierarchy::{
-    Hierarchy, Level, build_hierarchy, build_hierarchy_with_elements, level_with_elements,
+    Hierarchy, Level, build_hierarchy, build_hierarchy_down_to, build_hierarchy_with_elements,
+    level_with_elements,
 };
 pub use locate::{Location, TetLocator};
 pub use quality::QualityReport;
