@@ -121,7 +121,8 @@ use crate::direct::DirectSolver;
 use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
 use crate::system::{
-    BlockCsr, Constraints, IDENTITY_BLOCK, NOT_FREE, ReducedSystem, UpperTriangle, split_rows,
+    BlockCsr, Constraints, DisjointWrites, IDENTITY_BLOCK, NOT_FREE, ReducedSystem, UpperTriangle,
+    split_rows,
 };
 use crate::transfer::Prolongation;
 use glam::{DMat3, DVec3};
@@ -745,7 +746,7 @@ fn galerkin_values(a: &BlockCsr, t: &Transfer, active: &[bool], g: &mut Galerkin
     let row_ptr = &g.op.row_ptr;
     let cols = &g.op.cols;
     g.upper
-        .rows_mut()
+        .rows_mut(&g.op.row_ptr, &mut g.op.values)
         .into_par_iter()
         .enumerate()
         .for_each_init(
@@ -787,7 +788,7 @@ fn galerkin_values(a: &BlockCsr, t: &Transfer, active: &[bool], g: &mut Galerkin
                 }
             },
         );
-    g.upper.mirror_into(&mut g.op);
+    g.upper.mirror(&mut g.op);
 }
 
 fn ms(d: Duration) -> f64 {
@@ -817,21 +818,6 @@ fn residual(a: &BlockCsr, x: &[DVec3], b: &[DVec3], r: &mut [DVec3]) {
 /// parallel loop costs more than the work.
 const SERIAL_COLOUR_ROWS: usize = 1024;
 
-/// The iterate of a smoothing sweep shared by the workers relaxing one colour.
-#[derive(Clone, Copy)]
-struct SharedIterate(*mut DVec3);
-
-// SAFETY: see `sor_colour`: during one colour each worker writes only its own rows and
-// reads only rows that no worker writes.
-unsafe impl Send for SharedIterate {}
-unsafe impl Sync for SharedIterate {}
-
-impl SharedIterate {
-    fn ptr(self) -> *mut DVec3 {
-        self.0
-    }
-}
-
 /// One block SOR pass over the rows of one colour, in place: `xᵢ += ω Dᵢ⁻¹ (b - A x)ᵢ`.
 /// Rows of one colour share no block, so the order does not matter and large colours
 /// run in parallel.
@@ -852,17 +838,15 @@ fn sor_colour(
         }
         return;
     }
-    let shared = SharedIterate(x.as_mut_ptr());
+    let x = DisjointWrites::new(x);
     rows.par_iter().with_min_len(256).for_each(|&i| {
         let i = i as usize;
-        let x = shared.ptr();
-        // SAFETY: every index is below `x.len()` (the rows and columns of `a`, asserted
-        // above). Row `i` is written by this task alone, and the rows it reads (its
+        // SAFETY: row `i` is written by this task alone, and the rows it reads (its
         // block columns) are `i` itself or rows of other colours, which no task writes
         // while this colour is relaxed; the parallel loop ends before the next colour.
         unsafe {
-            let ax = a.row_mul_by(i, |j| x.add(j).read());
-            x.add(i).write(relax(i, x.add(i).read(), ax));
+            let ax = a.row_mul_by(i, |j| x.read(j));
+            x.write(i, relax(i, x.read(i), ax));
         }
     });
 }

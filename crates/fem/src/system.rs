@@ -521,8 +521,11 @@ impl ReducedSystem {
         }
         let cores = &self.cores;
         let twists = &self.twists;
-        let row_ptr = &self.matrix.row_ptr;
-        let cols = &self.matrix.cols;
+        let BlockCsr {
+            row_ptr,
+            cols,
+            values,
+        } = &mut self.matrix;
         let eliminated = &self.eliminated;
         let incident_ptr = &self.incident_ptr;
         let incident = &self.incident;
@@ -531,7 +534,7 @@ impl ReducedSystem {
         // the upper block triangle and the right-hand side, row by row: each block sums
         // its elements' contributions in element order (deterministic)
         self.upper
-            .rows_mut()
+            .rows_mut(row_ptr, values)
             .into_par_iter()
             .zip(self.rhs.par_iter_mut())
             .enumerate()
@@ -570,7 +573,7 @@ impl ReducedSystem {
                 }
                 *r = f;
             });
-        self.upper.mirror_into(&mut self.matrix);
+        self.upper.mirror(&mut self.matrix);
         Ok(())
     }
 }
@@ -585,16 +588,15 @@ pub(crate) fn transposed(b: &[f64; 9]) -> [f64; 9] {
 }
 
 /// The upper block triangle (diagonal and right of it) of a symmetric [`BlockCsr`]
-/// pattern, filled row by row and mirrored into the full matrix: the lower blocks are
-/// the transposes of the upper ones, so the matrix is exactly symmetric.
+/// pattern: callers fill the upper part of every row in place ([`UpperTriangle::rows_mut`])
+/// and [`UpperTriangle::mirror`] writes the lower blocks as the transposes of the upper
+/// ones, so the matrix is exactly symmetric.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct UpperTriangle {
-    /// Row `i`'s upper blocks are `ptr[i]..ptr[i + 1]` of `values`, diagonal first.
+    /// Row `i` has `ptr[i + 1] - ptr[i]` blocks on and right of its diagonal.
     ptr: Vec<usize>,
-    /// Block values, row-major 3x3.
-    values: Vec<[f64; 9]>,
-    /// For each block left of the diagonal of the full matrix, in row order, the index
-    /// in `values` of its transpose.
+    /// For each block left of the diagonal, in row order, the slot of its transpose in
+    /// the full matrix.
     lower_src: Vec<u32>,
 }
 
@@ -608,8 +610,11 @@ impl UpperTriangle {
             let row = &a.cols[a.row_ptr[i]..a.row_ptr[i + 1]];
             ptr.push(ptr[i] + row.len() - row.partition_point(|&j| (j as usize) < i));
         }
-        // rows i ascending meet the blocks (j, i), j < i, of row j in column order
-        let mut next = ptr.clone();
+        // rows i ascending meet the blocks (j, i), j < i, of row j in column order; the
+        // next unmatched block right of row j's diagonal is its slot `next[j]`
+        let mut next: Vec<usize> = (0..n)
+            .map(|j| a.row_ptr[j + 1] - (ptr[j + 1] - ptr[j]))
+            .collect();
         let mut lower_src = Vec::with_capacity(a.cols.len() - ptr[n]);
         for i in 0..n {
             for &j in &a.cols[a.row_ptr[i]..a.row_ptr[i + 1]] {
@@ -620,35 +625,90 @@ impl UpperTriangle {
                 }
             }
         }
-        UpperTriangle {
-            values: vec![[0.0; 9]; ptr[n]],
-            ptr,
-            lower_src,
+        UpperTriangle { ptr, lower_src }
+    }
+
+    /// The upper part of every row of the values of a matrix with the pattern given to
+    /// [`UpperTriangle::new`] (`row_ptr` its row pointers): row `i`'s diagonal block,
+    /// then the blocks right of it.
+    pub(crate) fn rows_mut<'a>(
+        &self,
+        row_ptr: &[usize],
+        values: &'a mut [[f64; 9]],
+    ) -> Vec<&'a mut [[f64; 9]]> {
+        split_rows(values, row_ptr)
+            .into_iter()
+            .enumerate()
+            .map(|(i, row)| {
+                let lower = row.len() - (self.ptr[i + 1] - self.ptr[i]);
+                &mut row[lower..]
+            })
+            .collect()
+    }
+
+    /// Writes the blocks left of the diagonal of `a` (the pattern given to
+    /// [`UpperTriangle::new`]) as the transposes of the upper blocks (parallel over rows).
+    pub(crate) fn mirror(&self, a: &mut BlockCsr) {
+        let (ptr, lower_src) = (&self.ptr, &self.lower_src);
+        let row_ptr = &a.row_ptr;
+        let values = DisjointWrites::new(&mut a.values);
+        (0..row_ptr.len() - 1).into_par_iter().for_each(|i| {
+            let lower = row_ptr[i + 1] - row_ptr[i] - (ptr[i + 1] - ptr[i]);
+            let src = &lower_src[row_ptr[i] - ptr[i]..][..lower];
+            for (k, &s) in src.iter().enumerate() {
+                // SAFETY: every slot is within `a.values`; the slots written are the
+                // lower blocks of row `i`, written by this task alone, and the slots read
+                // are upper blocks, which no task writes.
+                unsafe {
+                    values.write(row_ptr[i] + k, transposed(&values.read(s as usize)));
+                }
+            }
+        });
+    }
+}
+
+/// A slice that parallel tasks read and write through, each writing only entries that no
+/// other task reads or writes at the same time (which the borrow checker cannot see:
+/// e.g. the rows of one colour of a Gauss-Seidel sweep, or the lower triangle of a matrix
+/// filled from its upper one).
+#[derive(Clone, Copy)]
+pub(crate) struct DisjointWrites<T> {
+    ptr: *mut T,
+    len: usize,
+}
+
+// SAFETY: the users uphold the disjointness contract of `read` and `write`.
+unsafe impl<T: Send> Send for DisjointWrites<T> {}
+unsafe impl<T: Send> Sync for DisjointWrites<T> {}
+
+impl<T: Copy> DisjointWrites<T> {
+    pub(crate) fn new(slice: &mut [T]) -> DisjointWrites<T> {
+        DisjointWrites {
+            ptr: slice.as_mut_ptr(),
+            len: slice.len(),
         }
     }
 
-    /// The rows of the upper triangle, to be filled (row `i` starts with its diagonal
-    /// block, then the columns right of it in the order of the full pattern).
-    pub(crate) fn rows_mut(&mut self) -> Vec<&mut [[f64; 9]]> {
-        split_rows(&mut self.values, &self.ptr)
+    /// Entry `i`.
+    ///
+    /// # Safety
+    /// No other task may write entry `i` at the same time.
+    #[inline]
+    pub(crate) unsafe fn read(self, i: usize) -> T {
+        assert!(i < self.len, "index {i} out of {}", self.len);
+        // SAFETY: in bounds (asserted); no concurrent write (the caller's contract)
+        unsafe { self.ptr.add(i).read() }
     }
 
-    /// Writes the full matrix `a` (the pattern given to [`UpperTriangle::new`]): upper
-    /// blocks copied, lower blocks transposed (parallel over rows).
-    pub(crate) fn mirror_into(&self, a: &mut BlockCsr) {
-        let (ptr, values, lower_src) = (&self.ptr, &self.values, &self.lower_src);
-        let row_ptr = &a.row_ptr;
-        split_rows(&mut a.values, row_ptr)
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(i, row)| {
-                let (lower, upper) = row.split_at_mut(row.len() - (ptr[i + 1] - ptr[i]));
-                let src = &lower_src[row_ptr[i] - ptr[i]..];
-                for (out, &s) in lower.iter_mut().zip(src) {
-                    *out = transposed(&values[s as usize]);
-                }
-                upper.copy_from_slice(&values[ptr[i]..ptr[i + 1]]);
-            });
+    /// Sets entry `i`.
+    ///
+    /// # Safety
+    /// No other task may read or write entry `i` at the same time.
+    #[inline]
+    pub(crate) unsafe fn write(self, i: usize, value: T) {
+        assert!(i < self.len, "index {i} out of {}", self.len);
+        // SAFETY: in bounds (asserted); no concurrent access (the caller's contract)
+        unsafe { self.ptr.add(i).write(value) }
     }
 }
 
