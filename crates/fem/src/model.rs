@@ -524,15 +524,44 @@ impl FemModel {
                     chunk[l] = fe;
                 });
             });
-        let mut f = vec![DVec3::ZERO; self.rest.len()];
-        for (t, fe) in self.tets.iter().zip(&forces) {
-            for a in 0..4 {
-                f[t[a] as usize] += fe[a];
-            }
-        }
+        let f = self.nodal_sum(|e| forces[e]);
         Ok(f)
     }
 }
+
+impl FemModel {
+    /// `Σₑ` of per-element corner values (e.g. forces, mN) at every vertex,
+    /// `corners(e)` giving element `e`'s. Parallel over [`NODAL_SUM_BLOCKS`] fixed blocks
+    /// of elements whose partial sums are added in order, so the result does not depend
+    /// on the threads.
+    pub(crate) fn nodal_sum(&self, corners: impl Fn(usize) -> [DVec3; 4] + Sync) -> Vec<DVec3> {
+        let n = self.rest.len();
+        let block = self.tets.len().div_ceil(NODAL_SUM_BLOCKS).max(1);
+        let partial: Vec<Vec<DVec3>> = self
+            .tets
+            .par_chunks(block)
+            .enumerate()
+            .map(|(k, tets)| {
+                let mut f = vec![DVec3::ZERO; n];
+                for (i, t) in tets.iter().enumerate() {
+                    let c = corners(k * block + i);
+                    for a in 0..4 {
+                        f[t[a] as usize] += c[a];
+                    }
+                }
+                f
+            })
+            .collect();
+        let mut sum = vec![DVec3::ZERO; n];
+        for p in &partial {
+            sum.par_iter_mut().zip(p).for_each(|(s, x)| *s += *x);
+        }
+        sum
+    }
+}
+
+/// Blocks of elements summed separately by [`FemModel::nodal_sum`].
+const NODAL_SUM_BLOCKS: usize = 8;
 
 /// `a bᵀ`.
 #[inline]

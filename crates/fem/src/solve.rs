@@ -210,12 +210,7 @@ impl StaticSolver {
 
 /// `‖f_int‖₂` over all vertices from the element forces of the latest assembly.
 fn internal_force_norm(model: &FemModel, system: &ReducedSystem) -> f64 {
-    let mut f = vec![DVec3::ZERO; model.vertex_count()];
-    for (t, force) in model.tets().iter().zip(system.element_forces()) {
-        for a in 0..4 {
-            f[t[a] as usize] += force[a];
-        }
-    }
+    let f = system.nodal_forces(model);
     f.iter().map(|x| x.length_squared()).sum::<f64>().sqrt()
 }
 

@@ -454,10 +454,11 @@ impl ReducedSystem {
         u
     }
 
-    /// Internal elastic forces of each element at its four vertices (mN), from the
-    /// latest [`ReducedSystem::assemble`].
-    pub fn element_forces(&self) -> impl Iterator<Item = &[DVec3; 4]> {
-        self.cores.iter().map(|c| &c.force)
+    /// The internal elastic force at every vertex of `model` (the model assembled, mN),
+    /// from the latest [`ReducedSystem::assemble`]: the reactions at held vertices, the
+    /// internal forces at free ones.
+    pub fn nodal_forces(&self, model: &FemModel) -> Vec<DVec3> {
+        model.nodal_sum(|e| self.cores[e].force)
     }
 
     /// Assembles `K'_ff` (with the chosen [`Tangent`]) for the rotations of displacement

@@ -1028,12 +1028,7 @@ impl Simulation {
     fn load_scale(&self) -> f64 {
         let mg = self.multigrid.as_ref().expect("assembled");
         let sys = mg.system();
-        let mut f = vec![DVec3::ZERO; self.finest.positions.len()];
-        for (t, fe) in self.finest.tets.iter().zip(sys.element_forces()) {
-            for k in 0..4 {
-                f[t[k] as usize] += fe[k];
-            }
-        }
+        let f = sys.nodal_forces(mg.model());
         let reaction: f64 = f
             .iter()
             .enumerate()
