@@ -45,6 +45,22 @@ pub enum Tangent {
     Full,
 }
 
+/// A safeguard against inverted elements added to the corotated energy (beyond the
+/// paper): below the volume ratio `J_min`, an element gains the energy
+/// `κ V (J_min - J)²` (`J = det F`, `V` its rest volume). Corotated linear elasticity
+/// alone resists a collapse to zero volume only with a bounded force (its strain of an
+/// inverted element is measured from the reflected rest shape), so tissue squeezed hard
+/// over an implant can pass through `J = 0`; the barrier's force `2κV (J_min - J) ∂J/∂x`
+/// grows until it stops that. Elements above `J_min` are untouched. The assembled
+/// stiffness gains the positive Gauss-Newton term `2κV (∂J/∂xₐ)(∂J/∂x_b)ᵀ`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InversionBarrier {
+    /// Volume ratio `J_min` below which the barrier acts, in (0, 1).
+    pub min_volume_ratio: f64,
+    /// Its modulus `κ` (kPa), positive.
+    pub modulus_kpa: f64,
+}
+
 /// Rest-state data of one linear tetrahedron.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ElementRest {
@@ -76,6 +92,18 @@ pub struct ElementState {
     pub twist: [[DVec3; 4]; 3],
     /// Volume-scaled coefficients of the twist term (mN·mm); zero for none.
     pub twist_coef: [f64; 3],
+    /// `2κV` of the [`InversionBarrier`] when it acts on the element (mN·mm), else zero:
+    /// the block `(a, b)` gains `barrier_stiffness · bₐ b_bᵀ` with
+    /// `b = FemModel::volume_gradients`.
+    pub barrier_stiffness: f64,
+}
+
+/// The rotated gradients, internal forces (with the [`InversionBarrier`]'s) and the
+/// barrier's stiffness coefficient of one element (see [`ElementState`]).
+pub(crate) struct WarpedElement {
+    pub(crate) rotated_grad: [DVec3; 4],
+    pub(crate) force: [DVec3; 4],
+    pub(crate) barrier_stiffness: f64,
 }
 
 /// A tetrahedral finite element model in its rest state.
@@ -85,6 +113,7 @@ pub struct FemModel {
     tets: Vec<[u32; 4]>,
     materials: Vec<Material>,
     elements: Vec<ElementRest>,
+    barrier: Option<InversionBarrier>,
 }
 
 /// Rest data of one tetrahedron; `Err` with its signed volume if it is not positive.
@@ -182,6 +211,7 @@ impl FemModel {
             tets: mesh.tets.clone(),
             materials,
             elements: rest_elements,
+            barrier: None,
         })
     }
 
@@ -232,6 +262,53 @@ impl FemModel {
         e.vol_mu = e.volume_mm3 * mu;
         self.materials[element] = material;
         Ok(())
+    }
+
+    /// Sets (or, with `None`, removes) the [`InversionBarrier`] of every element; none by
+    /// default (the paper's corotated energy).
+    ///
+    /// Errors: a volume ratio outside (0, 1) or a modulus that is not positive and finite.
+    pub fn set_inversion_barrier(
+        &mut self,
+        barrier: Option<InversionBarrier>,
+    ) -> Result<(), FemError> {
+        if let Some(b) = barrier
+            && !(b.min_volume_ratio > 0.0
+                && b.min_volume_ratio < 1.0
+                && b.modulus_kpa > 0.0
+                && b.modulus_kpa.is_finite())
+        {
+            return Err(FemError::InvalidOptions {
+                what: format!(
+                    "inversion barrier: volume ratio {} must lie in (0, 1) and modulus {} kPa \
+                     be positive",
+                    b.min_volume_ratio, b.modulus_kpa
+                ),
+            });
+        }
+        self.barrier = barrier;
+        Ok(())
+    }
+
+    /// The model's [`InversionBarrier`], if any.
+    pub fn inversion_barrier(&self) -> Option<InversionBarrier> {
+        self.barrier
+    }
+
+    /// `∂J/∂xᵢ = cof(F) gᵢ` for the four vertices of element `e` at displacement `u`
+    /// (mm²; `J = det F` its volume ratio): the directions of the [`InversionBarrier`].
+    pub fn volume_gradients(&self, e: usize, u: &[DVec3]) -> [DVec3; 4] {
+        let cof = cofactor_matrix(DMat3::IDENTITY + self.displacement_gradient(e, u));
+        self.elements[e].grad.map(|g| cof * g)
+    }
+
+    /// The [`InversionBarrier`]'s `(J_min - J, 2κV)` for element `e` with displacement
+    /// gradient `du`, when it acts.
+    #[inline]
+    fn barrier_gap(&self, e: usize, du: DMat3) -> Option<(f64, f64)> {
+        let b = self.barrier?;
+        let gap = b.min_volume_ratio - (DMat3::IDENTITY + du).determinant();
+        (gap > 0.0).then(|| (gap, 2.0 * b.modulus_kpa * self.elements[e].volume_mm3))
     }
 
     /// Consistent nodal gravity forces (mN) for the acceleration `gravity_m_s2` (m/s²,
@@ -351,7 +428,11 @@ impl FemModel {
                 (polar_rotation(DMat3::IDENTITY + du), None)
             }
         };
-        let (rotated_grad, force) = self.rotated_forces(e, formulation, r, du);
+        let WarpedElement {
+            rotated_grad,
+            force,
+            barrier_stiffness,
+        } = self.rotated_forces(e, formulation, r, du);
         let mut twist = [[DVec3::ZERO; 4]; 3];
         let mut twist_coef = [0.0; 3];
         if let Some((v, s)) = svd {
@@ -378,6 +459,7 @@ impl FemModel {
             force,
             twist,
             twist_coef,
+            barrier_stiffness,
         }
     }
 
@@ -408,7 +490,7 @@ impl FemModel {
 
     /// The rotated gradients `R gᵢ` and internal forces `V R σ gᵢ` (mN) of the elements
     /// `first..` (at most [`POLAR_LANES`]) for the [`Tangent::Warped`] rotations of
-    /// displacement `u`, handed to `emit(lane, (gradients, forces))`: the part of
+    /// displacement `u`, handed to `emit(lane, element)`: the part of
     /// [`FemModel::element_state`] that the warped assembly reads.
     #[inline]
     pub(crate) fn elements_warped(
@@ -416,7 +498,7 @@ impl FemModel {
         first: usize,
         u: &[DVec3],
         formulation: Formulation,
-        mut emit: impl FnMut(usize, ([DVec3; 4], [DVec3; 4])),
+        mut emit: impl FnMut(usize, WarpedElement),
     ) {
         let (count, du, r) = self.chunk_rotations(first, u, formulation);
         for l in 0..count {
@@ -425,8 +507,8 @@ impl FemModel {
     }
 
     /// Rotated gradients and forces of element `e` for rotation `r` and displacement
-    /// gradient `du`; the corner 0 terms are minus the sum of the others (the gradients
-    /// sum to zero).
+    /// gradient `du` (with the [`InversionBarrier`]'s force where it acts); the corner 0
+    /// terms are minus the sum of the others (the gradients sum to zero).
     #[inline]
     fn rotated_forces(
         &self,
@@ -434,7 +516,7 @@ impl FemModel {
         formulation: Formulation,
         r: DMat3,
         du: DMat3,
-    ) -> ([DVec3; 4], [DVec3; 4]) {
+    ) -> WarpedElement {
         let el = &self.elements[e];
         let g = match formulation {
             Formulation::Linear => du,
@@ -446,15 +528,25 @@ impl FemModel {
         // volume times stress
         let vsigma =
             DMat3::from_diagonal(DVec3::splat(el.vol_lambda * tr)) + eps * (2.0 * el.vol_mu);
-        let rs = r * vsigma;
+        let mut rs = r * vsigma;
+        let mut barrier_stiffness = 0.0;
+        if let Some((gap, stiffness)) = self.barrier_gap(e, du) {
+            // f += -2κV (J_min - J) cof(F) g
+            rs -= cofactor_matrix(DMat3::IDENTITY + du) * (stiffness * gap);
+            barrier_stiffness = stiffness;
+        }
         let [_, g1, g2, g3] = el.grad;
         let (h1, h2, h3) = (r * g1, r * g2, r * g3);
         let (f1, f2, f3) = (rs * g1, rs * g2, rs * g3);
-        ([-(h1 + h2 + h3), h1, h2, h3], [-(f1 + f2 + f3), f1, f2, f3])
+        WarpedElement {
+            rotated_grad: [-(h1 + h2 + h3), h1, h2, h3],
+            force: [-(f1 + f2 + f3), f1, f2, f3],
+            barrier_stiffness,
+        }
     }
 
     /// Elastic energy of element `e` (mN·mm = µJ): `V (μ ‖ε‖² + λ/2 tr(ε)²)` with the
-    /// strain of [`FemModel::element_stress`]. For the corotated formulation this is
+    /// strain of [`FemModel::element_stress`], plus the [`InversionBarrier`]'s. For the corotated formulation this is
     /// `V (μ ‖F - R‖² + λ/2 tr(RᵀF - I)²)`, whose gradient is exactly the element force
     /// (the derivative of the polar rotation drops out), so the forces are conservative.
     pub fn element_energy(&self, e: usize, u: &[DVec3], formulation: Formulation) -> f64 {
@@ -478,7 +570,10 @@ impl FemModel {
         let tr = eps.x_axis.x + eps.y_axis.y + eps.z_axis.z;
         let norm2 =
             eps.x_axis.length_squared() + eps.y_axis.length_squared() + eps.z_axis.length_squared();
-        el.vol_mu * norm2 + 0.5 * el.vol_lambda * tr * tr
+        let barrier = self
+            .barrier_gap(e, du)
+            .map_or(0.0, |(gap, stiffness)| 0.5 * stiffness * gap * gap);
+        el.vol_mu * norm2 + 0.5 * el.vol_lambda * tr * tr + barrier
     }
 
     /// Total potential energy `Σₑ Ψₑ(u) - f_ext · u` (mN·mm); `f_ext` may be empty.
@@ -520,8 +615,8 @@ impl FemModel {
             .par_chunks_mut(POLAR_LANES)
             .enumerate()
             .for_each(|(k, chunk)| {
-                self.elements_warped(k * POLAR_LANES, u, formulation, |l, (_, fe)| {
-                    chunk[l] = fe;
+                self.elements_warped(k * POLAR_LANES, u, formulation, |l, w| {
+                    chunk[l] = w.force;
                 });
             });
         let f = self.nodal_sum(|e| forces[e]);
@@ -562,6 +657,17 @@ impl FemModel {
 
 /// Blocks of elements summed separately by [`FemModel::nodal_sum`].
 const NODAL_SUM_BLOCKS: usize = 8;
+
+/// The cofactor matrix `cof(F) = det F · F⁻ᵀ`, whose column `q` is `∂ det F / ∂(column q
+/// of F)`.
+#[inline]
+fn cofactor_matrix(f: DMat3) -> DMat3 {
+    DMat3::from_cols(
+        f.y_axis.cross(f.z_axis),
+        f.z_axis.cross(f.x_axis),
+        f.x_axis.cross(f.y_axis),
+    )
+}
 
 /// `a bᵀ`.
 #[inline]

@@ -209,6 +209,97 @@ impl Default for MultigridOptions {
     }
 }
 
+/// Flexible conjugate gradients on the assembled finest system of a [`Multigrid`],
+/// preconditioned by one V-cycle from zero per iteration (Polak-Ribière `β`, robust to
+/// the non-symmetric V(2,1) preconditioner), one iteration per [`PcgIteration::step`]:
+/// for interactive use, where the caller may stop after any iteration.
+/// [`Multigrid::pcg`] runs it to a tolerance.
+#[derive(Debug, Clone)]
+pub struct PcgIteration {
+    b: Vec<DVec3>,
+    x: Vec<DVec3>,
+    r: Vec<DVec3>,
+    z: Vec<DVec3>,
+    z_old: Vec<DVec3>,
+    p: Vec<DVec3>,
+    ap: Vec<DVec3>,
+    rz_old: f64,
+    iterations: usize,
+}
+
+impl PcgIteration {
+    /// Starts from `x` on `A x = b` (`A` the finest system `mg` has assembled).
+    ///
+    /// # Panics
+    /// Before the first [`Multigrid::assemble`], or on length mismatches.
+    pub fn new(mg: &mut Multigrid, b: Vec<DVec3>, x: Vec<DVec3>) -> PcgIteration {
+        let n = b.len();
+        assert_eq!(x.len(), n, "PcgIteration: x and b differ in length");
+        let mut r = vec![DVec3::ZERO; n];
+        residual(mg.levels[0].op(), &x, &b, &mut r);
+        PcgIteration {
+            b,
+            x,
+            r,
+            z: vec![DVec3::ZERO; n],
+            z_old: vec![DVec3::ZERO; n],
+            p: vec![DVec3::ZERO; n],
+            ap: vec![DVec3::ZERO; n],
+            rz_old: 0.0,
+            iterations: 0,
+        }
+    }
+
+    /// One iteration (one V-cycle and one matrix-vector product).
+    pub fn step(&mut self, mg: &mut Multigrid) {
+        self.z.fill(DVec3::ZERO);
+        mg.vcycle(&mut self.z, &self.r);
+        let rz = dot(&self.r, &self.z);
+        if self.iterations == 0 {
+            self.p.copy_from_slice(&self.z);
+        } else {
+            let beta = (rz - dot(&self.r, &self.z_old)) / self.rz_old;
+            self.p
+                .par_iter_mut()
+                .zip(&self.z)
+                .for_each(|(pi, zi)| *pi = *zi + *pi * beta);
+        }
+        mg.levels[0].op().mul_vec(&self.p, &mut self.ap);
+        let alpha = rz / dot(&self.p, &self.ap);
+        self.x
+            .par_iter_mut()
+            .zip(&self.p)
+            .for_each(|(xi, pi)| *xi += *pi * alpha);
+        self.r
+            .par_iter_mut()
+            .zip(&self.ap)
+            .for_each(|(ri, api)| *ri -= *api * alpha);
+        std::mem::swap(&mut self.z, &mut self.z_old);
+        self.rz_old = rz;
+        self.iterations += 1;
+    }
+
+    /// `‖b - A x‖₂` (the recurrence's residual).
+    pub fn residual_norm(&self) -> f64 {
+        norm(&self.r)
+    }
+
+    /// The current iterate `x`.
+    pub fn solution(&self) -> &[DVec3] {
+        &self.x
+    }
+
+    /// The right-hand side `b`.
+    pub fn rhs(&self) -> &[DVec3] {
+        &self.b
+    }
+
+    /// Iterations run.
+    pub fn iterations(&self) -> usize {
+        self.iterations
+    }
+}
+
 /// Outcome of [`Multigrid::pcg`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PcgResult {
@@ -1425,7 +1516,6 @@ impl Multigrid {
         relative_tolerance: f64,
         max_iterations: usize,
     ) -> PcgResult {
-        let n = b.len();
         let bnorm = norm(b);
         if bnorm == 0.0 {
             x.fill(DVec3::ZERO);
@@ -1435,47 +1525,15 @@ impl Multigrid {
                 converged: true,
             };
         }
-        let mut r = vec![DVec3::ZERO; n];
-        residual(self.levels[0].op(), x, b, &mut r);
-        let mut z = vec![DVec3::ZERO; n];
-        let mut z_old = vec![DVec3::ZERO; n];
-        let mut p = vec![DVec3::ZERO; n];
-        let mut ap = vec![DVec3::ZERO; n];
-        let mut rz_old = 0.0;
-        let mut rel = norm(&r) / bnorm;
-        let mut it = 0;
-        while rel > relative_tolerance && it < max_iterations {
-            z.fill(DVec3::ZERO);
-            self.vcycle(&mut z, &r);
-            let rz = dot(&r, &z);
-            if it == 0 {
-                p.copy_from_slice(&z);
-            } else {
-                let beta = (rz
-                    - r.par_iter()
-                        .zip(&z_old)
-                        .map(|(a, b)| a.dot(*b))
-                        .sum::<f64>())
-                    / rz_old;
-                p.par_iter_mut()
-                    .zip(&z)
-                    .for_each(|(pi, zi)| *pi = *zi + *pi * beta);
-            }
-            self.levels[0].op().mul_vec(&p, &mut ap);
-            let alpha = rz / dot(&p, &ap);
-            x.par_iter_mut()
-                .zip(&p)
-                .for_each(|(xi, pi)| *xi += *pi * alpha);
-            r.par_iter_mut()
-                .zip(&ap)
-                .for_each(|(ri, api)| *ri -= *api * alpha);
-            std::mem::swap(&mut z, &mut z_old);
-            rz_old = rz;
-            it += 1;
-            rel = norm(&r) / bnorm;
+        let mut cg = PcgIteration::new(self, b.to_vec(), x.to_vec());
+        let mut rel = cg.residual_norm() / bnorm;
+        while rel > relative_tolerance && cg.iterations < max_iterations {
+            cg.step(self);
+            rel = cg.residual_norm() / bnorm;
         }
+        x.copy_from_slice(&cg.x);
         PcgResult {
-            iterations: it,
+            iterations: cg.iterations,
             relative_residual: rel,
             converged: rel <= relative_tolerance,
         }

@@ -155,13 +155,15 @@ pub fn block_mul(b: &[f64; 9], x: DVec3) -> DVec3 {
     )
 }
 
-/// Per-element data the block gather reads: rotated gradients, forces, `V λ`, `V μ`.
+/// Per-element data the block gather reads: rotated gradients, forces, `V λ`, `V μ`,
+/// and the inversion barrier's `2κV` (zero where it does not act).
 #[derive(Debug, Clone, Copy, Default)]
 struct ElementCore {
     rotated_grad: [DVec3; 4],
     force: [DVec3; 4],
     vol_lambda: f64,
     vol_mu: f64,
+    barrier_stiffness: f64,
 }
 
 /// Per-element twist (geometric stiffness) term of [`Tangent::Full`].
@@ -487,11 +489,12 @@ impl ReducedSystem {
         let ne = model.element_count();
         let full = formulation == Formulation::Corotated && tangent == Tangent::Full;
         let elements = model.elements();
-        let core = |e: usize, (rotated_grad, force)| ElementCore {
+        let core = |e: usize, rotated_grad, force, barrier_stiffness| ElementCore {
             rotated_grad,
             force,
             vol_lambda: elements[e].vol_lambda,
             vol_mu: elements[e].vol_mu,
+            barrier_stiffness,
         };
         self.cores.resize(ne, ElementCore::default());
         if full {
@@ -502,7 +505,7 @@ impl ReducedSystem {
                 .enumerate()
                 .for_each(|(e, (c, t))| {
                     let s = model.element_state(e, u, formulation, tangent);
-                    *c = core(e, (s.rotated_grad, s.force));
+                    *c = core(e, s.rotated_grad, s.force, s.barrier_stiffness);
                     *t = ElementTwist {
                         twist: s.twist,
                         coef: s.twist_coef,
@@ -516,7 +519,7 @@ impl ReducedSystem {
                 .for_each(|(k, chunk)| {
                     let first = k * POLAR_LANES;
                     model.elements_warped(first, u, formulation, |l, w| {
-                        chunk[l] = core(first + l, w);
+                        chunk[l] = core(first + l, w.rotated_grad, w.force, w.barrier_stiffness);
                     });
                 });
         }
@@ -560,6 +563,10 @@ impl ReducedSystem {
                     f -= c.force[a];
                     let lambda_ha = (c.rotated_grad[a] * c.vol_lambda).to_array();
                     let mu_ha = (c.rotated_grad[a] * c.vol_mu).to_array();
+                    // the inversion barrier acts on few elements: its directions are
+                    // recomputed here rather than stored for all
+                    let barrier = (c.barrier_stiffness != 0.0)
+                        .then(|| model.volume_gradients(e, u).map(|g| g.to_array()));
                     for (b, &s) in incident_slots[k].iter().enumerate() {
                         // a held unknown's column stays zero (eliminated)
                         if s == NOT_FREE || eliminated[ucols[s as usize] as usize] {
@@ -569,6 +576,9 @@ impl ReducedSystem {
                         add_element_block(out, c, a, b, lambda_ha, mu_ha);
                         if full {
                             add_twist_block(out, &twists[e], a, b);
+                        }
+                        if let Some(g) = &barrier {
+                            add_rank_one(out, c.barrier_stiffness, g[a], g[b]);
                         }
                     }
                 }
@@ -765,13 +775,18 @@ fn add_twist_block(out: &mut [f64; 9], t: &ElementTwist, a: usize, b: usize) {
     for m in 0..3 {
         let c = t.coef[m];
         if c != 0.0 {
-            let ta = t.twist[m][a].to_array();
-            let tb = t.twist[m][b].to_array();
-            for p in 0..3 {
-                for q in 0..3 {
-                    out[3 * p + q] += c * (ta[p] * tb[q]);
-                }
-            }
+            add_rank_one(out, c, t.twist[m][a].to_array(), t.twist[m][b].to_array());
+        }
+    }
+}
+
+/// `out += c · x yᵀ`; the products `x[p] y[q]` round alike for `(x, y)` and `(y, x)`,
+/// so a diagonal block (`x = y`) stays exactly symmetric.
+#[inline]
+fn add_rank_one(out: &mut [f64; 9], c: f64, x: [f64; 3], y: [f64; 3]) {
+    for p in 0..3 {
+        for q in 0..3 {
+            out[3 * p + q] += c * (x[p] * y[q]);
         }
     }
 }

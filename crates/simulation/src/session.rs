@@ -28,9 +28,21 @@
 //!    force `f_int(u)` at those vertices, implant elements already soft), becomes a dead
 //!    load there, plus the weight of the volume the implant added: each implant element's
 //!    gravity at the implant density over its deformed minus its rest volume, a quarter
-//!    to each corner. Solved again from the stage-1 displacement. Only the added mass
-//!    pulls; the dead load keeps stage 1's equilibrium otherwise. The breast sags: the
-//!    nipple moves down.
+//!    to each corner. Only the added mass pulls; the dead load keeps stage 1's
+//!    equilibrium otherwise. The correction is the linear response of the stage-1 state:
+//!    `K Δu = r` with `K` the corotated tangent at the stage-1 displacement (implant
+//!    vertices free) and `r` the added weight (and what is left of stage 1's residual),
+//!    solved by conjugate gradients preconditioned with the multigrid, one iteration per
+//!    cycle ([`fem::multigrid::PcgIteration`]), from the stage-1 displacement. The breast
+//!    sags: the nipple moves down. Why linear: under the dead loads the soft implant
+//!    region has no stiffness of its own against moving as a whole, and the corotated
+//!    iteration with a line search on the energy wandered off (on `v02_average` the
+//!    residual grew from 5e-3 to 0.5 in 40 cycles, inverting 18 elements, and neither
+//!    pair1 scan converged); the added weight moves the nipple by 5-9 mm, where the
+//!    linear response of the deformed state is accurate, and the tangent system is
+//!    symmetric positive definite. Bare V-cycles converge slowly on it (the soft implant
+//!    region is a coefficient jump of 100 that the coarse levels do not see); conjugate
+//!    gradients reach a relative residual of 1e-3 in 7-32 cycles.
 //!
 //! # Changing the implant
 //! [`Simulation::set_implant`] rebuilds that side's template from scratch (milliseconds)
@@ -45,15 +57,15 @@ use crate::error::SimulationError;
 use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap, SurfaceSmoother};
 use crate::placement::{Anchor, AnchorRule, Placement, resolve_anchor};
 use crate::template::{
-    BedFeet, ImplantTemplate, SmoothedThickness, TemplateIndex, build_template, check_footprint,
-    fit_footprint,
+    BedFeet, ImplantTemplate, SmoothedThickness, TemplateIndex, TemplateRules, build_template,
+    check_footprint, fit_footprint,
 };
 use anatomy::breast::{BreastModel, Side};
 use anatomy::closed_surface::ClosedSurface;
 use anatomy::fill_in::{FillInParams, fill_hole};
 use anatomy::{AnatomicalFrame, LandmarkName, Landmarks};
-use fem::multigrid::{CoarseOperator, Multigrid, MultigridOptions};
-use fem::{Constraints, FemModel, Formulation, Material, NOT_FREE, Tangent};
+use fem::multigrid::{CoarseOperator, Multigrid, MultigridOptions, PcgIteration};
+use fem::{Constraints, FemModel, Formulation, InversionBarrier, Material, NOT_FREE, Tangent};
 use glam::{DVec2, DVec3};
 use implant::ImplantShape;
 use mesh::TriMesh;
@@ -70,6 +82,18 @@ pub const WALL_TOLERANCE_FACTOR: f64 = 0.25;
 /// (paper V-A). Only stage 2 sees it (in stage 1 every implant element has all its corners
 /// prescribed).
 pub const DEFAULT_IMPLANT_YOUNG_RATIO: f64 = 0.01;
+
+/// Default inversion barrier of the finest level: elements squeezed below half their
+/// volume resist with a modulus of 100 kPa (about forty times the tissue's Young's
+/// modulus), whatever their material (the soft implant elements too). Measured on the
+/// shared scans with base-sized round implants (no gravity): inverted elements 3, 7 and
+/// 10 (v02_average, pair1_post, pair1_pre) without it; with 50 kPa 1, 0, 0; with
+/// 100 kPa none (stage 1 in 14 cycles on v02_average instead of 10); 200 kPa took 34
+/// cycles there, and a threshold of 0.3 left one element inverted at 100 kPa.
+pub const DEFAULT_INVERSION_BARRIER: InversionBarrier = InversionBarrier {
+    min_volume_ratio: 0.5,
+    modulus_kpa: 100.0,
+};
 
 /// Default radius of the implant rim's mollifier in finest lattice spacings. Linear
 /// tetrahedra cannot follow a rim that rises by 10 mm within 3 mm (the square-root edge
@@ -147,28 +171,24 @@ pub struct SimulationOptions {
     pub implant_density_kg_m3: f64,
     /// Gravity (m/s²), acting along the anatomical frame's `-y`.
     pub gravity_m_s2: f64,
-    /// The corotated tangent of the gravity stage's cycles (stage 1 uses the
+    /// The corotated tangent `K` of the gravity stage's linear system (stage 1 uses the
     /// multigrid's, the paper's warped stiffness). [`Tangent::Full`] adds the positive
-    /// part of the geometric stiffness: measured on the phantom (R-MOD-120 both
-    /// sides, 60,000 elements), the warped stiffness overshot so that the line search
-    /// cut every step to a quarter and 60 cycles reached a relative residual of
-    /// 1.6e-3; with the full tangent every step was taken whole and 12 cycles reached
-    /// 1e-3 (1e-6 after 28).
+    /// part of the geometric stiffness, the better linearisation where tissue is
+    /// stretched and turned.
     pub gravity_tangent: Tangent,
     /// The multigrid's settings. With Galerkin coarse operators (the default) a
     /// singular coarse operator (see [`Simulation::coarse_fallbacks`]) makes the session
     /// switch to rediscretised ones, whose coarse levels hold their own wall and band
     /// vertices.
     pub multigrid: MultigridOptions,
-    /// In the gravity stage, backtrack each cycle's step on the potential energy
-    /// (halving up to [`MAX_HALVINGS`] times until it does not grow). The multigrid's
-    /// matrix is the warped stiffness `R K Rᵀ` without the geometric term, so the plain
-    /// fixed-point iteration can overshoot where tissue is stretched hard and nothing is
-    /// prescribed; measured on the phantom, the gravity stage diverged without it. In
-    /// stage 1 it starts only once the residual grows from one corotated cycle to the
-    /// next (an energy costs a fair part of a cycle, and most placements never need it):
-    /// a 252 ml implant in v02_average's 182 ml breast otherwise settled into a
-    /// three-cycle oscillation at a relative residual of 0.19-0.21.
+    /// In stage 1, once the residual grows from one corotated cycle to the next,
+    /// backtrack each cycle's step on the potential energy (halving up to
+    /// [`MAX_HALVINGS`] times until it does not grow): the multigrid's matrix is the
+    /// warped stiffness `R K Rᵀ` without the geometric term, so the plain fixed-point
+    /// iteration can overshoot. It starts only then (an energy costs a fair part of a
+    /// cycle, and most placements never need it): a 252 ml implant in v02_average's
+    /// 182 ml breast otherwise settled into a three-cycle oscillation at a relative
+    /// residual of 0.19-0.21. (The gravity stage is linear and needs none.)
     pub line_search: bool,
     /// Linear (small-strain) cycles before the corotated ones when stage 1 starts cold
     /// (zero displacement): at most this many, stopping once the relative residual is
@@ -177,6 +197,10 @@ pub struct SimulationOptions {
     /// one cycle) and took 20 cycles to untangle; from the linear solution the corotated
     /// cycles converged in 8 with no inverted element on the way.
     pub linear_warmup_cycles: usize,
+    /// The finest level's safeguard against inverted elements (see
+    /// [`fem::InversionBarrier`]; `None`: the paper's plain corotated energy). Default
+    /// [`DEFAULT_INVERSION_BARRIER`].
+    pub inversion_barrier: Option<InversionBarrier>,
     /// Use at most this many levels of the hierarchy, finest first (`None`: all).
     pub max_levels: Option<usize>,
     /// Cycle limit and relative residual of [`Simulation::solve`].
@@ -207,6 +231,7 @@ impl Default for SimulationOptions {
             implant_density_kg_m3: DEFAULT_IMPLANT_DENSITY_KG_M3,
             gravity_m_s2: fem::STANDARD_GRAVITY_M_S2,
             multigrid: MultigridOptions::default(),
+            inversion_barrier: Some(DEFAULT_INVERSION_BARRIER),
             max_levels: None,
             line_search: true,
             linear_warmup_cycles: 6,
@@ -352,6 +377,8 @@ pub struct Simulation {
     feet: [BedFeet; 2],
     /// Posterior wall and band vertices of the finest level.
     wall: Vec<u32>,
+    /// Per finest vertex: on the wall (held at every stage).
+    on_wall: Vec<bool>,
     /// Held wall and band vertices of each coarser level (for rediscretised operators).
     coarse_walls: Vec<Vec<u32>>,
     /// The coarse operator in use, and how often Galerkin failed.
@@ -371,6 +398,10 @@ pub struct Simulation {
     u: Vec<DVec3>,
     f_ext: Vec<DVec3>,
     u_before_gravity: Option<Vec<DVec3>>,
+    /// Stage 2's linear system `K Δu = r` at the stage-1 displacement (its right-hand
+    /// side the added implant weight and what is left of stage 1's residual) and its
+    /// conjugate gradient iteration, once the stage's first cycle assembled it.
+    gravity: Option<PcgIteration>,
     last_relative_residual: f64,
     stage_cycles: usize,
     /// The constraints or loads changed since the last cycle (no line search then).
@@ -516,13 +547,14 @@ impl Simulation {
         let finest = level0.mesh.clone();
         let spacing_mm = level0.spacing_mm;
         let level_count = options.max_levels.unwrap_or(usize::MAX).max(1);
-        let levels = input
+        let mut levels = input
             .tets
             .levels
             .iter()
             .take(level_count)
             .map(|l| FemModel::homogeneous(&l.mesh, options.tissue))
             .collect::<Result<Vec<_>, _>>()?;
+        levels[0].set_inversion_barrier(options.inversion_barrier)?;
         let closed = input.closed_surface;
 
         // one cylinder about the body's axis through both fill-ins
@@ -627,6 +659,10 @@ impl Simulation {
             )
         };
         let wall = held(&finest, spacing_mm)?;
+        let mut on_wall = vec![false; finest.positions.len()];
+        for &v in &wall {
+            on_wall[v as usize] = true;
+        }
         let coarse_walls = input.tets.levels[1..levels.len()]
             .iter()
             .map(|l| held(&l.mesh, l.spacing_mm))
@@ -661,6 +697,7 @@ impl Simulation {
             beds,
             index,
             wall,
+            on_wall,
             implants: [None, None],
             stage: Stage::Implant,
             multigrid: None,
@@ -669,6 +706,7 @@ impl Simulation {
             u: vec![DVec3::ZERO; n],
             f_ext: Vec::new(),
             u_before_gravity: None,
+            gravity: None,
             last_relative_residual: 0.0,
             stage_cycles: 0,
             fresh: true,
@@ -807,8 +845,11 @@ impl Simulation {
             feet,
             &anchor,
             &thickness,
-            self.options.hold_bed,
-            layer_mm,
+            &TemplateRules {
+                hold_bed: self.options.hold_bed,
+                layer_mm,
+                on_wall: &self.on_wall,
+            },
         )?;
         if let Some((bed, feet)) = new_bed {
             self.beds[s] = bed;
@@ -840,6 +881,7 @@ impl Simulation {
         self.stage = Stage::Implant;
         self.f_ext.clear();
         self.u_before_gravity = None;
+        self.gravity = None;
         self.stage_cycles = 0;
         self.dirty = true;
         self.fresh = true;
@@ -1088,6 +1130,7 @@ impl Simulation {
                 self.multigrid = Some(
                     self.build_multigrid(self.constraints(false), self.options.gravity_tangent)?,
                 );
+                self.gravity = None;
             }
         }
         Ok(())
@@ -1096,9 +1139,12 @@ impl Simulation {
     fn cycle_once(&mut self, formulation: Formulation) -> Result<CycleInfo, SimulationError> {
         let start = Instant::now();
         let rebuilt = self.ensure_multigrid()?;
+        if self.stage == Stage::Gravity {
+            return self.gravity_cycle(start, rebuilt);
+        }
         let fresh = std::mem::take(&mut self.fresh) || rebuilt;
         let search = self.options.line_search
-            && (self.stage == Stage::Gravity || self.stage_one_search)
+            && self.stage_one_search
             && !fresh
             && formulation == Formulation::Corotated;
         let u_old = search.then(|| self.u.clone());
@@ -1148,6 +1194,52 @@ impl Simulation {
             rebuilt,
             step: self.last_step,
             linear: formulation == Formulation::Linear,
+            time_ms: elapsed_ms(start),
+        })
+    }
+
+    /// One cycle of stage 2: one iteration of conjugate gradients preconditioned by a
+    /// V-cycle on the tangent system of the stage-1 state (assembled at the stage's first
+    /// cycle); the displacement is stage 1's plus the correction so far.
+    fn gravity_cycle(
+        &mut self,
+        start: Instant,
+        rebuilt: bool,
+    ) -> Result<CycleInfo, SimulationError> {
+        let u1 = self
+            .u_before_gravity
+            .as_deref()
+            .expect("stage 2 starts from stage 1's displacement");
+        let mg = self.multigrid.as_mut().expect("ensured");
+        if self.gravity.is_none() {
+            mg.assemble(u1, &self.f_ext, Formulation::Corotated)?;
+            let rhs = mg.system().rhs.clone();
+            let zero = vec![DVec3::ZERO; rhs.len()];
+            self.gravity = Some(PcgIteration::new(mg, rhs, zero));
+        }
+        let cg = self.gravity.as_mut().expect("assembled above");
+        let residual = cg.residual_norm();
+        cg.step(mg);
+        self.u.copy_from_slice(u1);
+        let sys = mg.system();
+        for ((&v, d), &held) in sys.free.iter().zip(cg.solution()).zip(sys.eliminated()) {
+            if !held {
+                self.u[v as usize] += *d;
+            }
+        }
+        self.last_energy = None;
+        self.last_step = 1.0;
+        self.fresh = false;
+        let relative = residual / self.load_scale();
+        self.last_relative_residual = relative;
+        self.stage_cycles += 1;
+        Ok(CycleInfo {
+            stage: self.stage,
+            residual_mn: residual,
+            relative_residual: relative,
+            rebuilt,
+            step: 1.0,
+            linear: false,
             time_ms: elapsed_ms(start),
         })
     }
@@ -1216,6 +1308,7 @@ impl Simulation {
         }
         let mg = self.build_multigrid(self.constraints(false), self.options.gravity_tangent)?;
         self.u_before_gravity = Some(self.u.clone());
+        self.gravity = None;
         self.multigrid = Some(mg);
         self.f_ext = f_ext;
         self.stage = Stage::Gravity;

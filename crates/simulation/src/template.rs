@@ -400,16 +400,28 @@ pub fn fit_footprint(
     Err(larger_than_footprint(bed, shape, frame, &best))
 }
 
+/// The session's choices a template follows (see [`build_template`]).
+#[derive(Debug, Clone, Copy)]
+pub struct TemplateRules<'a> {
+    /// Fix every back vertex of a fill-in element, not only those in the footprint.
+    pub hold_bed: bool,
+    /// Thickness of the tissue layer over the footprint that moves with the implant (mm).
+    pub layer_mm: f64,
+    /// Per finest vertex: held on the wall in every stage.
+    pub on_wall: &'a [bool],
+}
+
 /// Builds the template of the implant whose mollified thickness is `thickness`,
 /// anchored at `anchor`, over the finest level `mesh` with its `candidates` (of one
-/// side) and their `feet` on that side's bed. With `hold_bed`, every back vertex of a
+/// side) and their `feet` on that side's bed, following `rules`. With `hold_bed`, every back vertex of a
 /// fill-in element is fixed, inside the footprint or not (see
 /// [`crate::SimulationOptions::hold_bed`]); else only those inside (the paper's rule).
 /// Besides the front vertices of fill-in elements, every front vertex over the
 /// footprint up to `layer_mm` above the bed is displaced (see
 /// [`crate::SimulationOptions::template_layer_mm`]). An element all of whose corners end
-/// up held and which the template would fold (leave under a tenth of its volume) gets
-/// one corner released: a fixed one if any, else its highest displaced one.
+/// up held (by the template, or on the wall: `on_wall`, per finest vertex) and which the
+/// template would fold (leave under a tenth of its volume) gets one of its template
+/// corners off the wall released: a fixed one if any, else its highest displaced one.
 ///
 /// Errors: [`SimulationError::EmptyTemplate`] when no vertex is displaced.
 pub fn build_template(
@@ -418,9 +430,13 @@ pub fn build_template(
     feet: &BedFeet,
     anchor: &Anchor,
     thickness: &SmoothedThickness,
-    hold_bed: bool,
-    layer_mm: f64,
+    rules: &TemplateRules,
 ) -> Result<ImplantTemplate, SimulationError> {
+    let TemplateRules {
+        hold_bed,
+        layer_mm,
+        on_wall,
+    } = *rules;
     let classes: Vec<Class> = feet
         .feet
         .iter()
@@ -495,10 +511,12 @@ pub fn build_template(
             state[k] = DISPLACED;
         }
     }
-    // An element whose four corners are all held cannot change what the template does
-    // to it; where that folds it over (a tilted face pushed past its fourth corner),
-    // release one corner: a fixed one if any (the muscle under the implant may follow),
-    // else the highest displaced one (the tissue above the layer may lag).
+    // An element whose four corners are all held (by the template or on the wall)
+    // cannot change what the template does to it; where that folds it over (a tilted
+    // face pushed past its fourth corner), release one of its template corners: a fixed
+    // one if any (the muscle under the implant may follow), else the highest displaced
+    // one (the tissue above the layer may lag).
+    let walled = |k: u32| on_wall[candidates.vertices[k as usize] as usize];
     let displacement = |state: &[u8], k: usize| match classes[k] {
         Class::Front(z, n, _) if state[k] == DISPLACED => n * z,
         _ => DVec3::ZERO,
@@ -507,7 +525,9 @@ pub fn build_template(
     for _ in 0..UNFOLD_PASSES {
         release.clear();
         for &(t, corners) in &candidates.tets {
-            if !corners.iter().all(|&k| state[k as usize] != 0) {
+            if !corners.iter().all(|&k| state[k as usize] != 0 || walled(k))
+                || corners.iter().all(|&k| state[k as usize] == 0)
+            {
                 continue;
             }
             let p = mesh.tets[t as usize].map(|v| mesh.positions[v as usize]);
@@ -522,14 +542,14 @@ pub fn build_template(
                 Class::Front(_, _, h) => h,
                 _ => f64::NEG_INFINITY,
             };
-            let corner = corners
-                .iter()
-                .copied()
+            // a corner on the wall stays held whatever the template says
+            let releasable = corners.iter().copied().filter(|&k| !walled(k));
+            let corner = releasable
+                .clone()
                 .find(|&k| state[k as usize] == FIXED)
                 .or_else(|| {
-                    corners
-                        .iter()
-                        .copied()
+                    releasable
+                        .filter(|&k| state[k as usize] == DISPLACED)
                         .max_by(|&a, &b| height(a).total_cmp(&height(b)))
                 });
             release.extend(corner);
