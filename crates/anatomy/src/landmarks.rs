@@ -189,11 +189,7 @@ const ON_SURFACE_TOLERANCE_MM: f64 = 1e-3;
 impl Landmarks {
     /// Reads a landmark file. Unknown keys are ignored; `units`, if given, must be `"mm"`.
     pub fn read(path: &Path) -> Result<Landmarks, LandmarkError> {
-        let text = std::fs::read_to_string(path).map_err(|source| LandmarkError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Landmarks::from_json(&text, path)
+        PartialLandmarks::read(path)?.complete(path)
     }
 
     /// Parses landmark JSON; `path` is only used in error messages.
@@ -223,41 +219,37 @@ impl Landmarks {
         &mut self,
         surface: &mesh::SurfaceIndex,
     ) -> Result<Vec<SnapWarning>, LandmarkError> {
-        let mut warnings = Vec::new();
-        for (name, position) in LandmarkName::ALL
-            .iter()
-            .map(|n| n.as_str())
-            .zip(self.required.iter_mut())
-            .chain(self.extra.iter_mut().map(|(k, v)| (k.as_str(), v)))
-        {
-            warnings.extend(snap_point(name, position, surface)?);
-        }
-        Ok(warnings)
+        let required = LandmarkName::ALL.iter().map(|n| n.as_str());
+        let extra = self.extra.iter_mut().map(|(k, v)| (k.as_str(), v));
+        snap_points(required.zip(self.required.iter_mut()).chain(extra), surface)
     }
 }
 
-/// Moves one named point onto the nearest surface point (see
-/// [`Landmarks::snap_to_surface`]); returns a warning if it moved noticeably.
-fn snap_point(
-    name: &str,
-    position: &mut DVec3,
+/// Moves named points onto the nearest surface points (see
+/// [`Landmarks::snap_to_surface`]); returns a warning for each that moved noticeably.
+fn snap_points<'a>(
+    points: impl Iterator<Item = (&'a str, &'a mut DVec3)>,
     surface: &mesh::SurfaceIndex,
-) -> Result<Option<SnapWarning>, LandmarkError> {
-    let nearest = surface.closest_point(*position);
-    if nearest.distance > MAX_SNAP_DISTANCE_MM {
-        return Err(LandmarkError::OffSurface {
-            name: name.to_string(),
-            distance_mm: nearest.distance,
-            limit_mm: MAX_SNAP_DISTANCE_MM,
-        });
+) -> Result<Vec<SnapWarning>, LandmarkError> {
+    let mut warnings = Vec::new();
+    for (name, position) in points {
+        let nearest = surface.closest_point(*position);
+        if nearest.distance > MAX_SNAP_DISTANCE_MM {
+            return Err(LandmarkError::OffSurface {
+                name: name.to_string(),
+                distance_mm: nearest.distance,
+                limit_mm: MAX_SNAP_DISTANCE_MM,
+            });
+        }
+        *position = nearest.point;
+        if nearest.distance > ON_SURFACE_TOLERANCE_MM {
+            warnings.push(SnapWarning {
+                name: name.to_string(),
+                distance_mm: nearest.distance,
+            });
+        }
     }
-    *position = nearest.point;
-    Ok(
-        (nearest.distance > ON_SURFACE_TOLERANCE_MM).then(|| SnapWarning {
-            name: name.to_string(),
-            distance_mm: nearest.distance,
-        }),
-    )
+    Ok(warnings)
 }
 
 /// Writes landmark JSON atomically.
@@ -456,17 +448,12 @@ impl PartialLandmarks {
         &mut self,
         surface: &mesh::SurfaceIndex,
     ) -> Result<Vec<SnapWarning>, LandmarkError> {
-        let mut warnings = Vec::new();
-        for (name, position) in LandmarkName::ALL
-            .iter()
-            .map(|n| n.as_str())
+        let required = LandmarkName::ALL.iter().map(|n| n.as_str());
+        let placed = required
             .zip(self.required.iter_mut())
-            .filter_map(|(n, p)| p.as_mut().map(|p| (n, p)))
-            .chain(self.extra.iter_mut().map(|(k, v)| (k.as_str(), v)))
-        {
-            warnings.extend(snap_point(name, position, surface)?);
-        }
-        Ok(warnings)
+            .filter_map(|(n, p)| p.as_mut().map(|p| (n, p)));
+        let extra = self.extra.iter_mut().map(|(k, v)| (k.as_str(), v));
+        snap_points(placed.chain(extra), surface)
     }
 }
 

@@ -245,11 +245,7 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
             resource: uniforms.as_entire_binding(),
         }],
     });
-    let scene_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("mammaplan scene layout"),
-        bind_group_layouts: &[Some(&uniform_layout)],
-        immediate_size: 0,
-    });
+    let scene_layout = pipeline_layout(device, "mammaplan scene layout", &uniform_layout);
     let scene_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("mammaplan scene"),
         layout: Some(&scene_layout),
@@ -320,11 +316,7 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
             },
         ],
     });
-    let blit_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("mammaplan blit pipeline layout"),
-        bind_group_layouts: &[Some(&blit_layout)],
-        immediate_size: 0,
-    });
+    let blit_pipeline_layout = pipeline_layout(device, "mammaplan blit layout", &blit_layout);
     let blit_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("mammaplan blit"),
         layout: Some(&blit_pipeline_layout),
@@ -377,6 +369,19 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
             mesh: None,
             target: None,
         });
+}
+
+/// A pipeline layout with one bind group.
+fn pipeline_layout(
+    device: &wgpu::Device,
+    label: &str,
+    group: &wgpu::BindGroupLayout,
+) -> wgpu::PipelineLayout {
+    device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(group)],
+        immediate_size: 0,
+    })
 }
 
 /// One frame of the viewport: what `prepare` needs to draw.

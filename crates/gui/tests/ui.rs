@@ -27,12 +27,15 @@ fn settle(harness: &mut Harness<'_, GuiApp>) {
     }
 }
 
-/// Opens the phantom from the File menu.
-fn open_phantom(harness: &mut Harness<'_, GuiApp>, item: &str) {
+/// A new window in which the phantom was opened from the File menu's `item`.
+fn with_phantom(item: &str) -> Harness<'static, GuiApp> {
+    let mut harness = harness(GuiApp::new(None, None));
+    settle(&mut harness);
     harness.get_by_label("File").click();
-    settle(harness);
+    settle(&mut harness);
     harness.get_by_label(item).click();
-    settle(harness);
+    settle(&mut harness);
+    harness
 }
 
 /// The phantom's exact landmarks (the GUI opens the same default phantom).
@@ -53,18 +56,23 @@ fn screen_position(app: &GuiApp, point: DVec3) -> (Pos2, DVec2, DVec2) {
     (pos, local, size)
 }
 
+/// Moves the pointer to `pos` and presses or releases the primary button there.
+fn button(harness: &mut Harness<'_, GuiApp>, pos: Pos2, pressed: bool) {
+    harness.event(Event::PointerMoved(pos));
+    harness.event(Event::PointerButton {
+        pos,
+        button: PointerButton::Primary,
+        pressed,
+        modifiers: Modifiers::default(),
+    });
+    harness.step();
+}
+
 fn click_at(harness: &mut Harness<'_, GuiApp>, pos: Pos2) {
     harness.event(Event::PointerMoved(pos));
     harness.step();
-    for pressed in [true, false] {
-        harness.event(Event::PointerButton {
-            pos,
-            button: PointerButton::Primary,
-            pressed,
-            modifiers: Modifiers::default(),
-        });
-        harness.step();
-    }
+    button(harness, pos, true);
+    button(harness, pos, false);
     settle(harness);
 }
 
@@ -97,10 +105,7 @@ fn brute_force_hit(mesh: &TriMesh, origin: DVec3, direction: DVec3) -> Option<DV
 
 #[test]
 fn the_phantom_opens_from_the_menu_framed_from_the_front() {
-    let mut harness = harness(GuiApp::new(None, None));
-    settle(&mut harness);
-    assert!(harness.state().document().is_none());
-    open_phantom(&mut harness, "Phantom (place the landmarks)");
+    let harness = with_phantom("Phantom (place the landmarks)");
     let app = harness.state();
     let document = app.document().unwrap();
     assert!(document.scan.mesh.vertex_count() > 10_000);
@@ -115,9 +120,7 @@ fn the_phantom_opens_from_the_menu_framed_from_the_front() {
 
 #[test]
 fn a_click_on_the_surface_places_the_next_landmark_where_the_camera_ray_meets_it() {
-    let mut harness = harness(GuiApp::new(None, None));
-    settle(&mut harness);
-    open_phantom(&mut harness, "Phantom (place the landmarks)");
+    let mut harness = with_phantom("Phantom (place the landmarks)");
     let truth = phantom_truth();
 
     // Pj (next to place) and Pcl; then Pnl, chosen in the list.
@@ -159,9 +162,7 @@ fn a_click_on_the_surface_places_the_next_landmark_where_the_camera_ray_meets_it
 
 #[test]
 fn a_selected_landmark_is_replaced_by_the_next_click_and_can_be_dragged() {
-    let mut harness = harness(GuiApp::new(None, None));
-    settle(&mut harness);
-    open_phantom(&mut harness, "Phantom with its landmarks");
+    let mut harness = with_phantom("Phantom with its landmarks");
     let truth = phantom_truth();
     // Select Pnl in the list, then click on the right nipple: Pnl moves there.
     harness.get_by_label("Pnl").click();
@@ -184,26 +185,13 @@ fn a_selected_landmark_is_replaced_by_the_next_click_and_can_be_dragged() {
     // Drag it back along the surface to the left nipple.
     let (from, _, _) = screen_position(harness.state(), moved);
     let (to, _, _) = screen_position(harness.state(), truth.get(LandmarkName::Pnl));
-    harness.event(Event::PointerMoved(from));
-    harness.step();
-    harness.event(Event::PointerButton {
-        pos: from,
-        button: PointerButton::Primary,
-        pressed: true,
-        modifiers: Modifiers::default(),
-    });
-    harness.step();
+    button(&mut harness, from, true);
     for k in 1..=10 {
         let pos = from + (to - from) * (k as f32 / 10.0);
         harness.event(Event::PointerMoved(pos));
         harness.step();
     }
-    harness.event(Event::PointerButton {
-        pos: to,
-        button: PointerButton::Primary,
-        pressed: false,
-        modifiers: Modifiers::default(),
-    });
+    button(&mut harness, to, false);
     settle(&mut harness);
     let document = harness.state().document().unwrap();
     let dragged = document.landmarks.get(LandmarkName::Pnl).unwrap();
@@ -216,9 +204,7 @@ fn a_selected_landmark_is_replaced_by_the_next_click_and_can_be_dragged() {
 
 #[test]
 fn standard_view_buttons_and_keys_turn_the_camera_in_the_anatomical_frame() {
-    let mut harness = harness(GuiApp::new(None, None));
-    settle(&mut harness);
-    open_phantom(&mut harness, "Phantom with its landmarks");
+    let mut harness = with_phantom("Phantom with its landmarks");
     let frame = MarkedScan::phantom(&PhantomParams::default())
         .unwrap()
         .frame;
@@ -305,9 +291,7 @@ fn a_bad_dropped_file_is_an_error_in_the_window_not_a_panic() {
 fn landmarks_placed_in_the_window_are_saved_in_the_guide_format() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("placed.json");
-    let mut harness = harness(GuiApp::new(None, None));
-    settle(&mut harness);
-    open_phantom(&mut harness, "Phantom with its landmarks");
+    let mut harness = with_phantom("Phantom with its landmarks");
     // The path field is the first text field (the toolbar is drawn first).
     harness
         .get_all_by_role(egui::Role::TextInput)

@@ -54,11 +54,8 @@ impl MeasuringSurface {
         let closed = close_scan_holes(&scan.mesh, &scan.topology);
         for hole in &closed.left_open {
             progress.warn(&format!(
-                "{}: a hole of {:.0} mm perimeter near {:.0?} stays open ({}); paths go around it",
-                scan.path.display(),
-                hole.perimeter_mm,
-                hole.centre,
-                hole.reason
+                "{}: {hole}; paths go around it",
+                scan.path.display()
             ));
         }
         let topology = Topology::new(&closed.mesh);
