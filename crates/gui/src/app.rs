@@ -139,7 +139,7 @@ impl GuiApp {
                 egui::ScrollArea::vertical().show(ui, |ui| self.landmark_panel(ui));
             });
         egui::Panel::right("distances")
-            .default_size(330.0)
+            .default_size(360.0)
             .show(ui, |ui| self.distance_panel(ui));
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
     }
@@ -339,7 +339,12 @@ impl GuiApp {
                 ui.label(hint(name));
             }
             Some(Placing::Selected(name)) => {
-                ui.strong(format!("Click on the surface to move {name}"));
+                let verb = if document.landmarks.lookup(&name).is_some() {
+                    "move"
+                } else {
+                    "place"
+                };
+                ui.strong(format!("Click on the surface to {verb} {name}"));
                 if let Some(required) = LandmarkName::parse(&name) {
                     ui.label(hint(required));
                 }
