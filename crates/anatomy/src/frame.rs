@@ -27,13 +27,28 @@ pub enum FrameError {
 impl AnatomicalFrame {
     /// The frame from Pj, Px, Pcl and Pcr.
     pub fn from_landmarks(landmarks: &Landmarks) -> Result<AnatomicalFrame, FrameError> {
-        let pj = landmarks.get(LandmarkName::Pj);
-        let up = pj - landmarks.get(LandmarkName::Px);
+        AnatomicalFrame::from_points(
+            landmarks.get(LandmarkName::Pj),
+            landmarks.get(LandmarkName::Px),
+            landmarks.get(LandmarkName::Pcl),
+            landmarks.get(LandmarkName::Pcr),
+        )
+    }
+
+    /// The frame from the sternal notch, the xiphoid and the left and right clavicle
+    /// points (mm, file frame).
+    pub fn from_points(
+        pj: DVec3,
+        px: DVec3,
+        pcl: DVec3,
+        pcr: DVec3,
+    ) -> Result<AnatomicalFrame, FrameError> {
+        let up = pj - px;
         if up.length() < 1.0 {
             return Err(FrameError::NoVerticalAxis(up.length()));
         }
         let y = up.normalize();
-        let across = landmarks.get(LandmarkName::Pcl) - landmarks.get(LandmarkName::Pcr);
+        let across = pcl - pcr;
         let lateral = across - y * across.dot(y);
         if lateral.length() < 0.1 * across.length().max(1.0) {
             return Err(FrameError::NoLateralAxis);

@@ -1,6 +1,7 @@
 //! Anatomical landmarks (paper Fig. 2) and the landmark file format of the GUIDE:
 //! `{"units":"mm","landmarks":{"Pj":[x,y,z],...},"extra":{"name":[x,y,z]}}`.
 
+use crate::frame::{AnatomicalFrame, FrameError};
 use glam::DVec3;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
@@ -188,15 +189,185 @@ const ON_SURFACE_TOLERANCE_MM: f64 = 1e-3;
 impl Landmarks {
     /// Reads a landmark file. Unknown keys are ignored; `units`, if given, must be `"mm"`.
     pub fn read(path: &Path) -> Result<Landmarks, LandmarkError> {
-        let text = std::fs::read_to_string(path).map_err(|source| LandmarkError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Landmarks::from_json(&text, path)
+        PartialLandmarks::read(path)?.complete(path)
     }
 
     /// Parses landmark JSON; `path` is only used in error messages.
     pub fn from_json(text: &str, path: &Path) -> Result<Landmarks, LandmarkError> {
+        PartialLandmarks::from_json(text, path)?.complete(path)
+    }
+
+    /// The landmark file as JSON, with `additional` top-level fields (e.g. a phantom's
+    /// true volumes) after `units`, `landmarks` and `extra`.
+    pub fn to_json(&self, additional: serde_json::Map<String, Value>) -> Value {
+        PartialLandmarks::from(self).to_json(additional)
+    }
+
+    /// Writes the landmark file atomically.
+    pub fn write(
+        &self,
+        path: &Path,
+        additional: serde_json::Map<String, Value>,
+    ) -> Result<(), LandmarkError> {
+        write_json(path, &self.to_json(additional))
+    }
+
+    /// Moves every point onto the nearest surface point. Points more than
+    /// [`MAX_SNAP_DISTANCE_MM`] away are an error naming the landmark; points that moved
+    /// noticeably are returned as warnings.
+    pub fn snap_to_surface(
+        &mut self,
+        surface: &mesh::SurfaceIndex,
+    ) -> Result<Vec<SnapWarning>, LandmarkError> {
+        let required = LandmarkName::ALL.iter().map(|n| n.as_str());
+        let extra = self.extra.iter_mut().map(|(k, v)| (k.as_str(), v));
+        snap_points(required.zip(self.required.iter_mut()).chain(extra), surface)
+    }
+}
+
+/// Moves named points onto the nearest surface points (see
+/// [`Landmarks::snap_to_surface`]); returns a warning for each that moved noticeably.
+fn snap_points<'a>(
+    points: impl Iterator<Item = (&'a str, &'a mut DVec3)>,
+    surface: &mesh::SurfaceIndex,
+) -> Result<Vec<SnapWarning>, LandmarkError> {
+    let mut warnings = Vec::new();
+    for (name, position) in points {
+        let nearest = surface.closest_point(*position);
+        if nearest.distance > MAX_SNAP_DISTANCE_MM {
+            return Err(LandmarkError::OffSurface {
+                name: name.to_string(),
+                distance_mm: nearest.distance,
+                limit_mm: MAX_SNAP_DISTANCE_MM,
+            });
+        }
+        *position = nearest.point;
+        if nearest.distance > ON_SURFACE_TOLERANCE_MM {
+            warnings.push(SnapWarning {
+                name: name.to_string(),
+                distance_mm: nearest.distance,
+            });
+        }
+    }
+    Ok(warnings)
+}
+
+/// Writes landmark JSON atomically.
+fn write_json(path: &Path, json: &Value) -> Result<(), LandmarkError> {
+    mesh::io::write_atomically(path, |w| {
+        serde_json::to_writer_pretty(&mut *w, json)?;
+        writeln!(w)
+    })?;
+    Ok(())
+}
+
+/// Landmarks being placed (e.g. clicked one by one in the GUI): any subset of the
+/// required ones and any named extra points, in a scan's file frame (mm). The same file
+/// format as [`Landmarks`]; a file written before every required landmark is placed
+/// reads back here, and [`PartialLandmarks::complete`] turns a full set into
+/// [`Landmarks`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PartialLandmarks {
+    required: [Option<DVec3>; 12],
+    /// User-defined points by name.
+    pub extra: BTreeMap<String, DVec3>,
+}
+
+impl From<&Landmarks> for PartialLandmarks {
+    fn from(landmarks: &Landmarks) -> PartialLandmarks {
+        PartialLandmarks {
+            required: landmarks.required.map(Some),
+            extra: landmarks.extra.clone(),
+        }
+    }
+}
+
+impl PartialLandmarks {
+    /// Position of a required landmark if it is placed (mm).
+    pub fn get(&self, name: LandmarkName) -> Option<DVec3> {
+        self.required[name as usize]
+    }
+
+    /// Places or moves a required landmark.
+    pub fn set(&mut self, name: LandmarkName, position: DVec3) {
+        self.required[name as usize] = Some(position);
+    }
+
+    /// Looks a placed point up by its file name, required or extra.
+    pub fn lookup(&self, name: &str) -> Option<DVec3> {
+        match LandmarkName::parse(name) {
+            Some(required) => self.get(required),
+            None => self.extra.get(name).copied(),
+        }
+    }
+
+    /// Moves a placed point (required or extra) by its file name; `false` if there is no
+    /// such point.
+    pub fn move_point(&mut self, name: &str, position: DVec3) -> bool {
+        match LandmarkName::parse(name) {
+            Some(required) => self.set(required, position),
+            None => match self.extra.get_mut(name) {
+                Some(point) => *point = position,
+                None => return false,
+            },
+        }
+        true
+    }
+
+    /// The required landmarks not yet placed, in file order.
+    pub fn missing(&self) -> impl Iterator<Item = LandmarkName> + '_ {
+        LandmarkName::ALL
+            .into_iter()
+            .filter(|n| self.get(*n).is_none())
+    }
+
+    /// Every placed point with its name: required ones first (file order), then extras.
+    pub fn iter(&self) -> impl Iterator<Item = (&str, DVec3)> + '_ {
+        LandmarkName::ALL
+            .into_iter()
+            .filter_map(|n| self.get(n).map(|p| (n.as_str(), p)))
+            .chain(self.extra.iter().map(|(k, v)| (k.as_str(), *v)))
+    }
+
+    /// The full set, or an error naming the landmarks still missing (`path` names the
+    /// file in the message).
+    pub fn complete(&self, path: &Path) -> Result<Landmarks, LandmarkError> {
+        let missing: Vec<String> = self.missing().map(|n| n.as_str().to_string()).collect();
+        if !missing.is_empty() {
+            return Err(LandmarkError::Missing {
+                path: path.to_path_buf(),
+                names: missing,
+            });
+        }
+        let mut landmarks = Landmarks::new(|n| self.get(n).unwrap_or_default());
+        landmarks.extra = self.extra.clone();
+        Ok(landmarks)
+    }
+
+    /// The anatomical frame once Pj, Px, Pcl and Pcr are placed.
+    pub fn frame(&self) -> Option<Result<AnatomicalFrame, FrameError>> {
+        use LandmarkName::{Pcl, Pcr, Pj, Px};
+        Some(AnatomicalFrame::from_points(
+            self.get(Pj)?,
+            self.get(Px)?,
+            self.get(Pcl)?,
+            self.get(Pcr)?,
+        ))
+    }
+
+    /// Reads a landmark file that may lack some required landmarks.
+    pub fn read(path: &Path) -> Result<PartialLandmarks, LandmarkError> {
+        let text = std::fs::read_to_string(path).map_err(|source| LandmarkError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        PartialLandmarks::from_json(&text, path)
+    }
+
+    /// Parses landmark JSON in which required landmarks may be missing; `path` is only
+    /// used in error messages. Unknown keys are ignored; `units`, if given, must be
+    /// `"mm"`; unknown names under `"landmarks"` are kept as extras.
+    pub fn from_json(text: &str, path: &Path) -> Result<PartialLandmarks, LandmarkError> {
         let format_error = |message: String| LandmarkError::Format {
             path: path.to_path_buf(),
             message,
@@ -230,33 +401,28 @@ impl Landmarks {
                 })
                 .collect()
         };
-        let mut required = points("landmarks")?;
-        let extra = points("extra")?;
-        let missing: Vec<String> = LandmarkName::ALL
-            .iter()
-            .filter(|n| !required.contains_key(n.as_str()))
-            .map(|n| n.as_str().to_string())
-            .collect();
-        if !missing.is_empty() {
-            return Err(LandmarkError::Missing {
-                path: path.to_path_buf(),
-                names: missing,
-            });
+        let mut landmarks = PartialLandmarks {
+            required: [None; 12],
+            extra: points("extra")?,
+        };
+        for (name, position) in points("landmarks")? {
+            match LandmarkName::parse(&name) {
+                Some(required) => landmarks.set(required, position),
+                None => {
+                    landmarks.extra.entry(name).or_insert(position);
+                }
+            }
         }
-        let mut landmarks = Landmarks::new(|n| required[n.as_str()]);
-        // Unknown names under "landmarks" are kept as extras rather than dropped.
-        required.retain(|name, _| LandmarkName::parse(name).is_none());
-        landmarks.extra = required.into_iter().chain(extra).collect();
         Ok(landmarks)
     }
 
-    /// The landmark file as JSON, with `additional` top-level fields (e.g. a phantom's
-    /// true volumes) after `units`, `landmarks` and `extra`.
+    /// The landmark file as JSON (placed points only), with `additional` top-level fields
+    /// after `units`, `landmarks` and `extra`.
     pub fn to_json(&self, additional: serde_json::Map<String, Value>) -> Value {
         let point = |p: DVec3| json!([p.x, p.y, p.z]);
         let required: serde_json::Map<String, Value> = LandmarkName::ALL
             .iter()
-            .map(|n| (n.as_str().to_string(), point(self.get(*n))))
+            .filter_map(|n| self.get(*n).map(|p| (n.as_str().to_string(), point(p))))
             .collect();
         let extra: serde_json::Map<String, Value> = self
             .extra
@@ -271,53 +437,42 @@ impl Landmarks {
         Value::Object(root)
     }
 
-    /// Writes the landmark file atomically.
-    pub fn write(
-        &self,
-        path: &Path,
-        additional: serde_json::Map<String, Value>,
-    ) -> Result<(), LandmarkError> {
-        let json = self.to_json(additional);
-        mesh::io::write_atomically(path, |w| {
-            serde_json::to_writer_pretty(&mut *w, &json)?;
-            writeln!(w)
-        })?;
-        Ok(())
+    /// Writes the landmark file atomically (placed points only).
+    pub fn write(&self, path: &Path) -> Result<(), LandmarkError> {
+        write_json(path, &self.to_json(serde_json::Map::new()))
     }
 
-    /// Moves every point onto the nearest surface point. Points more than
-    /// [`MAX_SNAP_DISTANCE_MM`] away are an error naming the landmark; points that moved
-    /// noticeably are returned as warnings.
+    /// Moves every placed point onto the nearest surface point, as
+    /// [`Landmarks::snap_to_surface`] does.
     pub fn snap_to_surface(
         &mut self,
         surface: &mesh::SurfaceIndex,
     ) -> Result<Vec<SnapWarning>, LandmarkError> {
-        let mut warnings = Vec::new();
-        let names: Vec<String> = self.iter().map(|(n, _)| n.to_string()).collect();
-        for name in names {
-            let position = self.lookup(&name).unwrap_or_default();
-            let nearest = surface.closest_point(position);
-            if nearest.distance > MAX_SNAP_DISTANCE_MM {
-                return Err(LandmarkError::OffSurface {
-                    name,
-                    distance_mm: nearest.distance,
-                    limit_mm: MAX_SNAP_DISTANCE_MM,
-                });
-            }
-            if nearest.distance > ON_SURFACE_TOLERANCE_MM {
-                warnings.push(SnapWarning {
-                    name: name.clone(),
-                    distance_mm: nearest.distance,
-                });
-            }
-            match LandmarkName::parse(&name) {
-                Some(required) => self.set(required, nearest.point),
-                None => {
-                    self.extra.insert(name, nearest.point);
-                }
-            }
-        }
-        Ok(warnings)
+        let required = LandmarkName::ALL.iter().map(|n| n.as_str());
+        let placed = required
+            .zip(self.required.iter_mut())
+            .filter_map(|(n, p)| p.as_mut().map(|p| (n, p)));
+        let extra = self.extra.iter_mut().map(|(k, v)| (k.as_str(), v));
+        snap_points(placed.chain(extra), surface)
+    }
+}
+
+/// Points a measurement can look up by file name: a complete [`Landmarks`] set or a
+/// [`PartialLandmarks`] set being placed.
+pub trait NamedPoints: Sync {
+    /// The point named `name` (mm), if there is one.
+    fn point(&self, name: &str) -> Option<DVec3>;
+}
+
+impl NamedPoints for Landmarks {
+    fn point(&self, name: &str) -> Option<DVec3> {
+        self.lookup(name)
+    }
+}
+
+impl NamedPoints for PartialLandmarks {
+    fn point(&self, name: &str) -> Option<DVec3> {
+        self.lookup(name)
     }
 }
 
@@ -403,5 +558,62 @@ mod tests {
             error.to_string().starts_with("landmark Pnl is 20.0 mm"),
             "{error}"
         );
+    }
+
+    #[test]
+    fn a_partial_set_reads_writes_and_completes() {
+        let full = Landmarks::from_json(&sample_json(), Path::new("lm.json")).unwrap();
+        let mut partial = PartialLandmarks::default();
+        assert_eq!(partial.missing().next(), Some(LandmarkName::Pj));
+        assert!(partial.frame().is_none());
+        for name in [LandmarkName::Pj, LandmarkName::Px, LandmarkName::Pnl] {
+            partial.set(name, full.get(name));
+        }
+        partial
+            .extra
+            .insert("scar".into(), DVec3::new(1.0, 2.0, 3.0));
+        assert!(partial.move_point("scar", DVec3::new(4.0, 5.0, 6.0)));
+        assert!(!partial.move_point("mole", DVec3::ZERO));
+        assert_eq!(partial.missing().count(), 9);
+        assert_eq!(partial.iter().count(), 4);
+        assert_eq!(partial.lookup("Pnl"), Some(full.get(LandmarkName::Pnl)));
+        assert_eq!(partial.lookup("Pcl"), None);
+
+        let text = partial.to_json(serde_json::Map::new()).to_string();
+        assert!(!text.contains("Pcl"), "{text}");
+        let again = PartialLandmarks::from_json(&text, Path::new("lm.json")).unwrap();
+        assert_eq!(again, partial);
+        let error = again.complete(Path::new("lm.json")).unwrap_err();
+        assert!(
+            error.to_string().starts_with(
+                "lm.json: missing required landmarks Pcl, Pcr, Pnr, PSMFl, PSMFr, PSMFml"
+            ),
+            "{error}"
+        );
+
+        let mut whole = PartialLandmarks::from(&full);
+        assert!(whole.frame().is_some());
+        whole.extra.clear();
+        whole.extra.insert("scar".into(), DVec3::new(1.0, 2.0, 3.0));
+        assert_eq!(whole.complete(Path::new("lm.json")).unwrap(), full);
+    }
+
+    #[test]
+    fn a_partial_set_snaps_its_placed_points() {
+        let surface = mesh::SurfaceIndex::new(&grid(20, 20, 1.0)).unwrap();
+        let mut partial = PartialLandmarks::default();
+        partial.set(LandmarkName::Pnr, DVec3::new(5.0, 5.0, 0.5));
+        partial
+            .extra
+            .insert("scar".into(), DVec3::new(2.0, 3.0, -1.0));
+        let warnings = partial.snap_to_surface(&surface).unwrap();
+        assert_eq!(warnings.len(), 2);
+        assert_eq!(
+            partial.get(LandmarkName::Pnr),
+            Some(DVec3::new(5.0, 5.0, 0.0))
+        );
+        assert_eq!(partial.lookup("scar"), Some(DVec3::new(2.0, 3.0, 0.0)));
+        partial.set(LandmarkName::Pj, DVec3::new(5.0, 5.0, 9.0));
+        assert!(partial.snap_to_surface(&surface).is_err());
     }
 }

@@ -22,4 +22,6 @@ pub use closed_surface::{
 };
 pub use fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
 pub use frame::{AnatomicalFrame, FrameError};
-pub use landmarks::{LandmarkError, LandmarkName, Landmarks, SnapWarning};
+pub use landmarks::{
+    LandmarkError, LandmarkName, Landmarks, NamedPoints, PartialLandmarks, SnapWarning,
+};

@@ -4,7 +4,7 @@
 //! distance) and along the shortest path on the surface (`geodesic_mm`).
 
 use crate::frame::AnatomicalFrame;
-use crate::landmarks::Landmarks;
+use crate::landmarks::NamedPoints;
 use mesh::geodesic::GeodesicSolver;
 use mesh::section::plane_section_path;
 use mesh::{SurfaceIndex, SurfacePoint, Topology, TriMesh};
@@ -77,12 +77,12 @@ pub struct MeasuredSurface<'a> {
 pub fn measure_distances(
     surface: &MeasuredSurface<'_>,
     frame: &AnatomicalFrame,
-    landmarks: &Landmarks,
+    landmarks: &impl NamedPoints,
     specs: &[DistanceSpec],
 ) -> Result<Vec<Distance>, UnknownLandmark> {
     let locate = |name: &str| {
         landmarks
-            .lookup(name)
+            .point(name)
             .map(|p| SurfacePoint::from(surface.index.closest_point(p)))
             .ok_or_else(|| UnknownLandmark(name.to_string()))
     };
@@ -133,7 +133,7 @@ pub fn measure_distances(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::landmarks::LandmarkName;
+    use crate::landmarks::{LandmarkName, Landmarks};
     use glam::DVec3;
     use std::f64::consts::FRAC_PI_2;
 

@@ -25,6 +25,17 @@ pub struct OpenHole {
     pub reason: String,
 }
 
+impl std::fmt::Display for OpenHole {
+    /// `a hole of 40 mm perimeter near [x, y, z] stays open (reason)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "a hole of {:.0} mm perimeter near {:.0?} stays open ({})",
+            self.perimeter_mm, self.centre, self.reason
+        )
+    }
+}
+
 /// A scan with its holes closed. Its first vertices and triangles are the input's, in
 /// the same order, so points located on the input are valid on it.
 #[derive(Debug, Clone)]

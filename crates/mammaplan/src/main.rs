@@ -5,7 +5,7 @@ mod progress;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
-use plan::{Cup, PhantomParams};
+use plan::{Cup, PhantomParams, Progress};
 use progress::TerminalProgress;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -248,6 +248,19 @@ enum Command {
         #[command(subcommand)]
         command: CatalogCommand,
     },
+    /// The desktop planning window: a lit 3D view of the scan, landmarks placed by
+    /// clicking on the surface, the clinical distances updated live.
+    Gui {
+        /// A scan to open (PLY, OBJ or STL).
+        #[arg(long, value_name = "SCAN", conflicts_with = "phantom")]
+        scan: Option<PathBuf>,
+        /// Its landmark file (required landmarks may be missing: place them in the window).
+        #[arg(long, value_name = "JSON", requires = "scan")]
+        landmarks: Option<PathBuf>,
+        /// Open the built-in phantom with its landmarks.
+        #[arg(long)]
+        phantom: bool,
+    },
 }
 
 fn main() -> ExitCode {
@@ -282,6 +295,26 @@ fn one_line(error: &anyhow::Error) -> String {
 
 fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
     match command {
+        Command::Gui {
+            scan,
+            landmarks,
+            phantom,
+        } => {
+            let document = match scan {
+                Some(scan) => {
+                    let mut document = gui::Document::open_scan(&scan)?;
+                    if let Some(landmarks) = landmarks {
+                        for warning in document.open_landmarks(&landmarks)? {
+                            progress.warn(&warning);
+                        }
+                    }
+                    Some(document)
+                }
+                None if phantom => Some(gui::Document::phantom(true)?),
+                None => None,
+            };
+            gui::run(document)
+        }
         Command::Demo { out, json } => {
             let report = plan::demo::demo(&out, progress)?;
             progress.finish();

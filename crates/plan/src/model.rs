@@ -306,13 +306,7 @@ pub fn build_model(
     let breast_model_ms = elapsed_ms(start);
     progress.step();
     for hole in &breasts.holes_left_open {
-        progress.warn(&format!(
-            "{}: a hole of {:.0} mm perimeter near {:.0?} stays open ({})",
-            scan.path.display(),
-            hole.perimeter_mm,
-            hole.centre,
-            hole.reason
-        ));
+        progress.warn(&format!("{}: {hole}", scan.path.display()));
     }
     for hole in &breasts.holes_in_breasts {
         progress.warn(&format!(

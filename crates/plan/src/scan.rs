@@ -94,4 +94,13 @@ impl MarkedScan {
             frame,
         })
     }
+
+    /// The built-in phantom torso with its exact landmarks, in memory; its path (for
+    /// messages) is `phantom (cup=... seed=...)`.
+    pub fn phantom(params: &phantom::PhantomParams) -> Result<MarkedScan> {
+        let phantom = phantom::generate(params);
+        let path = PathBuf::from(format!("phantom ({params})"));
+        let scan = Scan::from_mesh(phantom.scan, &path)?;
+        MarkedScan::new(scan, phantom.landmarks, &path, &crate::Silent)
+    }
 }

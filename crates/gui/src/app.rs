@@ -1,0 +1,682 @@
+//! The window: menu and path bar, landmark list, 3D viewport, distance table, status
+//! line. Everything here is presentation and input; the work is done by [`Document`],
+//! [`Camera`], [`LiveDistances`] and the `plan`/`mesh`/`anatomy` functions behind them.
+
+use crate::camera::{Camera, StandardView};
+use crate::document::{Document, Placing};
+use crate::hints::hint;
+use crate::live_distances::{LiveDistances, Table};
+use crate::render::{self, SceneMesh, ViewportCallback};
+use anatomy::LandmarkName;
+use anatomy::measure::clinical_distances;
+use eframe::egui::{self, Color32, Key, PointerButton, Pos2, Rect, Sense, Stroke};
+use eframe::egui_wgpu;
+use glam::{DMat3, DVec2, DVec3};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Markers closer than this to the pointer are grabbed by a drag (points).
+const GRAB_RADIUS: f32 = 10.0;
+/// Marker radius (points).
+const MARKER_RADIUS: f32 = 5.0;
+/// Zoom per point of scroll.
+const ZOOM_PER_SCROLL: f64 = 0.002;
+/// A landmark counts as visible if nothing is in front of it by more than this (mm).
+const OCCLUSION_TOLERANCE_MM: f64 = 0.5;
+const ERROR_COLOR: Color32 = Color32::from_rgb(235, 90, 80);
+const PLACED_COLOR: Color32 = Color32::from_rgb(60, 200, 120);
+const SELECTED_COLOR: Color32 = Color32::from_rgb(255, 200, 40);
+const EXTRA_COLOR: Color32 = Color32::from_rgb(90, 170, 255);
+
+/// A message in the status line.
+enum Status {
+    Info(String),
+    Error(String),
+}
+
+/// What a drag in the viewport does.
+#[derive(Debug, Clone, PartialEq)]
+enum Drag {
+    /// Moves a placed point along the surface.
+    Point(String),
+    Orbit,
+    Pan,
+}
+
+/// The planning application.
+pub struct GuiApp {
+    document: Option<Document>,
+    scene: Option<Arc<SceneMesh>>,
+    distances: Option<LiveDistances>,
+    camera: Camera,
+    /// Whether the wgpu pipelines are installed (false in tests without a GPU: everything
+    /// but the shaded surface still works).
+    gpu: bool,
+    path_text: String,
+    extra_name: String,
+    status: Status,
+    drag: Option<Drag>,
+    viewport_rect: Option<Rect>,
+}
+
+impl GuiApp {
+    /// The application, optionally with a document to show. With `render_state` (eframe's
+    /// wgpu state) the viewport draws the scan; without, it draws markers only.
+    pub fn new(
+        render_state: Option<&egui_wgpu::RenderState>,
+        document: Option<Document>,
+    ) -> GuiApp {
+        if let Some(render_state) = render_state {
+            render::install(render_state);
+        }
+        let mut app = GuiApp {
+            document: None,
+            scene: None,
+            distances: None,
+            camera: Camera::framing(DMat3::IDENTITY, DVec3::ZERO, 100.0),
+            gpu: render_state.is_some(),
+            path_text: String::new(),
+            extra_name: String::new(),
+            status: Status::Info(
+                "Open a scan (path above, or drop a file on the window) or the phantom (File menu)."
+                    .into(),
+            ),
+            drag: None,
+            viewport_rect: None,
+        };
+        if let Some(document) = document {
+            app.set_document(document);
+        }
+        app
+    }
+
+    /// The viewport's camera.
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    /// The open scan and its landmarks.
+    pub fn document(&self) -> Option<&Document> {
+        self.document.as_ref()
+    }
+
+    /// Where the viewport was drawn last frame (egui points).
+    pub fn viewport_rect(&self) -> Option<Rect> {
+        self.viewport_rect
+    }
+
+    /// The error in the status line, if the last action failed.
+    pub fn error(&self) -> Option<&str> {
+        match &self.status {
+            Status::Error(message) => Some(message),
+            Status::Info(_) => None,
+        }
+    }
+
+    /// Draws the whole window into `ui` and handles its input.
+    pub fn show(&mut self, ui: &mut egui::Ui) {
+        self.take_dropped_files(ui);
+        self.view_keys(ui);
+        if let (Some(document), None) = (&self.document, &self.distances) {
+            let ctx = ui.ctx().clone();
+            let mut distances =
+                LiveDistances::start(Arc::clone(&document.scan), move || ctx.request_repaint());
+            distances.update(&document.landmarks);
+            self.distances = Some(distances);
+        }
+        egui::Panel::top("toolbar").show(ui, |ui| self.toolbar(ui));
+        egui::Panel::bottom("status").show(ui, |ui| match &self.status {
+            Status::Info(message) => {
+                ui.label(message.as_str());
+            }
+            Status::Error(message) => {
+                ui.colored_label(ERROR_COLOR, message.as_str());
+            }
+        });
+        egui::Panel::left("landmarks")
+            .default_size(290.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.landmark_panel(ui));
+            });
+        egui::Panel::right("distances")
+            .default_size(360.0)
+            .show(ui, |ui| self.distance_panel(ui));
+        egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
+    }
+
+    fn info(&mut self, message: impl Into<String>) {
+        self.status = Status::Info(message.into());
+    }
+
+    fn error_status(&mut self, error: &anyhow::Error) {
+        self.status = Status::Error(format!("{error:#}"));
+    }
+
+    /// Shows a new scan: frames it from the front and restarts the distance worker.
+    fn set_document(&mut self, document: Document) {
+        self.scene = Some(Arc::new(SceneMesh::new(&document.scan.mesh)));
+        self.info(format!(
+            "{}: {} vertices, {} triangles",
+            document.scan.path.display(),
+            document.scan.mesh.vertex_count(),
+            document.scan.mesh.triangle_count()
+        ));
+        self.document = Some(document);
+        self.distances = None;
+        self.drag = None;
+        self.set_view(StandardView::Front);
+    }
+
+    /// Frames the scan and looks from a standard direction of the anatomical frame (the
+    /// file's axes until Pj, Px, Pcl and Pcr are placed).
+    fn set_view(&mut self, view: StandardView) {
+        let Some(document) = &self.document else {
+            return;
+        };
+        let body = match document.landmarks.frame() {
+            Some(Ok(frame)) => frame.axes,
+            _ => DMat3::IDENTITY,
+        };
+        let (low, high) = document.scan.mesh.bounding_box();
+        self.camera = Camera::framing(body, 0.5 * (low + high), 0.5 * low.distance(high));
+        self.camera.set_view(view, body);
+    }
+
+    /// Tells the distance worker that the landmarks changed.
+    fn landmarks_changed(&mut self) {
+        if let (Some(document), Some(distances)) = (&self.document, &mut self.distances) {
+            distances.update(&document.landmarks);
+        }
+    }
+
+    /// Opens a scan, or a landmark file (`.json`) for the open scan.
+    fn open(&mut self, path: &Path) {
+        if Document::is_landmark_file(path) {
+            let Some(document) = &mut self.document else {
+                self.status = Status::Error(format!(
+                    "{}: open a scan before its landmarks",
+                    path.display()
+                ));
+                return;
+            };
+            match document.open_landmarks(path) {
+                Ok(warnings) => {
+                    let placed = document.landmarks.iter().count();
+                    let mut message = format!("{}: {placed} points", path.display());
+                    for warning in warnings {
+                        message.push_str("; ");
+                        message.push_str(&warning);
+                    }
+                    self.info(message);
+                    self.landmarks_changed();
+                }
+                Err(error) => self.error_status(&error),
+            }
+        } else {
+            match Document::open_scan(path) {
+                Ok(document) => self.set_document(document),
+                Err(error) => self.error_status(&error),
+            }
+        }
+    }
+
+    fn open_phantom(&mut self, with_landmarks: bool) {
+        match Document::phantom(with_landmarks) {
+            Ok(document) => self.set_document(document),
+            Err(error) => self.error_status(&error),
+        }
+    }
+
+    fn save_landmarks(&mut self) {
+        let Some(document) = &mut self.document else {
+            return;
+        };
+        let typed = PathBuf::from(self.path_text.trim());
+        let path = if Document::is_landmark_file(&typed) {
+            typed
+        } else if let Some(path) = &document.landmarks_path {
+            path.clone()
+        } else {
+            self.status = Status::Error(
+                "type where to save the landmarks (a path ending in .json) in the path field"
+                    .into(),
+            );
+            return;
+        };
+        match document.save_landmarks(&path) {
+            Ok(()) => {
+                let missing = document.landmarks.missing().count();
+                let note = if missing > 0 {
+                    format!(" ({missing} required landmarks not placed yet)")
+                } else {
+                    String::new()
+                };
+                self.info(format!("saved {}{note}", path.display()));
+            }
+            Err(error) => self.error_status(&error),
+        }
+    }
+
+    /// Files dropped on the window: scans first, then landmark files.
+    fn take_dropped_files(&mut self, ui: &egui::Ui) {
+        let mut paths: Vec<PathBuf> = ui.input(|i| {
+            i.raw
+                .dropped_files
+                .iter()
+                .map(|f| f.path().to_path_buf())
+                .collect()
+        });
+        paths.sort_by_key(|p| Document::is_landmark_file(p));
+        for path in paths {
+            self.open(&path);
+        }
+    }
+
+    /// Keys 1 to 5 choose the standard views (in the toolbar's order) when no text field
+    /// has the keyboard.
+    fn view_keys(&mut self, ui: &egui::Ui) {
+        if ui.ctx().egui_wants_keyboard_input() {
+            return;
+        }
+        for view in StandardView::ALL {
+            if ui.input(|i| i.key_pressed(view_key(view))) {
+                self.set_view(view);
+            }
+        }
+    }
+
+    fn toolbar(&mut self, ui: &mut egui::Ui) {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                if ui.button("Phantom (place the landmarks)").clicked() {
+                    self.open_phantom(false);
+                }
+                if ui.button("Phantom with its landmarks").clicked() {
+                    self.open_phantom(true);
+                }
+            });
+        });
+        ui.horizontal(|ui| {
+            ui.label("Path:");
+            ui.add(
+                egui::TextEdit::singleline(&mut self.path_text)
+                    .hint_text("scan.ply / .obj / .stl, or landmarks.json")
+                    .desired_width(360.0),
+            );
+            if ui.button("Open").clicked() {
+                let path = PathBuf::from(self.path_text.trim());
+                self.open(&path);
+            }
+            let has_document = self.document.is_some();
+            if ui
+                .add_enabled(has_document, egui::Button::new("Save landmarks"))
+                .clicked()
+            {
+                self.save_landmarks();
+            }
+            ui.separator();
+            for view in StandardView::ALL {
+                let button = ui
+                    .add_enabled(has_document, egui::Button::new(view.label()))
+                    .on_hover_text(format!("key {}", view_key(view).name()));
+                if button.clicked() {
+                    self.set_view(view);
+                }
+            }
+        });
+    }
+
+    fn landmark_panel(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Landmarks");
+        let Some(document) = &mut self.document else {
+            ui.label("No scan open.");
+            return;
+        };
+        let mut changed = false;
+        egui::Frame::group(ui.style()).show(ui, |ui| match document.placing() {
+            Some(Placing::Next(name)) => {
+                ui.strong(format!("Click on the surface to place {}", name.as_str()));
+                ui.label(hint(name));
+            }
+            Some(Placing::Selected(name)) => {
+                let verb = if document.landmarks.lookup(&name).is_some() {
+                    "move"
+                } else {
+                    "place"
+                };
+                ui.strong(format!("Click on the surface to {verb} {name}"));
+                if let Some(required) = LandmarkName::parse(&name) {
+                    ui.label(hint(required));
+                }
+                if ui.button("Cancel").clicked() {
+                    document.toggle_selection(&name);
+                }
+            }
+            Some(Placing::Extra(name)) => {
+                ui.strong(format!(
+                    "Click on the surface to place the extra point {name}"
+                ));
+                if ui.button("Cancel").clicked() {
+                    document.pending_extra = None;
+                }
+            }
+            None => {
+                ui.label(
+                    "All required landmarks are placed. Select one to move it, or drag its marker.",
+                );
+            }
+        });
+        ui.add_space(4.0);
+        egui::Grid::new("landmark list")
+            .striped(true)
+            .show(ui, |ui| {
+                for name in LandmarkName::ALL {
+                    let selected = document.selected.as_deref() == Some(name.as_str());
+                    let placed = document.landmarks.get(name);
+                    let clicked = ui
+                        .selectable_label(selected, name.as_str())
+                        .on_hover_text(hint(name))
+                        .clicked();
+                    if clicked {
+                        document.toggle_selection(name.as_str());
+                    }
+                    match placed {
+                        Some(p) => ui.colored_label(PLACED_COLOR, format_point(p)),
+                        None => ui.weak("not placed"),
+                    };
+                    ui.end_row();
+                }
+            });
+        ui.add_space(8.0);
+        ui.strong("Extra points");
+        let mut remove = None;
+        let extras: Vec<(String, DVec3)> = document
+            .landmarks
+            .extra
+            .iter()
+            .map(|(k, v)| (k.clone(), *v))
+            .collect();
+        egui::Grid::new("extra list").striped(true).show(ui, |ui| {
+            for (name, p) in &extras {
+                let selected = document.selected.as_deref() == Some(name.as_str());
+                if ui.selectable_label(selected, name.as_str()).clicked() {
+                    document.toggle_selection(name);
+                }
+                ui.colored_label(EXTRA_COLOR, format_point(*p));
+                if ui.small_button("Remove").clicked() {
+                    remove = Some(name.clone());
+                }
+                ui.end_row();
+            }
+        });
+        if let Some(name) = remove {
+            document.remove_extra(&name);
+            changed = true;
+        }
+        let mut add_error = None;
+        ui.horizontal(|ui| {
+            ui.add(
+                egui::TextEdit::singleline(&mut self.extra_name)
+                    .hint_text("name")
+                    .desired_width(120.0),
+            );
+            if ui.button("Add extra point").clicked() {
+                match document.add_extra(&self.extra_name) {
+                    Ok(()) => self.extra_name.clear(),
+                    Err(error) => add_error = Some(error),
+                }
+            }
+        });
+        if document.unsaved {
+            ui.weak("Unsaved changes: Save landmarks writes them (GUIDE format).");
+        }
+        if let Some(error) = add_error {
+            self.error_status(&error);
+        }
+        if changed {
+            self.landmarks_changed();
+        }
+    }
+
+    fn distance_panel(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Distances (mm)");
+        let Some(distances) = &mut self.distances else {
+            ui.label("No scan open.");
+            return;
+        };
+        let stale = distances.is_stale();
+        let measured = match distances.poll() {
+            Table::Preparing => {
+                ui.label("Preparing the surface (closing scanner holes)…");
+                return;
+            }
+            Table::NeedFrame => {
+                ui.label("Place Pj, Px, Pcl and Pcr: they define the coronal plane the surface distances need.");
+                return;
+            }
+            Table::Failed(message) => {
+                ui.colored_label(ERROR_COLOR, message.as_str());
+                return;
+            }
+            Table::Measured(measured) => measured,
+        };
+        ui.weak(if stale { "updating…" } else { "up to date" });
+        egui::Grid::new("distance table")
+            .striped(true)
+            .show(ui, |ui| {
+                ui.strong("");
+                ui.strong("straight");
+                ui.strong("surface");
+                ui.strong("geodesic");
+                ui.end_row();
+                for spec in clinical_distances() {
+                    ui.label(spec.name.as_str());
+                    match measured.iter().find(|d| d.name == spec.name) {
+                        Some(distance) => {
+                            ui.label(format!("{:.1}", distance.euclidean_mm));
+                            ui.label(format_optional(distance.surface_mm));
+                            ui.label(format_optional(distance.geodesic_mm));
+                        }
+                        None => {
+                            for _ in 0..3 {
+                                ui.weak("–");
+                            }
+                        }
+                    }
+                    ui.end_row();
+                }
+            });
+    }
+
+    fn viewport(&mut self, ui: &mut egui::Ui) {
+        let (rect, response) = ui.allocate_exact_size(ui.available_size(), Sense::click_and_drag());
+        self.viewport_rect = Some(rect);
+        let size = DVec2::new(f64::from(rect.width()), f64::from(rect.height()));
+        let local =
+            |pos: Pos2| DVec2::new(f64::from(pos.x - rect.min.x), f64::from(pos.y - rect.min.y));
+        let painter = ui.painter_at(rect);
+        let (Some(document), Some(scene)) = (&mut self.document, &self.scene) else {
+            painter.rect_filled(rect, 0.0, render::background());
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "Open a scan or the phantom (File menu), or drop a scan and its landmarks here",
+                egui::FontId::proportional(16.0),
+                Color32::GRAY,
+            );
+            return;
+        };
+
+        // Input: drags orbit, pan (right or middle button, or Shift) or move a marker;
+        // a click places a point; the wheel zooms.
+        let mut changed = false;
+        if response.drag_started() {
+            let shift = ui.input(|i| i.modifiers.shift);
+            let origin = ui.input(|i| i.pointer.press_origin());
+            self.drag = if response.dragged_by(PointerButton::Primary) && !shift {
+                let grabbed = origin
+                    .and_then(|origin| nearest_marker(document, &self.camera, local(origin), size));
+                Some(grabbed.map_or(Drag::Orbit, Drag::Point))
+            } else {
+                Some(Drag::Pan)
+            };
+        }
+        if response.dragged() {
+            let delta = response.drag_delta();
+            let delta = DVec2::new(f64::from(delta.x), f64::from(delta.y));
+            match &self.drag {
+                Some(Drag::Point(name)) => {
+                    if let Some(pointer) = response.interact_pointer_pos() {
+                        let ray = self.camera.ray(local(pointer), size);
+                        if let Some(point) = document.pick(ray.origin, ray.direction) {
+                            document.drag_to(name, point);
+                            changed = true;
+                        }
+                    }
+                }
+                Some(Drag::Orbit) => self.camera.orbit(delta),
+                Some(Drag::Pan) => self.camera.pan(delta, size.y),
+                None => {}
+            }
+        }
+        if response.drag_stopped() {
+            self.drag = None;
+        }
+        let mut placed = None;
+        if response.clicked()
+            && let Some(pointer) = response.interact_pointer_pos()
+        {
+            let ray = self.camera.ray(local(pointer), size);
+            match document.pick(ray.origin, ray.direction) {
+                Some(point) => {
+                    placed = document.place(point);
+                    changed |= placed.is_some();
+                }
+                None => self.status = Status::Info("No surface under the pointer.".into()),
+            }
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                self.camera
+                    .zoom((-f64::from(scroll) * ZOOM_PER_SCROLL).exp());
+            }
+        }
+
+        // Drawing: the shaded scan (GPU), then the markers on top.
+        if self.gpu {
+            painter.add(egui_wgpu::Callback::new_paint_callback(
+                rect,
+                ViewportCallback {
+                    camera: self.camera,
+                    scene: Arc::clone(scene),
+                    size_points: size,
+                },
+            ));
+        } else {
+            painter.rect_filled(rect, 0.0, render::background());
+        }
+        let eye = self.camera.eye();
+        for (name, point) in document.landmarks.iter() {
+            let Some(pixel) = self.camera.project(point, size) else {
+                continue;
+            };
+            let at = rect.min + egui::vec2(pixel.x as f32, pixel.y as f32);
+            let visible = document.visible_from(eye, point, OCCLUSION_TOLERANCE_MM);
+            let selected = document.selected.as_deref() == Some(name);
+            let color = if selected {
+                SELECTED_COLOR
+            } else if LandmarkName::parse(name).is_some() {
+                PLACED_COLOR
+            } else {
+                EXTRA_COLOR
+            };
+            if visible {
+                painter.circle_filled(at, MARKER_RADIUS, color);
+                painter.circle_stroke(at, MARKER_RADIUS, Stroke::new(1.0, Color32::BLACK));
+            } else {
+                painter.circle_stroke(
+                    at,
+                    MARKER_RADIUS,
+                    Stroke::new(1.0, color.gamma_multiply(0.6)),
+                );
+            }
+            painter.text(
+                at + egui::vec2(MARKER_RADIUS + 2.0, -MARKER_RADIUS - 2.0),
+                egui::Align2::LEFT_BOTTOM,
+                name,
+                egui::FontId::proportional(13.0),
+                if visible {
+                    Color32::WHITE
+                } else {
+                    Color32::GRAY
+                },
+            );
+        }
+        if !self.gpu {
+            painter.text(
+                rect.center_top() + egui::vec2(0.0, 12.0),
+                egui::Align2::CENTER_TOP,
+                "no GPU renderer: markers only",
+                egui::FontId::proportional(13.0),
+                Color32::GRAY,
+            );
+        }
+        if let Some(name) = placed {
+            let next = document
+                .placing()
+                .map_or(String::new(), |p| format!("; next: {}", p.name()));
+            self.status = Status::Info(format!("placed {name}{next}"));
+        }
+        if changed {
+            self.landmarks_changed();
+        }
+    }
+}
+
+impl eframe::App for GuiApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.show(ui);
+    }
+}
+
+/// The key of a standard view: 1 to 5 in the toolbar's order.
+fn view_key(view: StandardView) -> Key {
+    match view {
+        StandardView::Front => Key::Num1,
+        StandardView::LeftOblique => Key::Num2,
+        StandardView::Left => Key::Num3,
+        StandardView::RightOblique => Key::Num4,
+        StandardView::Right => Key::Num5,
+    }
+}
+
+/// The visible placed point whose marker is within [`GRAB_RADIUS`] of `pixel`.
+fn nearest_marker(
+    document: &Document,
+    camera: &Camera,
+    pixel: DVec2,
+    size: DVec2,
+) -> Option<String> {
+    let eye = camera.eye();
+    document
+        .landmarks
+        .iter()
+        .filter_map(|(name, point)| {
+            let at = camera.project(point, size)?;
+            let distance = at.distance(pixel);
+            (distance <= f64::from(GRAB_RADIUS)
+                && document.visible_from(eye, point, OCCLUSION_TOLERANCE_MM))
+            .then(|| (distance, name.to_string()))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, name)| name)
+}
+
+fn format_point(p: DVec3) -> String {
+    format!("{:.1}, {:.1}, {:.1}", p.x, p.y, p.z)
+}
+
+fn format_optional(value: Option<f64>) -> String {
+    value.map_or("–".into(), |v| format!("{v:.1}"))
+}

@@ -1,0 +1,583 @@
+//! Drawing the scan in the viewport with wgpu, through an `egui_wgpu` paint callback.
+//!
+//! `prepare` draws the lit mesh into the viewport's own colour and depth textures
+//! (multisampled when the adapter allows), so the 3D scene has a real depth buffer
+//! whatever egui's render pass has; `paint` then copies the resolved colour into egui's
+//! pass with a full-viewport triangle. Shading: per-vertex normals, a light slightly
+//! above and to the left of the eye, Lambert diffuse plus a weak Blinn-Phong highlight;
+//! back faces (the inside of an open scan) are lit from their own side and tinted.
+//! Colours are the scan's vertex colours when it has them, a neutral skin tone otherwise.
+
+use crate::camera::Camera;
+use bytemuck::{Pod, Zeroable};
+use eframe::egui;
+use eframe::egui_wgpu::{self, wgpu};
+use glam::{DMat4, DVec2, DVec3};
+use mesh::TriMesh;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use wgpu::util::DeviceExt;
+
+/// Colour of a scan without vertex colours (display RGB, 0..1).
+const SKIN: [f32; 3] = [0.86, 0.72, 0.64];
+/// Background of the viewport (display RGB, 0..1).
+const BACKGROUND: [f64; 3] = [0.16, 0.17, 0.19];
+/// Offscreen colour format; shading happens in display (gamma) space.
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Wanted multisampling of the scene (falls back to 1 if the adapter cannot).
+const MSAA_SAMPLES: u32 = 4;
+
+const SHADER: &str = r#"
+struct Uniforms {
+    view_proj: mat4x4<f32>,
+    eye: vec4<f32>,
+    light: vec4<f32>,
+};
+@group(0) @binding(0) var<uniform> u: Uniforms;
+
+struct VertexIn {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) color: vec3<f32>,
+};
+struct VertexOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) color: vec3<f32>,
+};
+
+@vertex
+fn vs_main(v: VertexIn) -> VertexOut {
+    var out: VertexOut;
+    out.clip = u.view_proj * vec4<f32>(v.position, 1.0);
+    out.world = v.position;
+    out.normal = v.normal;
+    out.color = v.color;
+    return out;
+}
+
+@fragment
+fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    var n = normalize(in.normal);
+    var base = in.color;
+    if (!front) {
+        n = -n;
+        base = base * vec3<f32>(0.55, 0.6, 0.75);
+    }
+    let to_eye = normalize(u.eye.xyz - in.world);
+    let to_light = normalize(u.light.xyz);
+    let diffuse = max(dot(n, to_light), 0.0);
+    let half_way = normalize(to_light + to_eye);
+    let specular = pow(max(dot(n, half_way), 0.0), 48.0) * 0.18;
+    let lit = base * (0.22 + 0.78 * diffuse) + vec3<f32>(specular);
+    return vec4<f32>(min(lit, vec3<f32>(1.0)), 1.0);
+}
+"#;
+
+const BLIT_SHADER: &str = r#"
+@group(0) @binding(0) var scene: texture_2d<f32>;
+@group(0) @binding(1) var scene_sampler: sampler;
+
+struct BlitOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+};
+
+@vertex
+fn vs_blit(@builtin(vertex_index) index: u32) -> BlitOut {
+    // One triangle covering the viewport.
+    let xy = vec2<f32>(f32((index << 1u) & 2u), f32(index & 2u));
+    var out: BlitOut;
+    out.clip = vec4<f32>(xy * 2.0 - 1.0, 0.0, 1.0);
+    out.uv = vec2<f32>(xy.x, 1.0 - xy.y);
+    return out;
+}
+
+@fragment
+fn fs_blit_gamma(in: BlitOut) -> @location(0) vec4<f32> {
+    return textureSample(scene, scene_sampler, in.uv);
+}
+
+@fragment
+fn fs_blit_linear(in: BlitOut) -> @location(0) vec4<f32> {
+    let c = textureSample(scene, scene_sampler, in.uv);
+    return vec4<f32>(pow(c.rgb, vec3<f32>(2.2)), c.a);
+}
+"#;
+
+/// One vertex of the scene: position relative to the mesh's centre (mm), unit normal
+/// and display colour.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    color: [f32; 3],
+}
+
+/// A scan turned into GPU-ready buffers, uploaded once per scan.
+pub struct SceneMesh {
+    /// Tells scans apart so each is uploaded once.
+    generation: u64,
+    /// Positions are stored relative to this point (mm, file frame), so f32 keeps
+    /// sub-micrometre precision however far the scan is from its file's origin.
+    origin: DVec3,
+    vertices: Vec<Vertex>,
+    indices: Vec<u32>,
+}
+
+impl SceneMesh {
+    /// Vertex normals, colours (or the skin tone) and positions about the bounding box
+    /// centre.
+    pub fn new(mesh: &TriMesh) -> SceneMesh {
+        static GENERATION: AtomicU64 = AtomicU64::new(0);
+        let (low, high) = mesh.bounding_box();
+        let origin = 0.5 * (low + high);
+        let normals = mesh.vertex_normals();
+        let vertices = mesh
+            .positions
+            .iter()
+            .zip(&normals)
+            .enumerate()
+            .map(|(i, (p, n))| Vertex {
+                position: (*p - origin).as_vec3().to_array(),
+                normal: n.as_vec3().to_array(),
+                color: mesh
+                    .vertex_colors
+                    .as_ref()
+                    .and_then(|colors| colors.get(i))
+                    .map_or(SKIN, |c| c.map(|v| f32::from(v) / 255.0)),
+            })
+            .collect();
+        SceneMesh {
+            generation: GENERATION.fetch_add(1, Ordering::Relaxed),
+            origin,
+            vertices,
+            indices: mesh.triangles.iter().flatten().copied().collect(),
+        }
+    }
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct Uniforms {
+    view_proj: [[f32; 4]; 4],
+    eye: [f32; 4],
+    light: [f32; 4],
+}
+
+/// The GPU objects of the viewport, kept in egui_wgpu's callback resources.
+struct ViewportResources {
+    scene_pipeline: wgpu::RenderPipeline,
+    blit_pipeline: wgpu::RenderPipeline,
+    blit_layout: wgpu::BindGroupLayout,
+    sampler: wgpu::Sampler,
+    uniforms: wgpu::Buffer,
+    uniform_group: wgpu::BindGroup,
+    samples: u32,
+    mesh: Option<GpuMesh>,
+    target: Option<Target>,
+}
+
+struct GpuMesh {
+    generation: u64,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+}
+
+/// The offscreen textures of one viewport size.
+struct Target {
+    size: [u32; 2],
+    multisampled: Option<wgpu::TextureView>,
+    resolved: wgpu::TextureView,
+    depth: wgpu::TextureView,
+    blit_group: wgpu::BindGroup,
+}
+
+/// Creates the pipelines and stores them in the renderer's callback resources; call
+/// once with the app's wgpu state.
+pub fn install(render_state: &egui_wgpu::RenderState) {
+    let device = &render_state.device;
+    let features = render_state
+        .adapter
+        .get_texture_format_features(COLOR_FORMAT);
+    let depth_features = render_state
+        .adapter
+        .get_texture_format_features(DEPTH_FORMAT);
+    let samples = if features.flags.sample_count_supported(MSAA_SAMPLES)
+        && depth_features.flags.sample_count_supported(MSAA_SAMPLES)
+    {
+        MSAA_SAMPLES
+    } else {
+        1
+    };
+
+    let scene_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("mammaplan scene shader"),
+        source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+    });
+    let uniform_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("mammaplan uniforms layout"),
+        entries: &[wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        }],
+    });
+    let uniforms = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("mammaplan uniforms"),
+        contents: bytemuck::bytes_of(&Uniforms::zeroed()),
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    });
+    let uniform_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("mammaplan uniforms"),
+        layout: &uniform_layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: uniforms.as_entire_binding(),
+        }],
+    });
+    let scene_layout = pipeline_layout(device, "mammaplan scene layout", &uniform_layout);
+    let scene_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("mammaplan scene"),
+        layout: Some(&scene_layout),
+        vertex: wgpu::VertexState {
+            module: &scene_module,
+            entry_point: Some("vs_main"),
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<Vertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3],
+            })],
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+        },
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            front_face: wgpu::FrontFace::Ccw,
+            cull_mode: None,
+            ..wgpu::PrimitiveState::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
+        }),
+        multisample: wgpu::MultisampleState {
+            count: samples,
+            mask: !0,
+            alpha_to_coverage_enabled: false,
+        },
+        fragment: Some(wgpu::FragmentState {
+            module: &scene_module,
+            entry_point: Some("fs_main"),
+            targets: &[Some(wgpu::ColorTargetState {
+                format: COLOR_FORMAT,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+
+    let blit_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("mammaplan blit shader"),
+        source: wgpu::ShaderSource::Wgsl(BLIT_SHADER.into()),
+    });
+    let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("mammaplan blit layout"),
+        entries: &[
+            wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    multisampled: false,
+                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                },
+                count: None,
+            },
+            wgpu::BindGroupLayoutEntry {
+                binding: 1,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                count: None,
+            },
+        ],
+    });
+    let blit_pipeline_layout = pipeline_layout(device, "mammaplan blit layout", &blit_layout);
+    let blit_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("mammaplan blit"),
+        layout: Some(&blit_pipeline_layout),
+        vertex: wgpu::VertexState {
+            module: &blit_module,
+            entry_point: Some("vs_blit"),
+            buffers: &[],
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        // egui's own pass: no depth, one sample (eframe's defaults, kept by `run`).
+        depth_stencil: None,
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &blit_module,
+            entry_point: Some(if render_state.target_format.is_srgb() {
+                "fs_blit_linear"
+            } else {
+                "fs_blit_gamma"
+            }),
+            targets: &[Some(wgpu::ColorTargetState {
+                format: render_state.target_format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("mammaplan blit sampler"),
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        ..wgpu::SamplerDescriptor::default()
+    });
+
+    render_state
+        .renderer
+        .write()
+        .callback_resources
+        .insert(ViewportResources {
+            scene_pipeline,
+            blit_pipeline,
+            blit_layout,
+            sampler,
+            uniforms,
+            uniform_group,
+            samples,
+            mesh: None,
+            target: None,
+        });
+}
+
+/// A pipeline layout with one bind group.
+fn pipeline_layout(
+    device: &wgpu::Device,
+    label: &str,
+    group: &wgpu::BindGroupLayout,
+) -> wgpu::PipelineLayout {
+    device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(group)],
+        immediate_size: 0,
+    })
+}
+
+/// One frame of the viewport: what `prepare` needs to draw.
+pub struct ViewportCallback {
+    pub camera: Camera,
+    pub scene: Arc<SceneMesh>,
+    /// Viewport size in egui points (the paint callback's rectangle).
+    pub size_points: DVec2,
+}
+
+impl ViewportCallback {
+    fn uniforms(&self) -> Uniforms {
+        let origin = self.scene.origin;
+        let view_proj =
+            self.camera.view_projection(self.size_points) * DMat4::from_translation(origin);
+        let eye = self.camera.eye() - origin;
+        // The key light sits above and to the left of the eye.
+        let light = self.camera.backward() + 0.45 * self.camera.up() - 0.35 * self.camera.right();
+        Uniforms {
+            view_proj: view_proj.as_mat4().to_cols_array_2d(),
+            eye: eye.as_vec3().extend(1.0).to_array(),
+            light: light.normalize().as_vec3().extend(0.0).to_array(),
+        }
+    }
+}
+
+impl egui_wgpu::CallbackTrait for ViewportCallback {
+    fn prepare(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        screen: &egui_wgpu::ScreenDescriptor,
+        encoder: &mut wgpu::CommandEncoder,
+        resources: &mut egui_wgpu::CallbackResources,
+    ) -> Vec<wgpu::CommandBuffer> {
+        let Some(viewport) = resources.get_mut::<ViewportResources>() else {
+            return Vec::new();
+        };
+        let pixels = self.size_points * f64::from(screen.pixels_per_point);
+        let size = [
+            (pixels.x.round() as u32).max(1),
+            (pixels.y.round() as u32).max(1),
+        ];
+        viewport.upload_mesh(device, &self.scene);
+        viewport.resize(device, size);
+        queue.write_buffer(&viewport.uniforms, 0, bytemuck::bytes_of(&self.uniforms()));
+        let (Some(target), Some(mesh)) = (&viewport.target, &viewport.mesh) else {
+            return Vec::new();
+        };
+        let (view, resolve_target) = match &target.multisampled {
+            Some(multisampled) => (multisampled, Some(&target.resolved)),
+            None => (&target.resolved, None),
+        };
+        let [r, g, b] = BACKGROUND;
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("mammaplan scene"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view,
+                resolve_target,
+                depth_slice: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &target.depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            ..wgpu::RenderPassDescriptor::default()
+        });
+        pass.set_pipeline(&viewport.scene_pipeline);
+        pass.set_bind_group(0, &viewport.uniform_group, &[]);
+        pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+        pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+        Vec::new()
+    }
+
+    fn paint(
+        &self,
+        _info: egui::PaintCallbackInfo,
+        render_pass: &mut wgpu::RenderPass<'static>,
+        resources: &egui_wgpu::CallbackResources,
+    ) {
+        let Some(viewport) = resources.get::<ViewportResources>() else {
+            return;
+        };
+        let Some(target) = &viewport.target else {
+            return;
+        };
+        render_pass.set_pipeline(&viewport.blit_pipeline);
+        render_pass.set_bind_group(0, &target.blit_group, &[]);
+        render_pass.draw(0..3, 0..1);
+    }
+}
+
+impl ViewportResources {
+    /// Uploads the scene's buffers if they are not the ones on the GPU.
+    fn upload_mesh(&mut self, device: &wgpu::Device, scene: &SceneMesh) {
+        if self
+            .mesh
+            .as_ref()
+            .is_some_and(|m| m.generation == scene.generation)
+        {
+            return;
+        }
+        self.mesh = Some(GpuMesh {
+            generation: scene.generation,
+            vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("mammaplan scan vertices"),
+                contents: bytemuck::cast_slice(&scene.vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            }),
+            indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("mammaplan scan triangles"),
+                contents: bytemuck::cast_slice(&scene.indices),
+                usage: wgpu::BufferUsages::INDEX,
+            }),
+            index_count: scene.indices.len() as u32,
+        });
+    }
+
+    /// (Re)creates the offscreen textures for a viewport of `size` pixels.
+    fn resize(&mut self, device: &wgpu::Device, size: [u32; 2]) {
+        if self.target.as_ref().is_some_and(|t| t.size == size) {
+            return;
+        }
+        let texture = |label, format, samples, usage| {
+            device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: wgpu::Extent3d {
+                        width: size[0],
+                        height: size[1],
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: samples,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage,
+                    view_formats: &[],
+                })
+                .create_view(&wgpu::TextureViewDescriptor::default())
+        };
+        let resolved = texture(
+            "mammaplan scene colour",
+            COLOR_FORMAT,
+            1,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+        );
+        let multisampled = (self.samples > 1).then(|| {
+            texture(
+                "mammaplan scene colour (multisampled)",
+                COLOR_FORMAT,
+                self.samples,
+                wgpu::TextureUsages::RENDER_ATTACHMENT,
+            )
+        });
+        let depth = texture(
+            "mammaplan scene depth",
+            DEPTH_FORMAT,
+            self.samples,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        let blit_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("mammaplan blit"),
+            layout: &self.blit_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&resolved),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+            ],
+        });
+        self.target = Some(Target {
+            size,
+            multisampled,
+            resolved,
+            depth,
+            blit_group,
+        });
+    }
+}
+
+/// The viewport's background as an egui colour (for the area without a GPU).
+pub fn background() -> egui::Color32 {
+    let [r, g, b] = BACKGROUND.map(|c| (c * 255.0).round() as u8);
+    egui::Color32::from_rgb(r, g, b)
+}
