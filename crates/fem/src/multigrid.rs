@@ -482,13 +482,7 @@ fn product_pattern(a: &BlockCsr, b_ptr: &[usize], b_cols: &[u32]) -> (Vec<usize>
             cols
         })
         .collect();
-    let mut ptr = vec![0usize];
-    let mut cols = Vec::new();
-    for r in rows {
-        cols.extend_from_slice(&r);
-        ptr.push(cols.len());
-    }
-    (ptr, cols)
+    concat_rows(rows)
 }
 
 impl SmoothedProlongation {
@@ -589,172 +583,317 @@ impl SmoothedProlongation {
                 },
             );
     }
+}
 
-    /// Pattern of `P_sᵀ A P_s` (rows: coarse unknowns), values zero.
-    fn galerkin_pattern(&self) -> BlockCsr {
-        let nc = self.t_ptr.len() - 1;
-        let rows: Vec<Vec<u32>> = (0..nc)
-            .into_par_iter()
-            .map(|i| {
-                let mut cols = vec![i as u32];
-                for k in self.t_ptr[i]..self.t_ptr[i + 1] {
-                    let f = self.t_cols[k] as usize;
-                    cols.extend_from_slice(&self.q_cols[self.q_ptr[f]..self.q_ptr[f + 1]]);
-                }
-                cols.sort_unstable();
-                cols.dedup();
-                cols
-            })
-            .collect();
-        zero_matrix(rows)
+/// Rows of `Q = A B` for a block matrix `A` and a scalar matrix `B` (the barycentric `P`)
+/// on fixed patterns, with the slot of every product term precomputed: the values follow
+/// every assembly of `A` and masking of `B` without a search or a column map.
+#[derive(Debug, Clone)]
+struct RowProduct {
+    /// Row `f` of `Q` is `ptr[f]..ptr[f + 1]` of `cols` and `values`.
+    ptr: Vec<usize>,
+    /// Columns of `Q`, ascending within a row.
+    cols: Vec<u32>,
+    /// Blocks of `Q`, row-major 3x3 (units of `A` times those of `B`).
+    values: Vec<[f64; 9]>,
+    /// Row `f`'s terms are `term_ptr[f]..term_ptr[f + 1]` of `term_slot`.
+    term_ptr: Vec<usize>,
+    /// For each block `(f, g)` of `A` in storage order and each entry of row `g` of `B`
+    /// in storage order, the position of its column in row `f` of `Q` (0 = first block
+    /// of the row).
+    term_slot: Vec<u32>,
+}
+
+impl RowProduct {
+    /// The pattern of `A B` (`b_ptr`, `b_cols`: CSR pattern of `B`) and its term slots.
+    fn new(a: &BlockCsr, b_ptr: &[usize], b_cols: &[u32]) -> RowProduct {
+        let (ptr, cols) = product_pattern(a, b_ptr, b_cols);
+        let (term_ptr, term_slot) = concat_rows(
+            (0..a.block_rows())
+                .into_par_iter()
+                .map(|f| {
+                    let row = &cols[ptr[f]..ptr[f + 1]];
+                    let mut slots = Vec::new();
+                    for &g in &a.cols[a.row_ptr[f]..a.row_ptr[f + 1]] {
+                        let g = g as usize;
+                        slots.extend(b_cols[b_ptr[g]..b_ptr[g + 1]].iter().map(|c| {
+                            row.binary_search(c).expect("column in the product pattern") as u32
+                        }));
+                    }
+                    slots
+                })
+                .collect(),
+        );
+        RowProduct {
+            values: vec![[0.0; 9]; cols.len()],
+            ptr,
+            cols,
+            term_ptr,
+            term_slot,
+        }
     }
 
-    /// Fills `c = P_sᵀ Q` on its pattern (parallel over coarse rows), with an identity
-    /// diagonal block in the rows of inactive coarse unknowns.
-    fn galerkin_values(&self, active: &[bool], c: &mut BlockCsr) {
-        let nc = c.block_rows();
-        let (row_ptr, cols) = (&c.row_ptr, &c.cols);
-        split_rows(&mut c.values, row_ptr)
+    /// Recomputes `Q = A B` (parallel over rows of `Q`) for the scalar entries `b_w` of
+    /// `B` (CSR with `b_ptr`, the pattern given to [`RowProduct::new`]). A row whose own
+    /// entries of `B` are all zero is skipped and keeps stale values: `Bᵀ Q` never reads
+    /// it.
+    fn update(&mut self, a: &BlockCsr, b_ptr: &[usize], b_w: &[f64]) {
+        let (term_ptr, term_slot) = (&self.term_ptr, &self.term_slot);
+        split_rows(&mut self.values, &self.ptr)
             .into_par_iter()
             .enumerate()
-            .for_each_init(
-                || (vec![u32::MAX; nc], Vec::new()),
-                |(pos, acc), (i, vals)| {
-                    let rc = &cols[row_ptr[i]..row_ptr[i + 1]];
-                    if !active[i] {
-                        for (out, &j) in vals.iter_mut().zip(rc) {
-                            *out = if j as usize == i {
-                                IDENTITY_BLOCK
-                            } else {
-                                [0.0; 9]
-                            };
-                        }
-                        return;
-                    }
-                    for (k, &j) in rc.iter().enumerate() {
-                        pos[j as usize] = k as u32;
-                    }
-                    acc.clear();
-                    acc.resize(rc.len(), DMat3::ZERO);
-                    for k in self.t_ptr[i]..self.t_ptr[i + 1] {
-                        let f = self.t_cols[k] as usize;
-                        let wt = self.w[self.t_src[k]].transpose();
-                        for m in self.q_ptr[f]..self.q_ptr[f + 1] {
-                            acc[pos[self.q_cols[m] as usize] as usize] += wt * self.q[m];
-                        }
-                    }
-                    for (out, m) in vals.iter_mut().zip(acc.iter()) {
-                        // row-major, as `block_of` reads it
-                        *out = m.transpose().to_cols_array();
-                    }
-                    for &j in rc {
-                        pos[j as usize] = u32::MAX;
-                    }
-                },
-            );
-    }
-}
-
-/// Pattern of `Pᵀ A P` (rows: coarse unknowns), values zero.
-fn galerkin_pattern(a: &BlockCsr, t: &Transfer) -> BlockCsr {
-    let nc = t.pt_ptr.len() - 1;
-    let rows: Vec<Vec<u32>> = (0..nc)
-        .into_par_iter()
-        .map(|i| {
-            let mut cols = Vec::new();
-            for k in t.pt_ptr[i]..t.pt_ptr[i + 1] {
-                let f = t.pt_cols[k] as usize;
-                for s in a.row_ptr[f]..a.row_ptr[f + 1] {
-                    let g = a.cols[s] as usize;
-                    cols.extend_from_slice(&t.p_cols[t.p_ptr[g]..t.p_ptr[g + 1]]);
+            .for_each(|(f, row)| {
+                if b_w[b_ptr[f]..b_ptr[f + 1]].iter().all(|&w| w == 0.0) {
+                    return;
                 }
-            }
-            cols.push(i as u32);
-            cols.sort_unstable();
-            cols.dedup();
-            cols
-        })
-        .collect();
-    zero_matrix(rows)
-}
-
-/// A block matrix with the sorted columns `rows` per row, values zero.
-fn zero_matrix(rows: Vec<Vec<u32>>) -> BlockCsr {
-    let mut row_ptr = vec![0usize];
-    let mut cols = Vec::new();
-    for r in rows {
-        cols.extend_from_slice(&r);
-        row_ptr.push(cols.len());
-    }
-    let n = cols.len();
-    BlockCsr {
-        row_ptr,
-        cols,
-        values: vec![[0.0; 9]; n],
+                row.fill([0.0; 9]);
+                let mut slots = term_slot[term_ptr[f]..term_ptr[f + 1]].iter();
+                for s in a.row_ptr[f]..a.row_ptr[f + 1] {
+                    let blk = &a.values[s];
+                    let g = a.cols[s] as usize;
+                    for (&w, &slot) in b_w[b_ptr[g]..b_ptr[g + 1]].iter().zip(&mut slots) {
+                        add_scaled(&mut row[slot as usize], w, blk);
+                    }
+                }
+            });
     }
 }
 
-/// A Galerkin operator `Pᵀ A P` on its fixed pattern, with its upper triangle (the part
-/// computed; the rest is mirrored).
+/// `out += w b` for row-major 3x3 blocks. Both blocks are read before `out` is written,
+/// so that the compiler may use packed instructions (it cannot prove that `out` and `b`
+/// are distinct once inlined).
+#[inline]
+fn add_scaled(out: &mut [f64; 9], w: f64, b: &[f64; 9]) {
+    let (b, mut o) = (*b, *out);
+    for (o, x) in o.iter_mut().zip(b) {
+        *o += w * x;
+    }
+    *out = o;
+}
+
+/// Slots of the product `C = Bᵀ Q` restricted to the upper block triangle of `C`, where
+/// `Bᵀ` (rows: coarse unknowns `i`, columns: fine unknowns `f`) is given by its CSR
+/// pattern and `Q` by its row pattern: row `i` of the upper triangle sums `b_fi Q_fj`
+/// over the entries of row `i` of `Bᵀ` and the blocks `j >= i` of row `f` of `Q`, a
+/// suffix of the row.
 #[derive(Debug, Clone)]
-struct Galerkin {
-    op: BlockCsr,
-    upper: UpperTriangle,
+struct UpperSlots {
+    /// For each entry `(i, f)` of `Bᵀ`, the first block of row `f` of `Q` with column at
+    /// least `i` (an index into the values of `Q`).
+    q_from: Vec<usize>,
+    /// Row `i`'s slots are `ptr[i]..ptr[i + 1]` of `slot`.
+    ptr: Vec<usize>,
+    /// For each entry `(i, f)` of `Bᵀ` in storage order and each block of row `f` of `Q`
+    /// from `q_from`, the position of its column in row `i` of the upper triangle (0 =
+    /// the diagonal block).
+    slot: Vec<u32>,
 }
 
-/// Fills `g = Pᵀ A P` on its pattern, with an identity diagonal block in the (otherwise
-/// zero) rows of inactive coarse unknowns: the upper triangle in parallel over coarse
-/// rows, then mirrored (exactly symmetric). Each worker keeps a map from coarse column
-/// to upper block of the current row (`u32::MAX` elsewhere), so the inner loop is a
-/// multiply-add without a search.
-fn galerkin_values(a: &BlockCsr, t: &Transfer, active: &[bool], g: &mut Galerkin) {
-    let nc = g.op.block_rows();
-    let row_ptr = &g.op.row_ptr;
-    let cols = &g.op.cols;
-    g.upper
-        .rows_mut()
-        .into_par_iter()
-        .enumerate()
-        .for_each_init(
-            || vec![u32::MAX; nc],
-            |pos, (i, vals)| {
+impl UpperSlots {
+    /// The slots for `Bᵀ` (`t_ptr`, `t_cols`), `Q` (`q_ptr`, `q_cols`) and the full
+    /// pattern `c` of `C` (which holds every product block).
+    fn new(
+        t_ptr: &[usize],
+        t_cols: &[u32],
+        q_ptr: &[usize],
+        q_cols: &[u32],
+        c: &BlockCsr,
+    ) -> UpperSlots {
+        let rows: Vec<(Vec<usize>, Vec<u32>)> = (0..c.block_rows())
+            .into_par_iter()
+            .map(|i| {
+                let row = &c.cols[c.row_ptr[i]..c.row_ptr[i + 1]];
+                let upper = &row[row.partition_point(|&j| (j as usize) < i)..];
+                let mut from = Vec::with_capacity(t_ptr[i + 1] - t_ptr[i]);
+                let mut slots = Vec::new();
+                for &f in &t_cols[t_ptr[i]..t_ptr[i + 1]] {
+                    let f = f as usize;
+                    let q_row = &q_cols[q_ptr[f]..q_ptr[f + 1]];
+                    let start = q_row.partition_point(|&j| (j as usize) < i);
+                    from.push(q_ptr[f] + start);
+                    slots.extend(q_row[start..].iter().map(|j| {
+                        upper
+                            .binary_search(j)
+                            .expect("block in the Galerkin pattern") as u32
+                    }));
+                }
+                (from, slots)
+            })
+            .collect();
+        let (froms, slots): (Vec<_>, Vec<_>) = rows.into_iter().unzip();
+        let q_from = froms.concat();
+        let (ptr, slot) = concat_rows(slots);
+        UpperSlots { q_from, ptr, slot }
+    }
+
+    /// Fills the upper triangle of `C = Bᵀ Q` (parallel over rows) for `Bᵀ` and `Q`
+    /// with the patterns given to [`UpperSlots::new`] and the blocks `q` of `Q`, with an
+    /// identity diagonal block in the rows of inactive coarse unknowns and every diagonal
+    /// block made exactly symmetric (each off-diagonal pair replaced by its mean).
+    /// `weight(k)` is entry `k` of `Bᵀ`, `None` if zero; `add(w, q, out)` adds `w q`
+    /// (row-major) to `out`.
+    #[allow(clippy::too_many_arguments)]
+    fn fill<Q: Sync, W>(
+        &self,
+        t_ptr: &[usize],
+        t_cols: &[u32],
+        q_ptr: &[usize],
+        q: &[Q],
+        active: &[bool],
+        upper: &mut UpperTriangle,
+        weight: impl Fn(usize) -> Option<W> + Sync,
+        add: impl Fn(&W, &Q, &mut [f64; 9]) + Sync,
+    ) {
+        upper
+            .rows_mut()
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(i, vals)| {
                 vals.fill([0.0; 9]);
                 if !active[i] {
                     vals[0] = IDENTITY_BLOCK;
                     return;
                 }
-                let rc = &cols[row_ptr[i + 1] - vals.len()..row_ptr[i + 1]];
-                for (k, &j) in rc.iter().enumerate() {
-                    pos[j as usize] = k as u32;
-                }
-                for k in t.pt_ptr[i]..t.pt_ptr[i + 1] {
-                    let f = t.pt_cols[k] as usize;
-                    let wf = t.pt_w[k];
-                    if wf == 0.0 {
-                        continue;
-                    }
-                    for s in a.row_ptr[f]..a.row_ptr[f + 1] {
-                        let blk = &a.values[s];
-                        let g = a.cols[s] as usize;
-                        for m in t.p_ptr[g]..t.p_ptr[g + 1] {
-                            let j = t.p_cols[m] as usize;
-                            let w = wf * t.p_w[m];
-                            if j < i || w == 0.0 {
-                                continue;
-                            }
-                            let out = &mut vals[pos[j] as usize];
-                            for q in 0..9 {
-                                out[q] += w * blk[q];
-                            }
+                let mut slots = &self.slot[self.ptr[i]..self.ptr[i + 1]];
+                for k in t_ptr[i]..t_ptr[i + 1] {
+                    let q_row = &q[self.q_from[k]..q_ptr[t_cols[k] as usize + 1]];
+                    let (here, rest) = slots.split_at(q_row.len());
+                    slots = rest;
+                    if let Some(w) = weight(k) {
+                        for (qb, &slot) in q_row.iter().zip(here) {
+                            add(&w, qb, &mut vals[slot as usize]);
                         }
                     }
                 }
-                for &j in rc {
-                    pos[j as usize] = u32::MAX;
+                let d = &mut vals[0];
+                for (a, b) in [(1, 3), (2, 6), (5, 7)] {
+                    let m = 0.5 * (d[a] + d[b]);
+                    d[a] = m;
+                    d[b] = m;
+                }
+            });
+    }
+}
+
+/// Pattern of the Galerkin operator `Bᵀ Q` (rows: coarse unknowns), values zero: row `i`
+/// is the union of the rows of `Q` (`q_ptr`, `q_cols`) over the entries of row `i` of
+/// `Bᵀ` (`t_ptr`, `t_cols`), and the diagonal.
+fn galerkin_pattern(t_ptr: &[usize], t_cols: &[u32], q_ptr: &[usize], q_cols: &[u32]) -> BlockCsr {
+    let rows: Vec<Vec<u32>> = (0..t_ptr.len() - 1)
+        .into_par_iter()
+        .map(|i| {
+            let mut cols = vec![i as u32];
+            for &f in &t_cols[t_ptr[i]..t_ptr[i + 1]] {
+                let f = f as usize;
+                cols.extend_from_slice(&q_cols[q_ptr[f]..q_ptr[f + 1]]);
+            }
+            cols.sort_unstable();
+            cols.dedup();
+            cols
+        })
+        .collect();
+    let (row_ptr, cols) = concat_rows(rows);
+    BlockCsr {
+        values: vec![[0.0; 9]; cols.len()],
+        row_ptr,
+        cols,
+    }
+}
+
+/// A Galerkin operator `Pᵀ A P` on its fixed pattern, with its upper triangle (the part
+/// computed; the rest is mirrored) and the tables of the two-step product `Pᵀ (A P)`.
+#[derive(Debug, Clone)]
+struct Galerkin {
+    op: BlockCsr,
+    upper: UpperTriangle,
+    /// `Q = A P` for the barycentric `P`; `None` for the smoothed prolongation, which
+    /// keeps its own `Q = A P_s`.
+    q: Option<RowProduct>,
+    /// Slots of `Pᵀ Q` in the upper triangle.
+    slots: UpperSlots,
+}
+
+impl Galerkin {
+    /// The pattern and product tables for the barycentric `P` of `t` and the finer
+    /// operator pattern `a`.
+    fn new(a: &BlockCsr, t: &Transfer) -> Galerkin {
+        let q = RowProduct::new(a, &t.p_ptr, &t.p_cols);
+        let op = galerkin_pattern(&t.pt_ptr, &t.pt_cols, &q.ptr, &q.cols);
+        let slots = UpperSlots::new(&t.pt_ptr, &t.pt_cols, &q.ptr, &q.cols, &op);
+        Galerkin {
+            upper: UpperTriangle::new(&op),
+            op,
+            q: Some(q),
+            slots,
+        }
+    }
+
+    /// The pattern and product tables for the smoothed prolongation `p`.
+    fn smoothed(p: &SmoothedProlongation) -> Galerkin {
+        let op = galerkin_pattern(&p.t_ptr, &p.t_cols, &p.q_ptr, &p.q_cols);
+        let slots = UpperSlots::new(&p.t_ptr, &p.t_cols, &p.q_ptr, &p.q_cols, &op);
+        Galerkin {
+            upper: UpperTriangle::new(&op),
+            op,
+            q: None,
+            slots,
+        }
+    }
+
+    /// Fills `Pᵀ A P` for the finer operator `a` and the (masked) barycentric `P` of `t`,
+    /// with an identity diagonal block in the (otherwise zero) rows of inactive coarse
+    /// unknowns: `Q = A P` in parallel over fine rows, the upper triangle of `Pᵀ Q` in
+    /// parallel over coarse rows, then mirrored (exactly symmetric).
+    fn barycentric_values(&mut self, a: &BlockCsr, t: &Transfer, active: &[bool]) {
+        let q = self.q.as_mut().expect("Q of the barycentric product");
+        q.update(a, &t.p_ptr, &t.p_w);
+        self.slots.fill(
+            &t.pt_ptr,
+            &t.pt_cols,
+            &q.ptr,
+            &q.values,
+            active,
+            &mut self.upper,
+            |k| Some(t.pt_w[k]).filter(|&w| w != 0.0),
+            |&w, qb, out| add_scaled(out, w, qb),
+        );
+        self.upper.mirror_into(&mut self.op);
+    }
+
+    /// Fills `P_sᵀ A P_s` from the updated smoothed prolongation `p` (its `Q = A P_s`),
+    /// with identity blocks for inactive coarse unknowns; upper triangle, then mirrored.
+    fn smoothed_values(&mut self, p: &SmoothedProlongation, active: &[bool]) {
+        self.slots.fill(
+            &p.t_ptr,
+            &p.t_cols,
+            &p.q_ptr,
+            &p.q,
+            active,
+            &mut self.upper,
+            |k| Some(p.w[p.t_src[k]].transpose()).filter(|w| *w != DMat3::ZERO),
+            |wt, qm, out| {
+                let m = *wt * *qm;
+                for (r, row) in out.chunks_exact_mut(3).enumerate() {
+                    for (c, o) in row.iter_mut().enumerate() {
+                        *o += m.col(c)[r];
+                    }
                 }
             },
         );
-    g.upper.mirror_into(&mut g.op);
+        self.upper.mirror_into(&mut self.op);
+    }
+}
+
+/// Concatenates per-row lists into CSR form: `(ptr, items)`.
+fn concat_rows<T>(rows: Vec<Vec<T>>) -> (Vec<usize>, Vec<T>) {
+    let mut ptr = Vec::with_capacity(rows.len() + 1);
+    ptr.push(0);
+    let mut items = Vec::with_capacity(rows.iter().map(Vec::len).sum());
+    for r in rows {
+        items.extend(r);
+        ptr.push(items.len());
+    }
+    (ptr, items)
 }
 
 fn ms(d: Duration) -> f64 {
@@ -963,17 +1102,13 @@ impl Multigrid {
             if l > 0 && galerkin {
                 let fine = built[l - 1].op();
                 let t = &mut transfers[l - 1];
-                let op = if l == 1 && ps > 0.0 {
+                built[l].galerkin = Some(if l == 1 && ps > 0.0 {
                     let smoothed = SmoothedProlongation::new(fine, t, ps);
-                    let pattern = smoothed.galerkin_pattern();
+                    let g = Galerkin::smoothed(&smoothed);
                     t.smoothed = Some(smoothed);
-                    pattern
+                    g
                 } else {
-                    galerkin_pattern(fine, t)
-                };
-                built[l].galerkin = Some(Galerkin {
-                    upper: UpperTriangle::new(&op),
-                    op,
+                    Galerkin::new(fine, t)
                 });
             }
             let a = built[l].op();
@@ -1026,6 +1161,56 @@ impl Multigrid {
     /// Colours of the Gauss-Seidel smoother per level, finest first.
     pub fn colours_per_level(&self) -> Vec<usize> {
         self.levels.iter().map(|l| l.colours.len()).collect()
+    }
+
+    /// The operator of level `level` (finest first) of the latest [`Multigrid::assemble`],
+    /// 3x3 blocks in mN/mm over the level's unknowns: the finest reduced stiffness, a
+    /// coarse Galerkin operator (the coarsest with the diagonal of its diagonal blocks
+    /// scaled by `1 + 1e-8` for the Cholesky factorisation) or a rediscretised one.
+    ///
+    /// # Panics
+    /// If `level` is not below [`Multigrid::level_count`].
+    pub fn operator(&self, level: usize) -> &BlockCsr {
+        self.levels[level].op()
+    }
+
+    /// The prolongation from level `level + 1` to level `level` as the cycle and the
+    /// Galerkin product use it, dense and row-major (`3 n_fine x 3 n_coarse`,
+    /// dimensionless; for tests on small hierarchies): the barycentric `P` with the rows
+    /// of held fine unknowns and the columns of inactive coarse unknowns zeroed, or the
+    /// smoothed `P_s` of the latest assembly.
+    ///
+    /// # Panics
+    /// If `level + 1` is not below [`Multigrid::level_count`].
+    pub fn prolongation_dense(&self, level: usize) -> Vec<Vec<f64>> {
+        let t = &self.transfers[level];
+        let nc = self.levels[level + 1].unknowns;
+        let mut d = vec![vec![0.0; 3 * nc]; 3 * self.levels[level].unknowns];
+        match &t.smoothed {
+            Some(p) => {
+                for (f, rows) in d.chunks_mut(3).enumerate() {
+                    for k in p.ptr[f]..p.ptr[f + 1] {
+                        let c = 3 * p.cols[k] as usize;
+                        for (r, row) in rows.iter_mut().enumerate() {
+                            for q in 0..3 {
+                                row[c + q] += p.w[k].col(q)[r];
+                            }
+                        }
+                    }
+                }
+            }
+            None => {
+                for (f, rows) in d.chunks_mut(3).enumerate() {
+                    for k in t.p_ptr[f]..t.p_ptr[f + 1] {
+                        let c = 3 * t.p_cols[k] as usize;
+                        for (r, row) in rows.iter_mut().enumerate() {
+                            row[c + r] += t.p_w[k];
+                        }
+                    }
+                }
+            }
+        }
+        d
     }
 
     /// The finest level's model.
@@ -1182,10 +1367,10 @@ impl Multigrid {
                 match t.smoothed.take() {
                     Some(mut smoothed) => {
                         smoothed.update(fine[l - 1].op(), &fine[l - 1].inv_diag, t);
-                        smoothed.galerkin_values(&level.active, &mut c.op);
+                        c.smoothed_values(&smoothed, &level.active);
                         t.smoothed = Some(smoothed);
                     }
-                    None => galerkin_values(fine[l - 1].op(), t, &level.active, c),
+                    None => c.barycentric_values(fine[l - 1].op(), t, &level.active),
                 }
             } else {
                 let level = &mut self.levels[l];
