@@ -121,6 +121,7 @@ use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
 use crate::system::{
     BlockCsr, Constraints, IDENTITY_BLOCK, NOT_FREE, ReducedSystem, UpperTriangle, split_rows,
+    transposed,
 };
 use crate::transfer::Prolongation;
 use glam::{DMat3, DVec3};
@@ -321,7 +322,18 @@ impl Transfer {
         coarse_reduced_of: &[u32],
         coarse_unknowns: usize,
     ) -> Transfer {
-        let (p_ptr, p_cols, p_w) = p.reduced(fine_reduced_of, coarse_reduced_of);
+        let (p_ptr, mut p_cols, mut p_w) = p.reduced(fine_reduced_of, coarse_reduced_of);
+        // columns ascending within each row (the Galerkin product skips a row's low end)
+        for f in 0..p_ptr.len() - 1 {
+            let mut row: Vec<(u32, f64)> = (p_ptr[f]..p_ptr[f + 1])
+                .map(|k| (p_cols[k], p_w[k]))
+                .collect();
+            row.sort_unstable_by_key(|&(c, _)| c);
+            for (k, (c, w)) in (p_ptr[f]..).zip(row) {
+                p_cols[k] = c;
+                p_w[k] = w;
+            }
+        }
         let nc = coarse_unknowns;
         let mut count = vec![0usize; nc + 1];
         for &c in &p_cols {
@@ -585,78 +597,306 @@ impl SmoothedProlongation {
     }
 }
 
-/// Rows of `Q = A B` for a block matrix `A` and a scalar matrix `B` (the barycentric `P`)
-/// on fixed patterns, with the slot of every product term precomputed: the values follow
-/// every assembly of `A` and masking of `B` without a search or a column map.
+/// Contiguous ranges of fine rows of the barycentric Galerkin product, each accumulated
+/// serially into a buffer of its own (fixed, so that the rounding does not depend on the
+/// number of threads).
+const GALERKIN_PARTS: usize = 8;
+
+/// The barycentric Galerkin product `C = Pᵀ A P` fused per fine row on fixed patterns,
+/// with every index precomputed: for each fine row `f`, the row `Q_f` of `Q = A P` is
+/// formed in a scratch row (it stays in the L1 cache) and scattered at once into the
+/// upper blocks `(i, j)`, `j >= i`, of the coarse rows `i` of `P`'s row `f`; then every
+/// block of `C` is gathered from the buffers (the sum of its parts' contributions, the
+/// transposed upper block left of the diagonal, so that `C` is exactly symmetric). Neither
+/// `Q` nor a column map is stored, and `A` is read once.
 #[derive(Debug, Clone)]
-struct RowProduct {
-    /// Row `f` of `Q` is `ptr[f]..ptr[f + 1]` of `cols` and `values`.
-    ptr: Vec<usize>,
-    /// Columns of `Q`, ascending within a row.
-    cols: Vec<u32>,
-    /// Blocks of `Q`, row-major 3x3 (units of `A` times those of `B`).
-    values: Vec<[f64; 9]>,
+struct FusedProduct {
+    /// Row `f` of `Q` has `q_ptr[f + 1] - q_ptr[f]` blocks: the union of the columns of
+    /// `P` over the columns of `A`'s row `f`, ascending, from the smallest column of
+    /// `P`'s row `f` on (the columns of `P`'s rows are ascending).
+    q_ptr: Vec<usize>,
     /// Row `f`'s terms are `term_ptr[f]..term_ptr[f + 1]` of `term_slot`.
     term_ptr: Vec<usize>,
-    /// For each block `(f, g)` of `A` in storage order and each entry of row `g` of `B`
-    /// in storage order, the position of its column in row `f` of `Q` (0 = first block
-    /// of the row).
+    /// For each block `(f, g)` of `A`, the entries of `P`'s row `g` it skips: those with
+    /// a column below the smallest column of `P`'s row `f` (the upper triangle of `C`
+    /// never needs them).
+    term_skip: Vec<u8>,
+    /// For each block `(f, g)` of `A` in storage order and each entry of `P`'s row `g`
+    /// after the skipped ones, the position of its column in row `f` of `Q`.
     term_slot: Vec<u32>,
+    /// For each entry `(f, i)` of `P`, the first position in row `f` of `Q` whose column
+    /// is at least `i`.
+    q_from: Vec<u32>,
+    /// Row `f`'s destinations are `dest_ptr[f]..dest_ptr[f + 1]` of `dest`.
+    dest_ptr: Vec<usize>,
+    /// For each entry `(f, i)` of `P` in storage order and each block `j` of row `f` of
+    /// `Q` from `q_from`, the index in `buf` of the block `(i, j)` of the part of `f`.
+    dest: Vec<u32>,
+    /// Part `p` holds the fine rows `part_rows[p]..part_rows[p + 1]` and the buffer
+    /// blocks `buf_ptr[p]..buf_ptr[p + 1]`.
+    part_rows: Vec<usize>,
+    buf_ptr: Vec<usize>,
+    /// The parts' sums of upper blocks of `C` (row-major 3x3, mN/mm), each part's blocks
+    /// ordered by row and column.
+    buf: Vec<[f64; 9]>,
+    /// Block `b` of `C` (storage order) sums the blocks `src[src_ptr[b]..src_ptr[b + 1]]`
+    /// of `buf`: the parts' sums of its upper block.
+    src_ptr: Vec<usize>,
+    src: Vec<u32>,
 }
 
-impl RowProduct {
-    /// The pattern of `A B` (`b_ptr`, `b_cols`: CSR pattern of `B`) and its term slots.
-    fn new(a: &BlockCsr, b_ptr: &[usize], b_cols: &[u32]) -> RowProduct {
-        let (ptr, cols) = product_pattern(a, b_ptr, b_cols);
-        let (term_ptr, term_slot) = concat_rows(
-            (0..a.block_rows())
+/// A parts' scatter pattern: its sorted upper blocks `(i, j)` (as `i << 32 | j`), then
+/// for its fine rows the `q_from` and `dest` entries and the number of `dest` entries per
+/// row.
+type PartPattern = (Vec<u64>, Vec<u32>, Vec<u32>, Vec<usize>);
+
+impl FusedProduct {
+    /// The product for the finer operator pattern `a` and the barycentric `P` of `t`,
+    /// and the pattern of `C` (values zero).
+    fn new(a: &BlockCsr, t: &Transfer) -> (FusedProduct, BlockCsr) {
+        let nf = a.block_rows();
+        let p_row = |g: usize| &t.p_cols[t.p_ptr[g]..t.p_ptr[g + 1]];
+        let lowest = |f: usize| p_row(f).first().copied().unwrap_or(u32::MAX);
+        let (q_ptr, q_cols) = concat_rows(
+            (0..nf)
                 .into_par_iter()
                 .map(|f| {
-                    let row = &cols[ptr[f]..ptr[f + 1]];
-                    let mut slots = Vec::new();
+                    let lo = lowest(f);
+                    let mut cols = Vec::new();
                     for &g in &a.cols[a.row_ptr[f]..a.row_ptr[f + 1]] {
-                        let g = g as usize;
-                        slots.extend(b_cols[b_ptr[g]..b_ptr[g + 1]].iter().map(|c| {
-                            row.binary_search(c).expect("column in the product pattern") as u32
-                        }));
+                        cols.extend(p_row(g as usize).iter().filter(|&&j| j >= lo));
                     }
-                    slots
+                    cols.sort_unstable();
+                    cols.dedup();
+                    cols
                 })
                 .collect(),
         );
-        RowProduct {
-            values: vec![[0.0; 9]; cols.len()],
-            ptr,
-            cols,
-            term_ptr,
-            term_slot,
+        let terms: Vec<(Vec<u8>, Vec<u32>)> = (0..nf)
+            .into_par_iter()
+            .map(|f| {
+                let (lo, row) = (lowest(f), &q_cols[q_ptr[f]..q_ptr[f + 1]]);
+                let mut skips = Vec::new();
+                let mut slots = Vec::new();
+                for &g in &a.cols[a.row_ptr[f]..a.row_ptr[f + 1]] {
+                    let g_cols = p_row(g as usize);
+                    let skip = g_cols.partition_point(|&j| j < lo);
+                    skips.push(skip as u8);
+                    slots.extend(g_cols[skip..].iter().map(|j| {
+                        row.binary_search(j).expect("column in the product pattern") as u32
+                    }));
+                }
+                (skips, slots)
+            })
+            .collect();
+        let (skips, slots): (Vec<_>, Vec<_>) = terms.into_iter().unzip();
+        let term_skip = skips.concat();
+        let (term_ptr, term_slot) = concat_rows(slots);
+        let parts = GALERKIN_PARTS.min(nf.max(1));
+        let part_rows: Vec<usize> = (0..=parts).map(|p| p * nf / parts).collect();
+        let patterns: Vec<PartPattern> = (0..parts)
+            .into_par_iter()
+            .map(|p| {
+                let rows = part_rows[p]..part_rows[p + 1];
+                let key = |i: u32, j: u32| (i as u64) << 32 | j as u64;
+                let mut keys = Vec::new();
+                for f in rows.clone() {
+                    let q_row = &q_cols[q_ptr[f]..q_ptr[f + 1]];
+                    for &i in &t.p_cols[t.p_ptr[f]..t.p_ptr[f + 1]] {
+                        keys.extend(q_row.iter().filter(|&&j| j >= i).map(|&j| key(i, j)));
+                    }
+                }
+                keys.sort_unstable();
+                keys.dedup();
+                let (mut from, mut dest, mut counts) = (Vec::new(), Vec::new(), Vec::new());
+                for f in rows {
+                    let q_row = &q_cols[q_ptr[f]..q_ptr[f + 1]];
+                    let before = dest.len();
+                    for &i in &t.p_cols[t.p_ptr[f]..t.p_ptr[f + 1]] {
+                        let start = q_row.partition_point(|&j| j < i);
+                        from.push(start as u32);
+                        dest.extend(q_row[start..].iter().map(|&j| {
+                            keys.binary_search(&key(i, j)).expect("key of the part") as u32
+                        }));
+                    }
+                    counts.push(dest.len() - before);
+                }
+                (keys, from, dest, counts)
+            })
+            .collect();
+        // the pattern of C: the parts' upper blocks, mirrored, and the diagonal
+        let nc = t.pt_ptr.len() - 1;
+        let mut rows: Vec<Vec<u32>> = (0..nc as u32).map(|i| vec![i]).collect();
+        for (keys, ..) in &patterns {
+            for &key in keys {
+                let (i, j) = ((key >> 32) as u32, key as u32);
+                rows[i as usize].push(j);
+                rows[j as usize].push(i);
+            }
         }
+        rows.par_iter_mut().for_each(|r| {
+            r.sort_unstable();
+            r.dedup();
+        });
+        let (row_ptr, cols) = concat_rows(rows);
+        let c = BlockCsr {
+            values: vec![[0.0; 9]; cols.len()],
+            row_ptr,
+            cols,
+        };
+        let mut buf_ptr = vec![0usize];
+        let (mut q_from, mut dest, mut dest_ptr) = (Vec::new(), Vec::new(), vec![0usize]);
+        for (keys, from, part_dest, counts) in &patterns {
+            let base = *buf_ptr.last().expect("starts at zero");
+            q_from.extend_from_slice(from);
+            dest.extend(part_dest.iter().map(|&d| (base + d as usize) as u32));
+            for &n in counts {
+                dest_ptr.push(dest_ptr.last().expect("starts at zero") + n);
+            }
+            buf_ptr.push(base + keys.len());
+        }
+        let (src_ptr, src) = concat_rows(
+            (0..c.block_rows())
+                .into_par_iter()
+                .flat_map_iter(|r| {
+                    let patterns = &patterns;
+                    let buf_ptr = &buf_ptr;
+                    c.cols[c.row_ptr[r]..c.row_ptr[r + 1]]
+                        .iter()
+                        .map(move |&j| {
+                            let (lo, hi) = (j.min(r as u32) as u64, j.max(r as u32) as u64);
+                            patterns
+                                .iter()
+                                .zip(buf_ptr)
+                                .filter_map(|((keys, ..), &base)| {
+                                    let k = keys.binary_search(&(lo << 32 | hi)).ok()?;
+                                    Some((base + k) as u32)
+                                })
+                                .collect::<Vec<u32>>()
+                        })
+                })
+                .collect(),
+        );
+        let product = FusedProduct {
+            buf: vec![[0.0; 9]; *buf_ptr.last().expect("starts at zero")],
+            q_ptr,
+            term_ptr,
+            term_skip,
+            term_slot,
+            q_from,
+            dest_ptr,
+            dest,
+            part_rows,
+            buf_ptr,
+            src_ptr,
+            src,
+        };
+        (product, c)
     }
 
-    /// Recomputes `Q = A B` (parallel over rows of `Q`) for the scalar entries `b_w` of
-    /// `B` (CSR with `b_ptr`, the pattern given to [`RowProduct::new`]). A row whose own
-    /// entries of `B` are all zero is skipped and keeps stale values: `Bᵀ Q` never reads
-    /// it.
-    fn update(&mut self, a: &BlockCsr, b_ptr: &[usize], b_w: &[f64]) {
-        let (term_ptr, term_slot) = (&self.term_ptr, &self.term_slot);
-        split_rows(&mut self.values, &self.ptr)
+    /// Fills `c = Pᵀ A P` (the pattern returned by [`FusedProduct::new`]) for the finer
+    /// operator `a` and the masked `P` of `t`, with an identity diagonal block in the
+    /// (otherwise zero) rows of inactive coarse unknowns: the parts in parallel, each
+    /// fine row of a part in turn (rows whose entries of `P` are all zero are skipped),
+    /// then the blocks of `c` in parallel over rows.
+    fn values(&mut self, a: &BlockCsr, t: &Transfer, active: &[bool], c: &mut BlockCsr) {
+        let FusedProduct {
+            q_ptr,
+            term_ptr,
+            term_skip,
+            term_slot,
+            q_from,
+            dest_ptr,
+            dest,
+            part_rows,
+            buf_ptr,
+            buf,
+            src_ptr,
+            src,
+        } = self;
+        split_rows(buf, buf_ptr)
             .into_par_iter()
             .enumerate()
-            .for_each(|(f, row)| {
-                if b_w[b_ptr[f]..b_ptr[f + 1]].iter().all(|&w| w == 0.0) {
-                    return;
-                }
-                row.fill([0.0; 9]);
-                let mut slots = term_slot[term_ptr[f]..term_ptr[f + 1]].iter();
-                for s in a.row_ptr[f]..a.row_ptr[f + 1] {
-                    let blk = &a.values[s];
-                    let g = a.cols[s] as usize;
-                    for (&w, &slot) in b_w[b_ptr[g]..b_ptr[g + 1]].iter().zip(&mut slots) {
-                        add_scaled(&mut row[slot as usize], w, blk);
+            .for_each_init(Vec::new, |q_row, (p, part)| {
+                part.fill([0.0; 9]);
+                let base = buf_ptr[p];
+                for f in part_rows[p]..part_rows[p + 1] {
+                    let weights = &t.p_w[t.p_ptr[f]..t.p_ptr[f + 1]];
+                    if weights.iter().all(|&w| w == 0.0) {
+                        continue;
+                    }
+                    q_row.clear();
+                    q_row.resize(q_ptr[f + 1] - q_ptr[f], [0.0; 9]);
+                    let mut slots = term_slot[term_ptr[f]..term_ptr[f + 1]].iter();
+                    let row = a.row_ptr[f]..a.row_ptr[f + 1];
+                    for ((blk, &g), &skip) in a.values[row.clone()]
+                        .iter()
+                        .zip(&a.cols[row.clone()])
+                        .zip(&term_skip[row])
+                    {
+                        // a copy, kept in registers over the row of `P`
+                        let blk = *blk;
+                        let g = g as usize;
+                        let ws = &t.p_w[t.p_ptr[g] + skip as usize..t.p_ptr[g + 1]];
+                        for (&w, &slot) in ws.iter().zip(&mut slots) {
+                            add_scaled(&mut q_row[slot as usize], w, &blk);
+                        }
+                    }
+                    let mut dests = &dest[dest_ptr[f]..dest_ptr[f + 1]];
+                    for (k, &w) in (t.p_ptr[f]..).zip(weights) {
+                        let q_part = &q_row[q_from[k] as usize..];
+                        let (here, rest) = dests.split_at(q_part.len());
+                        dests = rest;
+                        if w != 0.0 {
+                            for (qb, &d) in q_part.iter().zip(here) {
+                                add_scaled(&mut part[d as usize - base], w, qb);
+                            }
+                        }
                     }
                 }
             });
+        let buf = &*buf;
+        let BlockCsr {
+            row_ptr,
+            cols,
+            values,
+        } = c;
+        split_rows(values, row_ptr)
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(r, row)| {
+                let start = row_ptr[r];
+                for (b, (out, &j)) in row.iter_mut().zip(&cols[start..]).enumerate() {
+                    let j = j as usize;
+                    if j == r && !active[r] {
+                        *out = IDENTITY_BLOCK;
+                        continue;
+                    }
+                    let sum = match &src[src_ptr[start + b]..src_ptr[start + b + 1]] {
+                        [k] => buf[*k as usize],
+                        parts => parts.iter().fold([0.0; 9], |mut sum, &k| {
+                            add_scaled(&mut sum, 1.0, &buf[k as usize]);
+                            sum
+                        }),
+                    };
+                    *out = match j.cmp(&r) {
+                        std::cmp::Ordering::Less => transposed(&sum),
+                        std::cmp::Ordering::Equal => symmetrised(sum),
+                        std::cmp::Ordering::Greater => sum,
+                    };
+                }
+            });
     }
+}
+
+/// A diagonal block made exactly symmetric: each off-diagonal pair replaced by its mean.
+fn symmetrised(mut d: [f64; 9]) -> [f64; 9] {
+    for (a, b) in [(1, 3), (2, 6), (5, 7)] {
+        let m = 0.5 * (d[a] + d[b]);
+        d[a] = m;
+        d[b] = m;
+    }
+    d
 }
 
 /// `out += w b` for row-major 3x3 blocks. Both blocks are read before `out` is written,
@@ -726,24 +966,11 @@ impl UpperSlots {
         UpperSlots { q_from, ptr, slot }
     }
 
-    /// Fills the upper triangle of `C = Bᵀ Q` (parallel over rows) for `Bᵀ` and `Q`
-    /// with the patterns given to [`UpperSlots::new`] and the blocks `q` of `Q`, with an
-    /// identity diagonal block in the rows of inactive coarse unknowns and every diagonal
-    /// block made exactly symmetric (each off-diagonal pair replaced by its mean).
-    /// `weight(k)` is entry `k` of `Bᵀ`, `None` if zero; `add(w, q, out)` adds `w q`
-    /// (row-major) to `out`.
-    #[allow(clippy::too_many_arguments)]
-    fn fill<Q: Sync, W>(
-        &self,
-        t_ptr: &[usize],
-        t_cols: &[u32],
-        q_ptr: &[usize],
-        q: &[Q],
-        active: &[bool],
-        upper: &mut UpperTriangle,
-        weight: impl Fn(usize) -> Option<W> + Sync,
-        add: impl Fn(&W, &Q, &mut [f64; 9]) + Sync,
-    ) {
+    /// Fills the upper triangle of `C = P_sᵀ Q` (parallel over rows) for the smoothed
+    /// prolongation `p` (the patterns given to [`UpperSlots::new`] are its `P_sᵀ` and
+    /// `Q = A P_s`), with an identity diagonal block in the rows of inactive coarse
+    /// unknowns and every diagonal block made exactly symmetric.
+    fn fill(&self, p: &SmoothedProlongation, active: &[bool], upper: &mut UpperTriangle) {
         upper
             .rows_mut()
             .into_par_iter()
@@ -755,24 +982,39 @@ impl UpperSlots {
                     return;
                 }
                 let mut slots = &self.slot[self.ptr[i]..self.ptr[i + 1]];
-                for k in t_ptr[i]..t_ptr[i + 1] {
-                    let q_row = &q[self.q_from[k]..q_ptr[t_cols[k] as usize + 1]];
+                for k in p.t_ptr[i]..p.t_ptr[i + 1] {
+                    let q_row = &p.q[self.q_from[k]..p.q_ptr[p.t_cols[k] as usize + 1]];
                     let (here, rest) = slots.split_at(q_row.len());
                     slots = rest;
-                    if let Some(w) = weight(k) {
-                        for (qb, &slot) in q_row.iter().zip(here) {
-                            add(&w, qb, &mut vals[slot as usize]);
+                    let wt = p.w[p.t_src[k]].transpose();
+                    if wt == DMat3::ZERO {
+                        continue;
+                    }
+                    for (qm, &slot) in q_row.iter().zip(here) {
+                        let m = wt * *qm;
+                        // row-major, as `block_of` reads it
+                        for (r, row) in vals[slot as usize].chunks_exact_mut(3).enumerate() {
+                            for (c, o) in row.iter_mut().enumerate() {
+                                *o += m.col(c)[r];
+                            }
                         }
                     }
                 }
-                let d = &mut vals[0];
-                for (a, b) in [(1, 3), (2, 6), (5, 7)] {
-                    let m = 0.5 * (d[a] + d[b]);
-                    d[a] = m;
-                    d[b] = m;
-                }
+                vals[0] = symmetrised(vals[0]);
             });
     }
+}
+
+/// Concatenates per-row lists into CSR form: `(ptr, items)`.
+fn concat_rows<T>(rows: Vec<Vec<T>>) -> (Vec<usize>, Vec<T>) {
+    let mut ptr = Vec::with_capacity(rows.len() + 1);
+    ptr.push(0);
+    let mut items = Vec::with_capacity(rows.iter().map(Vec::len).sum());
+    for r in rows {
+        items.extend(r);
+        ptr.push(items.len());
+    }
+    (ptr, items)
 }
 
 /// Pattern of the Galerkin operator `Bᵀ Q` (rows: coarse unknowns), values zero: row `i`
@@ -800,31 +1042,34 @@ fn galerkin_pattern(t_ptr: &[usize], t_cols: &[u32], q_ptr: &[usize], q_cols: &[
     }
 }
 
-/// A Galerkin operator `Pᵀ A P` on its fixed pattern, with its upper triangle (the part
-/// computed; the rest is mirrored) and the tables of the two-step product `Pᵀ (A P)`.
+/// A Galerkin operator on its fixed pattern and the tables of its product.
 #[derive(Debug, Clone)]
 struct Galerkin {
     op: BlockCsr,
-    upper: UpperTriangle,
-    /// `Q = A P` for the barycentric `P`; `None` for the smoothed prolongation, which
-    /// keeps its own `Q = A P_s`.
-    q: Option<RowProduct>,
-    /// Slots of `Pᵀ Q` in the upper triangle.
-    slots: UpperSlots,
+    product: GalerkinProduct,
+}
+
+/// How a Galerkin operator is computed.
+#[derive(Debug, Clone)]
+enum GalerkinProduct {
+    /// `Pᵀ A P` for the barycentric `P`, fused per fine row.
+    Barycentric(FusedProduct),
+    /// `P_sᵀ Q` for the smoothed prolongation (which keeps `Q = A P_s`): its upper
+    /// triangle (the part computed; the rest is mirrored) and the slots of the product.
+    Smoothed {
+        upper: UpperTriangle,
+        slots: UpperSlots,
+    },
 }
 
 impl Galerkin {
     /// The pattern and product tables for the barycentric `P` of `t` and the finer
     /// operator pattern `a`.
     fn new(a: &BlockCsr, t: &Transfer) -> Galerkin {
-        let q = RowProduct::new(a, &t.p_ptr, &t.p_cols);
-        let op = galerkin_pattern(&t.pt_ptr, &t.pt_cols, &q.ptr, &q.cols);
-        let slots = UpperSlots::new(&t.pt_ptr, &t.pt_cols, &q.ptr, &q.cols, &op);
+        let (product, op) = FusedProduct::new(a, t);
         Galerkin {
-            upper: UpperTriangle::new(&op),
             op,
-            q: Some(q),
-            slots,
+            product: GalerkinProduct::Barycentric(product),
         }
     }
 
@@ -833,67 +1078,35 @@ impl Galerkin {
         let op = galerkin_pattern(&p.t_ptr, &p.t_cols, &p.q_ptr, &p.q_cols);
         let slots = UpperSlots::new(&p.t_ptr, &p.t_cols, &p.q_ptr, &p.q_cols, &op);
         Galerkin {
-            upper: UpperTriangle::new(&op),
+            product: GalerkinProduct::Smoothed {
+                upper: UpperTriangle::new(&op),
+                slots,
+            },
             op,
-            q: None,
-            slots,
         }
     }
 
     /// Fills `Pᵀ A P` for the finer operator `a` and the (masked) barycentric `P` of `t`,
     /// with an identity diagonal block in the (otherwise zero) rows of inactive coarse
-    /// unknowns: `Q = A P` in parallel over fine rows, the upper triangle of `Pᵀ Q` in
-    /// parallel over coarse rows, then mirrored (exactly symmetric).
+    /// unknowns (see [`FusedProduct`]).
     fn barycentric_values(&mut self, a: &BlockCsr, t: &Transfer, active: &[bool]) {
-        let q = self.q.as_mut().expect("Q of the barycentric product");
-        q.update(a, &t.p_ptr, &t.p_w);
-        self.slots.fill(
-            &t.pt_ptr,
-            &t.pt_cols,
-            &q.ptr,
-            &q.values,
-            active,
-            &mut self.upper,
-            |k| Some(t.pt_w[k]).filter(|&w| w != 0.0),
-            |&w, qb, out| add_scaled(out, w, qb),
-        );
-        self.upper.mirror_into(&mut self.op);
+        match &mut self.product {
+            GalerkinProduct::Barycentric(product) => product.values(a, t, active, &mut self.op),
+            GalerkinProduct::Smoothed { .. } => unreachable!("a barycentric Galerkin level"),
+        }
     }
 
     /// Fills `P_sᵀ A P_s` from the updated smoothed prolongation `p` (its `Q = A P_s`),
     /// with identity blocks for inactive coarse unknowns; upper triangle, then mirrored.
     fn smoothed_values(&mut self, p: &SmoothedProlongation, active: &[bool]) {
-        self.slots.fill(
-            &p.t_ptr,
-            &p.t_cols,
-            &p.q_ptr,
-            &p.q,
-            active,
-            &mut self.upper,
-            |k| Some(p.w[p.t_src[k]].transpose()).filter(|w| *w != DMat3::ZERO),
-            |wt, qm, out| {
-                let m = *wt * *qm;
-                for (r, row) in out.chunks_exact_mut(3).enumerate() {
-                    for (c, o) in row.iter_mut().enumerate() {
-                        *o += m.col(c)[r];
-                    }
-                }
-            },
-        );
-        self.upper.mirror_into(&mut self.op);
+        match &mut self.product {
+            GalerkinProduct::Smoothed { upper, slots } => {
+                slots.fill(p, active, upper);
+                upper.mirror_into(&mut self.op);
+            }
+            GalerkinProduct::Barycentric(_) => unreachable!("a smoothed Galerkin level"),
+        }
     }
-}
-
-/// Concatenates per-row lists into CSR form: `(ptr, items)`.
-fn concat_rows<T>(rows: Vec<Vec<T>>) -> (Vec<usize>, Vec<T>) {
-    let mut ptr = Vec::with_capacity(rows.len() + 1);
-    ptr.push(0);
-    let mut items = Vec::with_capacity(rows.iter().map(Vec::len).sum());
-    for r in rows {
-        items.extend(r);
-        ptr.push(items.len());
-    }
-    (ptr, items)
 }
 
 fn ms(d: Duration) -> f64 {
