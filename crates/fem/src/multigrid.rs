@@ -109,6 +109,27 @@
 //! stand-alone cycles converging to the f64 solution), unknowns renumbered by colour, a
 //! coarsest level small enough that its Cholesky is negligible.
 //!
+//! The barycentric Galerkin products are fused per fine row (`FusedProduct`): the row
+//! `Q_f` of `A P`, from the lowest coarse column of `P`'s row `f` on, is formed in a
+//! scratch row and scattered at once into the upper blocks `(i, j ≥ i)` of the coarse rows
+//! `i` of `P`'s row `f`, at destinations precomputed with the pattern (eight fixed ranges
+//! of fine rows in parallel, each into its own buffer); then every block of `Pᵀ A P` is
+//! gathered from the buffers, lower blocks transposed. `A` is read once and neither `Q`
+//! nor a column map is stored. Before, each coarse row ran over `Pᵀ`, `A` and `P` with a
+//! column map, reading every fine row of `A` about four times and discarding the half
+//! with `j < i` (about 3.5 million inner steps at 60k elements). `coarse_operators_ms`
+//! per cycle on 2 cores, back-to-back A/B runs at a load of about 2, medians (range):
+//! phantom of `mammaplan bench --elements 60000` (3 levels, 10,656 / 2,254 / 208
+//! unknowns) 7.5 (6.9-8.0) ms before, 3.6 (3.4-4.3) ms after, on one thread 12.9 / 7.0
+//! ms; criterion `mg_coarse_operators` on the 60,984-element box 2.85 / 1.6 ms and on
+//! the 15,288-element box 0.70 / 0.43 ms. What remains is arithmetic: about 30 SSE2
+//! instructions per scalar-times-block term (no FMA in the baseline target), roughly
+//! 0.85 million terms and 0.3 million scatters at 60k elements, and the gather (a copy of
+//! both triangles). With the smoothed prolongation the product `P_sᵀ (A P_s)` fills the
+//! upper triangle on precomputed slots and is mirrored (it was computed in full and not
+//! exactly symmetric): phantom 28.6 ms before, 23.1 ms after; the update of `P_s` and
+//! `A P_s` (still with column maps) dominates.
+//!
 //! Use: [`Multigrid::cycle`] does one interactive step (reassemble every level at the
 //! current displacement, one V-cycle on the correction from zero, i.e. warm-started from
 //! the current displacement); [`Multigrid::vcycle`] is one V-cycle on the assembled
@@ -800,21 +821,18 @@ impl FusedProduct {
     /// fine row of a part in turn (rows whose entries of `P` are all zero are skipped),
     /// then the blocks of `c` in parallel over rows.
     fn values(&mut self, a: &BlockCsr, t: &Transfer, active: &[bool], c: &mut BlockCsr) {
-        let FusedProduct {
-            q_ptr,
-            term_ptr,
-            term_skip,
-            term_slot,
-            q_from,
-            dest_ptr,
-            dest,
-            part_rows,
-            buf_ptr,
-            buf,
-            src_ptr,
-            src,
-        } = self;
-        split_rows(buf, buf_ptr)
+        let mut buf = std::mem::take(&mut self.buf);
+        let this = &*self;
+        let (q_ptr, term_ptr, term_skip, term_slot) = (
+            &this.q_ptr,
+            &this.term_ptr,
+            &this.term_skip,
+            &this.term_slot,
+        );
+        let (q_from, dest_ptr, dest) = (&this.q_from, &this.dest_ptr, &this.dest);
+        let (part_rows, buf_ptr, src_ptr, src) =
+            (&this.part_rows, &this.buf_ptr, &this.src_ptr, &this.src);
+        split_rows(&mut buf, buf_ptr)
             .into_par_iter()
             .enumerate()
             .for_each_init(Vec::new, |q_row, (p, part)| {
@@ -855,7 +873,6 @@ impl FusedProduct {
                     }
                 }
             });
-        let buf = &*buf;
         let BlockCsr {
             row_ptr,
             cols,
@@ -886,6 +903,7 @@ impl FusedProduct {
                     };
                 }
             });
+        self.buf = buf;
     }
 }
 
