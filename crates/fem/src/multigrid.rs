@@ -123,6 +123,27 @@
 //! stand-alone cycles converging to the f64 solution), unknowns renumbered by colour, a
 //! coarsest level small enough that its Cholesky is negligible.
 //!
+//! The barycentric Galerkin products are fused per fine row (`FusedProduct`): the row
+//! `Q_f` of `A P`, from the lowest coarse column of `P`'s row `f` on, is formed in a
+//! scratch row and scattered at once into the upper blocks `(i, j ≥ i)` of the coarse rows
+//! `i` of `P`'s row `f`, at destinations precomputed with the pattern (eight fixed ranges
+//! of fine rows in parallel, each into its own buffer); then every block of `Pᵀ A P` is
+//! gathered from the buffers, lower blocks transposed. `A` is read once and neither `Q`
+//! nor a column map is stored. Before, each coarse row ran over `Pᵀ`, `A` and `P` with a
+//! column map, reading every fine row of `A` about four times and discarding the half
+//! with `j < i` (about 3.5 million inner steps at 60k elements). `coarse_operators_ms`
+//! per cycle on 2 cores, back-to-back A/B runs at a load of about 2, medians (range):
+//! phantom of `mammaplan bench --elements 60000` (3 levels, 10,656 / 2,254 / 208
+//! unknowns) 7.5 (6.9-8.0) ms before, 3.6 (3.4-4.3) ms after, on one thread 12.9 / 7.0
+//! ms; criterion `mg_coarse_operators` on the 60,984-element box 2.85 / 1.6 ms and on
+//! the 15,288-element box 0.70 / 0.43 ms. What remains is arithmetic: about 30 SSE2
+//! instructions per scalar-times-block term (no FMA in the baseline target), roughly
+//! 0.85 million terms and 0.3 million scatters at 60k elements, and the gather (a copy of
+//! both triangles). With the smoothed prolongation the product `P_sᵀ (A P_s)` fills the
+//! upper triangle on precomputed slots and is mirrored (it was computed in full and not
+//! exactly symmetric): phantom 28.6 ms before, 23.1 ms after; the update of `P_s` and
+//! `A P_s` (still with column maps) dominates.
+//!
 //! Use: [`Multigrid::cycle`] does one interactive step (reassemble every level at the
 //! current displacement, one V-cycle on the correction from zero, i.e. warm-started from
 //! the current displacement, the correction scaled to the energy minimum along it:
@@ -136,7 +157,7 @@ use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
 use crate::system::{
     BlockCsr, Constraints, DisjointWrites, IDENTITY_BLOCK, NOT_FREE, ReducedSystem, UpperTriangle,
-    split_rows,
+    split_rows, transposed,
 };
 use crate::transfer::Prolongation;
 use glam::{DMat3, DVec3};
@@ -440,7 +461,18 @@ impl Transfer {
         coarse_reduced_of: &[u32],
         coarse_unknowns: usize,
     ) -> Transfer {
-        let (p_ptr, p_cols, p_w) = p.reduced(fine_reduced_of, coarse_reduced_of);
+        let (p_ptr, mut p_cols, mut p_w) = p.reduced(fine_reduced_of, coarse_reduced_of);
+        // columns ascending within each row (the Galerkin product skips a row's low end)
+        for f in 0..p_ptr.len() - 1 {
+            let mut row: Vec<(u32, f64)> = (p_ptr[f]..p_ptr[f + 1])
+                .map(|k| (p_cols[k], p_w[k]))
+                .collect();
+            row.sort_unstable_by_key(|&(c, _)| c);
+            for (k, (c, w)) in (p_ptr[f]..).zip(row) {
+                p_cols[k] = c;
+                p_w[k] = w;
+            }
+        }
         let nc = coarse_unknowns;
         let mut count = vec![0usize; nc + 1];
         for &c in &p_cols {
@@ -635,13 +667,7 @@ fn product_pattern(a: &BlockCsr, b_ptr: &[usize], b_cols: &[u32]) -> (Vec<usize>
             cols
         })
         .collect();
-    let mut ptr = vec![0usize];
-    let mut cols = Vec::new();
-    for r in rows {
-        cols.extend_from_slice(&r);
-        ptr.push(cols.len());
-    }
-    (ptr, cols)
+    concat_rows(rows)
 }
 
 impl SmoothedProlongation {
@@ -742,172 +768,521 @@ impl SmoothedProlongation {
                 },
             );
     }
+}
 
-    /// Pattern of `P_sᵀ A P_s` (rows: coarse unknowns), values zero.
-    fn galerkin_pattern(&self) -> BlockCsr {
-        let nc = self.t_ptr.len() - 1;
-        let rows: Vec<Vec<u32>> = (0..nc)
+/// Contiguous ranges of fine rows of the barycentric Galerkin product, each accumulated
+/// serially into a buffer of its own (fixed, so that the rounding does not depend on the
+/// number of threads).
+const GALERKIN_PARTS: usize = 8;
+
+/// The barycentric Galerkin product `C = Pᵀ A P` fused per fine row on fixed patterns,
+/// with every index precomputed: for each fine row `f`, the row `Q_f` of `Q = A P` is
+/// formed in a scratch row (it stays in the L1 cache) and scattered at once into the
+/// upper blocks `(i, j)`, `j >= i`, of the coarse rows `i` of `P`'s row `f`; then every
+/// block of `C` is gathered from the buffers (the sum of its parts' contributions, the
+/// transposed upper block left of the diagonal, so that `C` is exactly symmetric). Neither
+/// `Q` nor a column map is stored, and `A` is read once.
+#[derive(Debug, Clone)]
+struct FusedProduct {
+    /// Row `f` of `Q` has `q_ptr[f + 1] - q_ptr[f]` blocks: the union of the columns of
+    /// `P` over the columns of `A`'s row `f`, ascending, from the smallest column of
+    /// `P`'s row `f` on (the columns of `P`'s rows are ascending).
+    q_ptr: Vec<usize>,
+    /// Row `f`'s terms are `term_ptr[f]..term_ptr[f + 1]` of `term_slot`.
+    term_ptr: Vec<usize>,
+    /// For each block `(f, g)` of `A`, the entries of `P`'s row `g` it skips: those with
+    /// a column below the smallest column of `P`'s row `f` (the upper triangle of `C`
+    /// never needs them).
+    term_skip: Vec<u8>,
+    /// For each block `(f, g)` of `A` in storage order and each entry of `P`'s row `g`
+    /// after the skipped ones, the position of its column in row `f` of `Q`.
+    term_slot: Vec<u32>,
+    /// For each entry `(f, i)` of `P`, the first position in row `f` of `Q` whose column
+    /// is at least `i`.
+    q_from: Vec<u32>,
+    /// Row `f`'s destinations are `dest_ptr[f]..dest_ptr[f + 1]` of `dest`.
+    dest_ptr: Vec<usize>,
+    /// For each entry `(f, i)` of `P` in storage order and each block `j` of row `f` of
+    /// `Q` from `q_from`, the index in `buf` of the block `(i, j)` of the part of `f`.
+    dest: Vec<u32>,
+    /// Part `p` holds the fine rows `part_rows[p]..part_rows[p + 1]` and the buffer
+    /// blocks `buf_ptr[p]..buf_ptr[p + 1]`.
+    part_rows: Vec<usize>,
+    buf_ptr: Vec<usize>,
+    /// The parts' sums of upper blocks of `C` (row-major 3x3, mN/mm), each part's blocks
+    /// ordered by row and column.
+    buf: Vec<[f64; 9]>,
+    /// Block `b` of `C` (storage order) sums the blocks `src[src_ptr[b]..src_ptr[b + 1]]`
+    /// of `buf`: the parts' sums of its upper block.
+    src_ptr: Vec<usize>,
+    src: Vec<u32>,
+}
+
+/// A parts' scatter pattern: its sorted upper blocks `(i, j)` (as `i << 32 | j`), then
+/// for its fine rows the `q_from` and `dest` entries and the number of `dest` entries per
+/// row.
+type PartPattern = (Vec<u64>, Vec<u32>, Vec<u32>, Vec<usize>);
+
+impl FusedProduct {
+    /// The product for the finer operator pattern `a` and the barycentric `P` of `t`,
+    /// and the pattern of `C` (values zero).
+    fn new(a: &BlockCsr, t: &Transfer) -> (FusedProduct, BlockCsr) {
+        let nf = a.block_rows();
+        let p_row = |g: usize| &t.p_cols[t.p_ptr[g]..t.p_ptr[g + 1]];
+        let lowest = |f: usize| p_row(f).first().copied().unwrap_or(u32::MAX);
+        let (q_ptr, q_cols) = concat_rows(
+            (0..nf)
+                .into_par_iter()
+                .map(|f| {
+                    let lo = lowest(f);
+                    let mut cols = Vec::new();
+                    for &g in &a.cols[a.row_ptr[f]..a.row_ptr[f + 1]] {
+                        cols.extend(p_row(g as usize).iter().filter(|&&j| j >= lo));
+                    }
+                    cols.sort_unstable();
+                    cols.dedup();
+                    cols
+                })
+                .collect(),
+        );
+        let terms: Vec<(Vec<u8>, Vec<u32>)> = (0..nf)
             .into_par_iter()
-            .map(|i| {
-                let mut cols = vec![i as u32];
-                for k in self.t_ptr[i]..self.t_ptr[i + 1] {
-                    let f = self.t_cols[k] as usize;
-                    cols.extend_from_slice(&self.q_cols[self.q_ptr[f]..self.q_ptr[f + 1]]);
+            .map(|f| {
+                let (lo, row) = (lowest(f), &q_cols[q_ptr[f]..q_ptr[f + 1]]);
+                let mut skips = Vec::new();
+                let mut slots = Vec::new();
+                for &g in &a.cols[a.row_ptr[f]..a.row_ptr[f + 1]] {
+                    let g_cols = p_row(g as usize);
+                    let skip = g_cols.partition_point(|&j| j < lo);
+                    skips.push(skip as u8);
+                    slots.extend(g_cols[skip..].iter().map(|j| {
+                        row.binary_search(j).expect("column in the product pattern") as u32
+                    }));
                 }
-                cols.sort_unstable();
-                cols.dedup();
-                cols
+                (skips, slots)
             })
             .collect();
-        zero_matrix(rows)
+        let (skips, slots): (Vec<_>, Vec<_>) = terms.into_iter().unzip();
+        let term_skip = skips.concat();
+        let (term_ptr, term_slot) = concat_rows(slots);
+        let parts = GALERKIN_PARTS.min(nf.max(1));
+        let part_rows: Vec<usize> = (0..=parts).map(|p| p * nf / parts).collect();
+        let patterns: Vec<PartPattern> = (0..parts)
+            .into_par_iter()
+            .map(|p| {
+                let rows = part_rows[p]..part_rows[p + 1];
+                let key = |i: u32, j: u32| (i as u64) << 32 | j as u64;
+                let mut keys = Vec::new();
+                for f in rows.clone() {
+                    let q_row = &q_cols[q_ptr[f]..q_ptr[f + 1]];
+                    for &i in &t.p_cols[t.p_ptr[f]..t.p_ptr[f + 1]] {
+                        keys.extend(q_row.iter().filter(|&&j| j >= i).map(|&j| key(i, j)));
+                    }
+                }
+                keys.sort_unstable();
+                keys.dedup();
+                let (mut from, mut dest, mut counts) = (Vec::new(), Vec::new(), Vec::new());
+                for f in rows {
+                    let q_row = &q_cols[q_ptr[f]..q_ptr[f + 1]];
+                    let before = dest.len();
+                    for &i in &t.p_cols[t.p_ptr[f]..t.p_ptr[f + 1]] {
+                        let start = q_row.partition_point(|&j| j < i);
+                        from.push(start as u32);
+                        dest.extend(q_row[start..].iter().map(|&j| {
+                            keys.binary_search(&key(i, j)).expect("key of the part") as u32
+                        }));
+                    }
+                    counts.push(dest.len() - before);
+                }
+                (keys, from, dest, counts)
+            })
+            .collect();
+        // the pattern of C: the parts' upper blocks, mirrored, and the diagonal
+        let nc = t.pt_ptr.len() - 1;
+        let mut rows: Vec<Vec<u32>> = (0..nc as u32).map(|i| vec![i]).collect();
+        for (keys, ..) in &patterns {
+            for &key in keys {
+                let (i, j) = ((key >> 32) as u32, key as u32);
+                rows[i as usize].push(j);
+                rows[j as usize].push(i);
+            }
+        }
+        rows.par_iter_mut().for_each(|r| {
+            r.sort_unstable();
+            r.dedup();
+        });
+        let (row_ptr, cols) = concat_rows(rows);
+        let c = BlockCsr {
+            values: vec![[0.0; 9]; cols.len()],
+            row_ptr,
+            cols,
+        };
+        let mut buf_ptr = vec![0usize];
+        let (mut q_from, mut dest, mut dest_ptr) = (Vec::new(), Vec::new(), vec![0usize]);
+        for (keys, from, part_dest, counts) in &patterns {
+            let base = *buf_ptr.last().expect("starts at zero");
+            q_from.extend_from_slice(from);
+            dest.extend(part_dest.iter().map(|&d| (base + d as usize) as u32));
+            for &n in counts {
+                dest_ptr.push(dest_ptr.last().expect("starts at zero") + n);
+            }
+            buf_ptr.push(base + keys.len());
+        }
+        let (src_ptr, src) = concat_rows(
+            (0..c.block_rows())
+                .into_par_iter()
+                .flat_map_iter(|r| {
+                    let patterns = &patterns;
+                    let buf_ptr = &buf_ptr;
+                    c.cols[c.row_ptr[r]..c.row_ptr[r + 1]]
+                        .iter()
+                        .map(move |&j| {
+                            let (lo, hi) = (j.min(r as u32) as u64, j.max(r as u32) as u64);
+                            patterns
+                                .iter()
+                                .zip(buf_ptr)
+                                .filter_map(|((keys, ..), &base)| {
+                                    let k = keys.binary_search(&(lo << 32 | hi)).ok()?;
+                                    Some((base + k) as u32)
+                                })
+                                .collect::<Vec<u32>>()
+                        })
+                })
+                .collect(),
+        );
+        let product = FusedProduct {
+            buf: vec![[0.0; 9]; *buf_ptr.last().expect("starts at zero")],
+            q_ptr,
+            term_ptr,
+            term_skip,
+            term_slot,
+            q_from,
+            dest_ptr,
+            dest,
+            part_rows,
+            buf_ptr,
+            src_ptr,
+            src,
+        };
+        (product, c)
     }
 
-    /// Fills `c = P_sᵀ Q` on its pattern (parallel over coarse rows), with an identity
-    /// diagonal block in the rows of inactive coarse unknowns.
-    fn galerkin_values(&self, active: &[bool], c: &mut BlockCsr) {
-        let nc = c.block_rows();
-        let (row_ptr, cols) = (&c.row_ptr, &c.cols);
-        split_rows(&mut c.values, row_ptr)
+    /// Fills `c = Pᵀ A P` (the pattern returned by [`FusedProduct::new`]) for the finer
+    /// operator `a` and the masked `P` of `t`, with an identity diagonal block in the
+    /// (otherwise zero) rows of inactive coarse unknowns: the parts in parallel, each
+    /// fine row of a part in turn (rows whose entries of `P` are all zero are skipped),
+    /// then the blocks of `c` in parallel over rows.
+    fn values(&mut self, a: &BlockCsr, t: &Transfer, active: &[bool], c: &mut BlockCsr) {
+        let mut buf = std::mem::take(&mut self.buf);
+        let this = &*self;
+        let (q_ptr, term_ptr, term_skip, term_slot) = (
+            &this.q_ptr,
+            &this.term_ptr,
+            &this.term_skip,
+            &this.term_slot,
+        );
+        let (q_from, dest_ptr, dest) = (&this.q_from, &this.dest_ptr, &this.dest);
+        let (part_rows, buf_ptr, src_ptr, src) =
+            (&this.part_rows, &this.buf_ptr, &this.src_ptr, &this.src);
+        split_rows(&mut buf, buf_ptr)
             .into_par_iter()
             .enumerate()
-            .for_each_init(
-                || (vec![u32::MAX; nc], Vec::new()),
-                |(pos, acc), (i, vals)| {
-                    let rc = &cols[row_ptr[i]..row_ptr[i + 1]];
-                    if !active[i] {
-                        for (out, &j) in vals.iter_mut().zip(rc) {
-                            *out = if j as usize == i {
-                                IDENTITY_BLOCK
-                            } else {
-                                [0.0; 9]
-                            };
+            .for_each_init(Vec::new, |q_row, (p, part)| {
+                part.fill([0.0; 9]);
+                let base = buf_ptr[p];
+                for f in part_rows[p]..part_rows[p + 1] {
+                    let weights = &t.p_w[t.p_ptr[f]..t.p_ptr[f + 1]];
+                    if weights.iter().all(|&w| w == 0.0) {
+                        continue;
+                    }
+                    q_row.clear();
+                    q_row.resize(q_ptr[f + 1] - q_ptr[f], [0.0; 9]);
+                    let mut slots = term_slot[term_ptr[f]..term_ptr[f + 1]].iter();
+                    let row = a.row_ptr[f]..a.row_ptr[f + 1];
+                    for ((blk, &g), &skip) in a.values[row.clone()]
+                        .iter()
+                        .zip(&a.cols[row.clone()])
+                        .zip(&term_skip[row])
+                    {
+                        // a copy, kept in registers over the row of `P`
+                        let blk = *blk;
+                        let g = g as usize;
+                        let ws = &t.p_w[t.p_ptr[g] + skip as usize..t.p_ptr[g + 1]];
+                        for (&w, &slot) in ws.iter().zip(&mut slots) {
+                            add_scaled(&mut q_row[slot as usize], w, &blk);
                         }
-                        return;
                     }
-                    for (k, &j) in rc.iter().enumerate() {
-                        pos[j as usize] = k as u32;
-                    }
-                    acc.clear();
-                    acc.resize(rc.len(), DMat3::ZERO);
-                    for k in self.t_ptr[i]..self.t_ptr[i + 1] {
-                        let f = self.t_cols[k] as usize;
-                        let wt = self.w[self.t_src[k]].transpose();
-                        for m in self.q_ptr[f]..self.q_ptr[f + 1] {
-                            acc[pos[self.q_cols[m] as usize] as usize] += wt * self.q[m];
+                    let mut dests = &dest[dest_ptr[f]..dest_ptr[f + 1]];
+                    for (k, &w) in (t.p_ptr[f]..).zip(weights) {
+                        let q_part = &q_row[q_from[k] as usize..];
+                        let (here, rest) = dests.split_at(q_part.len());
+                        dests = rest;
+                        if w != 0.0 {
+                            for (qb, &d) in q_part.iter().zip(here) {
+                                add_scaled(&mut part[d as usize - base], w, qb);
+                            }
                         }
                     }
-                    for (out, m) in vals.iter_mut().zip(acc.iter()) {
-                        // row-major, as `block_of` reads it
-                        *out = m.transpose().to_cols_array();
-                    }
-                    for &j in rc {
-                        pos[j as usize] = u32::MAX;
-                    }
-                },
-            );
-    }
-}
-
-/// Pattern of `Pᵀ A P` (rows: coarse unknowns), values zero.
-fn galerkin_pattern(a: &BlockCsr, t: &Transfer) -> BlockCsr {
-    let nc = t.pt_ptr.len() - 1;
-    let rows: Vec<Vec<u32>> = (0..nc)
-        .into_par_iter()
-        .map(|i| {
-            let mut cols = Vec::new();
-            for k in t.pt_ptr[i]..t.pt_ptr[i + 1] {
-                let f = t.pt_cols[k] as usize;
-                for s in a.row_ptr[f]..a.row_ptr[f + 1] {
-                    let g = a.cols[s] as usize;
-                    cols.extend_from_slice(&t.p_cols[t.p_ptr[g]..t.p_ptr[g + 1]]);
                 }
-            }
-            cols.push(i as u32);
-            cols.sort_unstable();
-            cols.dedup();
-            cols
-        })
-        .collect();
-    zero_matrix(rows)
+            });
+        let BlockCsr {
+            row_ptr,
+            cols,
+            values,
+        } = c;
+        split_rows(values, row_ptr)
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(r, row)| {
+                let start = row_ptr[r];
+                for (b, (out, &j)) in row.iter_mut().zip(&cols[start..]).enumerate() {
+                    let j = j as usize;
+                    if j == r && !active[r] {
+                        *out = IDENTITY_BLOCK;
+                        continue;
+                    }
+                    let sum = match &src[src_ptr[start + b]..src_ptr[start + b + 1]] {
+                        [k] => buf[*k as usize],
+                        parts => parts.iter().fold([0.0; 9], |mut sum, &k| {
+                            add_scaled(&mut sum, 1.0, &buf[k as usize]);
+                            sum
+                        }),
+                    };
+                    *out = match j.cmp(&r) {
+                        std::cmp::Ordering::Less => transposed(&sum),
+                        std::cmp::Ordering::Equal => symmetrised(sum),
+                        std::cmp::Ordering::Greater => sum,
+                    };
+                }
+            });
+        self.buf = buf;
+    }
 }
 
-/// A block matrix with the sorted columns `rows` per row, values zero.
-fn zero_matrix(rows: Vec<Vec<u32>>) -> BlockCsr {
-    let mut row_ptr = vec![0usize];
-    let mut cols = Vec::new();
-    for r in rows {
-        cols.extend_from_slice(&r);
-        row_ptr.push(cols.len());
+/// A diagonal block made exactly symmetric: each off-diagonal pair replaced by its mean.
+fn symmetrised(mut d: [f64; 9]) -> [f64; 9] {
+    for (a, b) in [(1, 3), (2, 6), (5, 7)] {
+        let m = 0.5 * (d[a] + d[b]);
+        d[a] = m;
+        d[b] = m;
     }
-    let n = cols.len();
-    BlockCsr {
-        row_ptr,
-        cols,
-        values: vec![[0.0; 9]; n],
-    }
+    d
 }
 
-/// A Galerkin operator `Pᵀ A P` on its fixed pattern, with its upper triangle (the part
-/// computed; the rest is mirrored).
+/// `out += w b` for row-major 3x3 blocks. Both blocks are read before `out` is written,
+/// so that the compiler may use packed instructions (it cannot prove that `out` and `b`
+/// are distinct once inlined).
+#[inline]
+fn add_scaled(out: &mut [f64; 9], w: f64, b: &[f64; 9]) {
+    let (b, mut o) = (*b, *out);
+    for (o, x) in o.iter_mut().zip(b) {
+        *o += w * x;
+    }
+    *out = o;
+}
+
+/// Slots of the product `C = Bᵀ Q` restricted to the upper block triangle of `C`, where
+/// `Bᵀ` (rows: coarse unknowns `i`, columns: fine unknowns `f`) is given by its CSR
+/// pattern and `Q` by its row pattern: row `i` of the upper triangle sums `b_fi Q_fj`
+/// over the entries of row `i` of `Bᵀ` and the blocks `j >= i` of row `f` of `Q`, a
+/// suffix of the row.
 #[derive(Debug, Clone)]
-struct Galerkin {
-    op: BlockCsr,
-    upper: UpperTriangle,
+struct UpperSlots {
+    /// For each entry `(i, f)` of `Bᵀ`, the first block of row `f` of `Q` with column at
+    /// least `i` (an index into the values of `Q`).
+    q_from: Vec<usize>,
+    /// Row `i`'s slots are `ptr[i]..ptr[i + 1]` of `slot`.
+    ptr: Vec<usize>,
+    /// For each entry `(i, f)` of `Bᵀ` in storage order and each block of row `f` of `Q`
+    /// from `q_from`, the position of its column in row `i` of the upper triangle (0 =
+    /// the diagonal block).
+    slot: Vec<u32>,
 }
 
-/// Fills `g = Pᵀ A P` on its pattern, with an identity diagonal block in the (otherwise
-/// zero) rows of inactive coarse unknowns: the upper triangle in parallel over coarse
-/// rows, then mirrored (exactly symmetric). Each worker keeps a map from coarse column
-/// to upper block of the current row (`u32::MAX` elsewhere), so the inner loop is a
-/// multiply-add without a search.
-fn galerkin_values(a: &BlockCsr, t: &Transfer, active: &[bool], g: &mut Galerkin) {
-    let nc = g.op.block_rows();
-    let row_ptr = &g.op.row_ptr;
-    let cols = &g.op.cols;
-    g.upper
-        .rows_mut(&g.op.row_ptr, &mut g.op.values)
-        .into_par_iter()
-        .enumerate()
-        .for_each_init(
-            || vec![u32::MAX; nc],
-            |pos, (i, vals)| {
+impl UpperSlots {
+    /// The slots for `Bᵀ` (`t_ptr`, `t_cols`), `Q` (`q_ptr`, `q_cols`) and the full
+    /// pattern `c` of `C` (which holds every product block).
+    fn new(
+        t_ptr: &[usize],
+        t_cols: &[u32],
+        q_ptr: &[usize],
+        q_cols: &[u32],
+        c: &BlockCsr,
+    ) -> UpperSlots {
+        let rows: Vec<(Vec<usize>, Vec<u32>)> = (0..c.block_rows())
+            .into_par_iter()
+            .map(|i| {
+                let row = &c.cols[c.row_ptr[i]..c.row_ptr[i + 1]];
+                let upper = &row[row.partition_point(|&j| (j as usize) < i)..];
+                let mut from = Vec::with_capacity(t_ptr[i + 1] - t_ptr[i]);
+                let mut slots = Vec::new();
+                for &f in &t_cols[t_ptr[i]..t_ptr[i + 1]] {
+                    let f = f as usize;
+                    let q_row = &q_cols[q_ptr[f]..q_ptr[f + 1]];
+                    let start = q_row.partition_point(|&j| (j as usize) < i);
+                    from.push(q_ptr[f] + start);
+                    slots.extend(q_row[start..].iter().map(|j| {
+                        upper
+                            .binary_search(j)
+                            .expect("block in the Galerkin pattern") as u32
+                    }));
+                }
+                (from, slots)
+            })
+            .collect();
+        let (froms, slots): (Vec<_>, Vec<_>) = rows.into_iter().unzip();
+        let q_from = froms.concat();
+        let (ptr, slot) = concat_rows(slots);
+        UpperSlots { q_from, ptr, slot }
+    }
+
+    /// Fills the upper triangle of `C = P_sᵀ Q` (parallel over rows) for the smoothed
+    /// prolongation `p` (the patterns given to [`UpperSlots::new`] are its `P_sᵀ` and
+    /// `Q = A P_s`), with an identity diagonal block in the rows of inactive coarse
+    /// unknowns and every diagonal block made exactly symmetric.
+    fn fill(
+        &self,
+        p: &SmoothedProlongation,
+        active: &[bool],
+        upper: &UpperTriangle,
+        c: &mut BlockCsr,
+    ) {
+        upper
+            .rows_mut(&c.row_ptr, &mut c.values)
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(i, vals)| {
                 vals.fill([0.0; 9]);
                 if !active[i] {
                     vals[0] = IDENTITY_BLOCK;
                     return;
                 }
-                let rc = &cols[row_ptr[i + 1] - vals.len()..row_ptr[i + 1]];
-                for (k, &j) in rc.iter().enumerate() {
-                    pos[j as usize] = k as u32;
-                }
-                for k in t.pt_ptr[i]..t.pt_ptr[i + 1] {
-                    let f = t.pt_cols[k] as usize;
-                    let wf = t.pt_w[k];
-                    if wf == 0.0 {
+                let mut slots = &self.slot[self.ptr[i]..self.ptr[i + 1]];
+                for k in p.t_ptr[i]..p.t_ptr[i + 1] {
+                    let q_row = &p.q[self.q_from[k]..p.q_ptr[p.t_cols[k] as usize + 1]];
+                    let (here, rest) = slots.split_at(q_row.len());
+                    slots = rest;
+                    let wt = p.w[p.t_src[k]].transpose();
+                    if wt == DMat3::ZERO {
                         continue;
                     }
-                    for s in a.row_ptr[f]..a.row_ptr[f + 1] {
-                        let blk = &a.values[s];
-                        let g = a.cols[s] as usize;
-                        for m in t.p_ptr[g]..t.p_ptr[g + 1] {
-                            let j = t.p_cols[m] as usize;
-                            let w = wf * t.p_w[m];
-                            if j < i || w == 0.0 {
-                                continue;
-                            }
-                            let out = &mut vals[pos[j] as usize];
-                            for q in 0..9 {
-                                out[q] += w * blk[q];
+                    for (qm, &slot) in q_row.iter().zip(here) {
+                        let m = wt * *qm;
+                        // row-major, as `block_of` reads it
+                        for (r, row) in vals[slot as usize].chunks_exact_mut(3).enumerate() {
+                            for (c, o) in row.iter_mut().enumerate() {
+                                *o += m.col(c)[r];
                             }
                         }
                     }
                 }
-                for &j in rc {
-                    pos[j as usize] = u32::MAX;
-                }
+                vals[0] = symmetrised(vals[0]);
+            });
+    }
+}
+
+/// Concatenates per-row lists into CSR form: `(ptr, items)`.
+fn concat_rows<T>(rows: Vec<Vec<T>>) -> (Vec<usize>, Vec<T>) {
+    let mut ptr = Vec::with_capacity(rows.len() + 1);
+    ptr.push(0);
+    let mut items = Vec::with_capacity(rows.iter().map(Vec::len).sum());
+    for r in rows {
+        items.extend(r);
+        ptr.push(items.len());
+    }
+    (ptr, items)
+}
+
+/// Pattern of the Galerkin operator `Bᵀ Q` (rows: coarse unknowns), values zero: row `i`
+/// is the union of the rows of `Q` (`q_ptr`, `q_cols`) over the entries of row `i` of
+/// `Bᵀ` (`t_ptr`, `t_cols`), and the diagonal.
+fn galerkin_pattern(t_ptr: &[usize], t_cols: &[u32], q_ptr: &[usize], q_cols: &[u32]) -> BlockCsr {
+    let rows: Vec<Vec<u32>> = (0..t_ptr.len() - 1)
+        .into_par_iter()
+        .map(|i| {
+            let mut cols = vec![i as u32];
+            for &f in &t_cols[t_ptr[i]..t_ptr[i + 1]] {
+                let f = f as usize;
+                cols.extend_from_slice(&q_cols[q_ptr[f]..q_ptr[f + 1]]);
+            }
+            cols.sort_unstable();
+            cols.dedup();
+            cols
+        })
+        .collect();
+    let (row_ptr, cols) = concat_rows(rows);
+    BlockCsr {
+        values: vec![[0.0; 9]; cols.len()],
+        row_ptr,
+        cols,
+    }
+}
+
+/// A Galerkin operator on its fixed pattern and the tables of its product.
+#[derive(Debug, Clone)]
+struct Galerkin {
+    op: BlockCsr,
+    product: GalerkinProduct,
+}
+
+/// How a Galerkin operator is computed.
+#[derive(Debug, Clone)]
+enum GalerkinProduct {
+    /// `Pᵀ A P` for the barycentric `P`, fused per fine row.
+    Barycentric(FusedProduct),
+    /// `P_sᵀ Q` for the smoothed prolongation (which keeps `Q = A P_s`): its upper
+    /// triangle (the part computed; the rest is mirrored) and the slots of the product.
+    Smoothed {
+        upper: UpperTriangle,
+        slots: UpperSlots,
+    },
+}
+
+impl Galerkin {
+    /// The pattern and product tables for the barycentric `P` of `t` and the finer
+    /// operator pattern `a`.
+    fn new(a: &BlockCsr, t: &Transfer) -> Galerkin {
+        let (product, op) = FusedProduct::new(a, t);
+        Galerkin {
+            op,
+            product: GalerkinProduct::Barycentric(product),
+        }
+    }
+
+    /// The pattern and product tables for the smoothed prolongation `p`.
+    fn smoothed(p: &SmoothedProlongation) -> Galerkin {
+        let op = galerkin_pattern(&p.t_ptr, &p.t_cols, &p.q_ptr, &p.q_cols);
+        let slots = UpperSlots::new(&p.t_ptr, &p.t_cols, &p.q_ptr, &p.q_cols, &op);
+        Galerkin {
+            product: GalerkinProduct::Smoothed {
+                upper: UpperTriangle::new(&op),
+                slots,
             },
-        );
-    g.upper.mirror(&mut g.op);
+            op,
+        }
+    }
+
+    /// Fills `Pᵀ A P` for the finer operator `a` and the (masked) barycentric `P` of `t`,
+    /// with an identity diagonal block in the (otherwise zero) rows of inactive coarse
+    /// unknowns (see [`FusedProduct`]).
+    fn barycentric_values(&mut self, a: &BlockCsr, t: &Transfer, active: &[bool]) {
+        match &mut self.product {
+            GalerkinProduct::Barycentric(product) => product.values(a, t, active, &mut self.op),
+            GalerkinProduct::Smoothed { .. } => unreachable!("a barycentric Galerkin level"),
+        }
+    }
+
+    /// Fills `P_sᵀ A P_s` from the updated smoothed prolongation `p` (its `Q = A P_s`),
+    /// with identity blocks for inactive coarse unknowns; upper triangle, then mirrored.
+    fn smoothed_values(&mut self, p: &SmoothedProlongation, active: &[bool]) {
+        match &mut self.product {
+            GalerkinProduct::Smoothed { upper, slots } => {
+                slots.fill(p, active, upper, &mut self.op);
+                upper.mirror(&mut self.op);
+            }
+            GalerkinProduct::Barycentric(_) => unreachable!("a smoothed Galerkin level"),
+        }
+    }
 }
 
 fn ms(d: Duration) -> f64 {
@@ -1110,17 +1485,13 @@ impl Multigrid {
             if l > 0 && galerkin {
                 let fine = built[l - 1].op();
                 let t = &mut transfers[l - 1];
-                let op = if l == 1 && ps > 0.0 {
+                built[l].galerkin = Some(if l == 1 && ps > 0.0 {
                     let smoothed = SmoothedProlongation::new(fine, t, ps);
-                    let pattern = smoothed.galerkin_pattern();
+                    let g = Galerkin::smoothed(&smoothed);
                     t.smoothed = Some(smoothed);
-                    pattern
+                    g
                 } else {
-                    galerkin_pattern(fine, t)
-                };
-                built[l].galerkin = Some(Galerkin {
-                    upper: UpperTriangle::new(&op),
-                    op,
+                    Galerkin::new(fine, t)
                 });
             }
             let a = built[l].op();
@@ -1172,6 +1543,56 @@ impl Multigrid {
     /// Colours of the Gauss-Seidel smoother per level, finest first.
     pub fn colours_per_level(&self) -> Vec<usize> {
         self.levels.iter().map(|l| l.colours.len()).collect()
+    }
+
+    /// The operator of level `level` (finest first) of the latest [`Multigrid::assemble`],
+    /// 3x3 blocks in mN/mm over the level's unknowns: the finest reduced stiffness, a
+    /// coarse Galerkin operator (the coarsest with the diagonal of its diagonal blocks
+    /// scaled by `1 + 1e-8` for the Cholesky factorisation) or a rediscretised one.
+    ///
+    /// # Panics
+    /// If `level` is not below [`Multigrid::level_count`].
+    pub fn operator(&self, level: usize) -> &BlockCsr {
+        self.levels[level].op()
+    }
+
+    /// The prolongation from level `level + 1` to level `level` as the cycle and the
+    /// Galerkin product use it, dense and row-major (`3 n_fine x 3 n_coarse`,
+    /// dimensionless; for tests on small hierarchies): the barycentric `P` with the rows
+    /// of held fine unknowns and the columns of inactive coarse unknowns zeroed, or the
+    /// smoothed `P_s` of the latest assembly.
+    ///
+    /// # Panics
+    /// If `level + 1` is not below [`Multigrid::level_count`].
+    pub fn prolongation_dense(&self, level: usize) -> Vec<Vec<f64>> {
+        let t = &self.transfers[level];
+        let nc = self.levels[level + 1].unknowns;
+        let mut d = vec![vec![0.0; 3 * nc]; 3 * self.levels[level].unknowns];
+        match &t.smoothed {
+            Some(p) => {
+                for (f, rows) in d.chunks_mut(3).enumerate() {
+                    for k in p.ptr[f]..p.ptr[f + 1] {
+                        let c = 3 * p.cols[k] as usize;
+                        for (r, row) in rows.iter_mut().enumerate() {
+                            for q in 0..3 {
+                                row[c + q] += p.w[k].col(q)[r];
+                            }
+                        }
+                    }
+                }
+            }
+            None => {
+                for (f, rows) in d.chunks_mut(3).enumerate() {
+                    for k in t.p_ptr[f]..t.p_ptr[f + 1] {
+                        let c = 3 * t.p_cols[k] as usize;
+                        for (r, row) in rows.iter_mut().enumerate() {
+                            row[c + r] += t.p_w[k];
+                        }
+                    }
+                }
+            }
+        }
+        d
     }
 
     /// The finest level's model.
@@ -1328,10 +1749,10 @@ impl Multigrid {
                 match t.smoothed.take() {
                     Some(mut smoothed) => {
                         smoothed.update(fine[l - 1].op(), &fine[l - 1].inv_diag, t);
-                        smoothed.galerkin_values(&level.active, &mut c.op);
+                        c.smoothed_values(&smoothed, &level.active);
                         t.smoothed = Some(smoothed);
                     }
-                    None => galerkin_values(fine[l - 1].op(), t, &level.active, c),
+                    None => c.barycentric_values(fine[l - 1].op(), t, &level.active),
                 }
             } else {
                 let level = &mut self.levels[l];
