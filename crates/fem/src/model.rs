@@ -51,8 +51,9 @@ pub enum Tangent {
 /// alone resists a collapse to zero volume only with a bounded force (its strain of an
 /// inverted element is measured from the reflected rest shape), so tissue squeezed hard
 /// over an implant can pass through `J = 0`; the barrier's force `2κV (J_min - J) ∂J/∂x`
-/// grows until it stops that. Elements above `J_min` are untouched. The assembled
-/// stiffness gains the positive Gauss-Newton term `2κV (∂J/∂xₐ)(∂J/∂x_b)ᵀ`.
+/// grows until it stops that. Elements above `J_min` are untouched, and so is the
+/// [`Formulation::Linear`]. The assembled stiffness gains the positive Gauss-Newton term
+/// `2κV (∂J/∂xₐ)(∂J/∂x_b)ᵀ`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct InversionBarrier {
     /// Volume ratio `J_min` below which the barrier acts, in (0, 1).
@@ -303,9 +304,13 @@ impl FemModel {
     }
 
     /// The [`InversionBarrier`]'s `(J_min - J, 2κV)` for element `e` with displacement
-    /// gradient `du`, when it acts.
+    /// gradient `du`, when it acts (the corotated formulation only: the small-strain one
+    /// knows nothing of large volume changes).
     #[inline]
-    fn barrier_gap(&self, e: usize, du: DMat3) -> Option<(f64, f64)> {
+    fn barrier_gap(&self, e: usize, formulation: Formulation, du: DMat3) -> Option<(f64, f64)> {
+        if formulation == Formulation::Linear {
+            return None;
+        }
         let b = self.barrier?;
         let gap = b.min_volume_ratio - (DMat3::IDENTITY + du).determinant();
         (gap > 0.0).then(|| (gap, 2.0 * b.modulus_kpa * self.elements[e].volume_mm3))
@@ -530,7 +535,7 @@ impl FemModel {
             DMat3::from_diagonal(DVec3::splat(el.vol_lambda * tr)) + eps * (2.0 * el.vol_mu);
         let mut rs = r * vsigma;
         let mut barrier_stiffness = 0.0;
-        if let Some((gap, stiffness)) = self.barrier_gap(e, du) {
+        if let Some((gap, stiffness)) = self.barrier_gap(e, formulation, du) {
             // f += -2κV (J_min - J) cof(F) g
             rs -= cofactor_matrix(DMat3::IDENTITY + du) * (stiffness * gap);
             barrier_stiffness = stiffness;
@@ -571,7 +576,7 @@ impl FemModel {
         let norm2 =
             eps.x_axis.length_squared() + eps.y_axis.length_squared() + eps.z_axis.length_squared();
         let barrier = self
-            .barrier_gap(e, du)
+            .barrier_gap(e, formulation, du)
             .map_or(0.0, |(gap, stiffness)| 0.5 * stiffness * gap * gap);
         el.vol_mu * norm2 + 0.5 * el.vol_lambda * tr * tr + barrier
     }
