@@ -51,17 +51,7 @@ pub fn build_hierarchy_with_elements(
     finest_elements: usize,
     levels: usize,
 ) -> Result<Hierarchy, TetraError> {
-    if levels == 0 {
-        return Err(TetraError::ZeroCount {
-            what: "the number of levels",
-        });
-    }
-    coarsen(
-        surface,
-        level_with_elements(surface, finest_elements)?,
-        levels,
-        None,
-    )
+    hierarchy_with_elements(surface, finest_elements, levels, None)
 }
 
 /// Like [`build_hierarchy_with_elements`] with at most `max_levels` levels: coarsening
@@ -74,7 +64,17 @@ pub fn build_hierarchy_down_to(
     max_levels: usize,
     min_vertices: usize,
 ) -> Result<Hierarchy, TetraError> {
-    if max_levels == 0 {
+    hierarchy_with_elements(surface, finest_elements, max_levels, Some(min_vertices))
+}
+
+/// The finest level with about `finest_elements` tetrahedra, coarsened by [`coarsen`].
+fn hierarchy_with_elements(
+    surface: &ClosedSurface,
+    finest_elements: usize,
+    levels: usize,
+    stop_below: Option<usize>,
+) -> Result<Hierarchy, TetraError> {
+    if levels == 0 {
         return Err(TetraError::ZeroCount {
             what: "the number of levels",
         });
@@ -82,8 +82,8 @@ pub fn build_hierarchy_down_to(
     coarsen(
         surface,
         level_with_elements(surface, finest_elements)?,
-        max_levels,
-        Some(min_vertices),
+        levels,
+        stop_below,
     )
 }
 
