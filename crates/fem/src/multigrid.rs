@@ -237,7 +237,6 @@ impl Default for MultigridOptions {
 /// [`Multigrid::pcg`] runs it to a tolerance.
 #[derive(Debug, Clone)]
 pub struct PcgIteration {
-    b: Vec<DVec3>,
     x: Vec<DVec3>,
     r: Vec<DVec3>,
     z: Vec<DVec3>,
@@ -253,13 +252,12 @@ impl PcgIteration {
     ///
     /// # Panics
     /// Before the first [`Multigrid::assemble`], or on length mismatches.
-    pub fn new(mg: &mut Multigrid, b: Vec<DVec3>, x: Vec<DVec3>) -> PcgIteration {
+    pub fn new(mg: &mut Multigrid, b: &[DVec3], x: Vec<DVec3>) -> PcgIteration {
         let n = b.len();
         assert_eq!(x.len(), n, "PcgIteration: x and b differ in length");
         let mut r = vec![DVec3::ZERO; n];
-        residual(mg.levels[0].op(), &x, &b, &mut r);
+        residual(mg.levels[0].op(), &x, b, &mut r);
         PcgIteration {
-            b,
             x,
             r,
             z: vec![DVec3::ZERO; n],
@@ -308,16 +306,6 @@ impl PcgIteration {
     /// The current iterate `x`.
     pub fn solution(&self) -> &[DVec3] {
         &self.x
-    }
-
-    /// The right-hand side `b`.
-    pub fn rhs(&self) -> &[DVec3] {
-        &self.b
-    }
-
-    /// Iterations run.
-    pub fn iterations(&self) -> usize {
-        self.iterations
     }
 }
 
@@ -1946,7 +1934,7 @@ impl Multigrid {
                 converged: true,
             };
         }
-        let mut cg = PcgIteration::new(self, b.to_vec(), x.to_vec());
+        let mut cg = PcgIteration::new(self, b, x.to_vec());
         let mut rel = cg.residual_norm() / bnorm;
         while rel > relative_tolerance && cg.iterations < max_iterations {
             cg.step(self);

@@ -1215,7 +1215,7 @@ impl Simulation {
             mg.assemble(u1, &self.f_ext, Formulation::Corotated)?;
             let rhs = mg.system().rhs.clone();
             let zero = vec![DVec3::ZERO; rhs.len()];
-            self.gravity = Some(PcgIteration::new(mg, rhs, zero));
+            self.gravity = Some(PcgIteration::new(mg, &rhs, zero));
         }
         let cg = self.gravity.as_mut().expect("assembled above");
         let residual = cg.residual_norm();
