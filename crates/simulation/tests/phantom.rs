@@ -204,30 +204,7 @@ fn no_inverted_elements_and_no_spikes() {
     let p = common::phantom();
     let inverted = b.sim.inverted_elements();
     assert!(inverted.is_empty(), "{} inverted elements", inverted.len());
-    let mesh = &p.marked.scan.mesh;
-    let mut worst: f64 = 0.0;
-    let mut at = (0, 0);
-    for t in &mesh.triangles {
-        for k in 0..3 {
-            let (a, c) = (t[k] as usize, t[(k + 1) % 3] as usize);
-            let before = mesh.positions[a].distance(mesh.positions[c]);
-            let after = b.scan[a].distance(b.scan[c]);
-            if before > 1e-9 && after / before > worst {
-                worst = after / before;
-                at = (a, c);
-            }
-        }
-    }
-    let f = p.frame();
-    println!(
-        "largest edge stretch on the scan: {worst:.2}x, edge {:.2} mm -> {:.2} mm at {:.1?} (moved {:.1?}) and {:.1?} (moved {:.1?})",
-        mesh.positions[at.0].distance(mesh.positions[at.1]),
-        b.scan[at.0].distance(b.scan[at.1]),
-        f.to_local(mesh.positions[at.0]).to_array(),
-        (b.scan[at.0] - mesh.positions[at.0]).to_array(),
-        f.to_local(mesh.positions[at.1]).to_array(),
-        (b.scan[at.1] - mesh.positions[at.1]).to_array(),
-    );
+    let worst = common::largest_edge_stretch(p, &b.scan);
     assert!(worst <= 3.0);
 }
 

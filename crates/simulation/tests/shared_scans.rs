@@ -2,7 +2,7 @@
 //! skipped when absent): both breasts with a moderate-profile round implant sized to the
 //! breast base, no gravity, then the gravity correction. Prints the volume figures;
 //! checks the 15% volume criterion, convergence of both stages, no inverted
-//! element, and the nipple's direction (forwards without gravity, down with it).
+//! element, the scan's largest edge stretch (at most 3x), and the nipple's direction (forwards without gravity, down with it).
 //! `cargo test --release -p simulation --test shared_scans -- --nocapture`
 
 mod common;
@@ -97,6 +97,9 @@ fn run(name: &str) {
     // the criterion, kept by the inversion barrier and the template's unfolding
     // (without the barrier 3, 7 and 10 elements inverted)
     assert_eq!(inverted, 0, "{name}");
+    // the at-most-3x edge stretch, on the scan without gravity
+    let stretch = common::largest_edge_stretch(&p, &sim.scan_positions());
+    assert!(stretch <= 3.0, "{name}: edge stretch {stretch:.2}");
     sim.start_gravity_correction().unwrap();
     let g = sim.solve(40, 1e-3).unwrap();
     assert!(g.converged, "{name}: {g:?}");

@@ -91,3 +91,33 @@ pub fn nipple(landmarks: &Landmarks, side: Side) -> glam::DVec3 {
         Side::Right => anatomy::LandmarkName::Pnr,
     })
 }
+
+/// The largest stretch factor of a scan edge, `|moved edge| / |rest edge|`, and its two
+/// vertices; prints where it is (anatomical frame) and how far its ends moved.
+pub fn largest_edge_stretch(patient: &Patient, moved: &[glam::DVec3]) -> f64 {
+    let mesh = &patient.marked.scan.mesh;
+    let mut worst: f64 = 0.0;
+    let mut at = (0, 0);
+    for t in &mesh.triangles {
+        for k in 0..3 {
+            let (a, c) = (t[k] as usize, t[(k + 1) % 3] as usize);
+            let before = mesh.positions[a].distance(mesh.positions[c]);
+            let after = moved[a].distance(moved[c]);
+            if before > 1e-9 && after / before > worst {
+                worst = after / before;
+                at = (a, c);
+            }
+        }
+    }
+    let f = patient.frame();
+    println!(
+        "largest edge stretch on the scan: {worst:.2}x, edge {:.2} mm -> {:.2} mm at {:.1?} (moved {:.1?}) and {:.1?} (moved {:.1?})",
+        mesh.positions[at.0].distance(mesh.positions[at.1]),
+        moved[at.0].distance(moved[at.1]),
+        f.to_local(mesh.positions[at.0]).to_array(),
+        (moved[at.0] - mesh.positions[at.0]).to_array(),
+        f.to_local(mesh.positions[at.1]).to_array(),
+        (moved[at.1] - mesh.positions[at.1]).to_array(),
+    );
+    worst
+}
