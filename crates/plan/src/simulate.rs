@@ -244,14 +244,17 @@ pub fn run_session(
         ));
     }
     let volumes = session.simulation.breast_volumes()?;
+    let scan_displacements = session.simulation.scan_displacements();
     let simulated_mesh = {
         let mut mesh = session.marked.scan.mesh.clone();
-        mesh.positions = session.scan_positions();
+        for (p, d) in mesh.positions.iter_mut().zip(&scan_displacements) {
+            *p += *d;
+        }
         mesh
     };
     let simulated = MarkedScan::new(
         Scan::from_mesh(simulated_mesh, &out_dir.join("simulated_scan.ply"))?,
-        session.simulation.landmarks(),
+        session.simulation.landmarks_moved_by(&scan_displacements),
         &out_dir.join("simulated_landmarks.json"),
         &crate::Silent,
     )

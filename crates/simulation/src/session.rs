@@ -418,7 +418,9 @@ pub struct Simulation {
     scan_map: PointMap,
     scan_smoother: SurfaceSmoother,
     landmarks: Landmarks,
-    landmark_map: PointMap,
+    /// Where each landmark (required, then extra) sits on the scan: the vertices of its
+    /// closest triangle and the barycentric weights of its foot there.
+    landmark_feet: Vec<([u32; 3], [f64; 3])>,
     base: TriMesh,
     mesh_maps: Option<MeshMaps>,
 }
@@ -677,8 +679,16 @@ impl Simulation {
             input.scan,
             options.scan_smoothing_mm.unwrap_or(0.5 * spacing_mm),
         );
-        let landmark_points: Vec<DVec3> = input.landmarks.iter().map(|(_, p)| p).collect();
-        let landmark_map = PointMap::new(&locator, &landmark_points, options.falloff_mm);
+        let scan_index = mesh::SurfaceIndex::new(input.scan)
+            .ok_or_else(|| SimulationError::BadModel("the scan has no triangles".into()))?;
+        let landmark_feet = input
+            .landmarks
+            .iter()
+            .map(|(_, p)| {
+                let foot = scan_index.closest_point(p);
+                (input.scan.triangles[foot.triangle], foot.barycentric)
+            })
+            .collect();
         let n = finest.positions.len();
         let (neighbour_ptr, neighbours) = vertex_neighbours(&finest);
         Ok(Simulation {
@@ -718,7 +728,7 @@ impl Simulation {
             scan_map,
             scan_smoother,
             landmarks: input.landmarks.clone(),
-            landmark_map,
+            landmark_feet,
             base: input.breasts.base.mesh.clone(),
             mesh_maps: None,
             finest,
@@ -1380,17 +1390,30 @@ impl Simulation {
         PointMap::new(&locator, points, self.options.falloff_mm).displacements(&self.u)
     }
 
-    /// The landmarks moved with the tissue (required and extra points).
+    /// The landmarks moved with the tissue (required and extra points): each by the
+    /// scan's displacement ([`Simulation::scan_displacements`]) at its foot on the scan,
+    /// so a landmark on the scan stays on the simulated scan.
     pub fn landmarks(&self) -> Landmarks {
-        let d = self.landmark_map.displacements(&self.u);
+        self.landmarks_moved_by(&self.scan_displacements())
+    }
+
+    /// The landmarks moved by the scan displacement `scan_displacements` (mm, one per
+    /// scan vertex, as [`Simulation::scan_displacements`] returns).
+    pub fn landmarks_moved_by(&self, scan_displacements: &[DVec3]) -> Landmarks {
+        let at_foot = |k: usize| {
+            let (vertices, weights) = self.landmark_feet[k];
+            (0..3)
+                .map(|c| scan_displacements[vertices[c] as usize] * weights[c])
+                .sum::<DVec3>()
+        };
         let mut out = self.landmarks.clone();
         let mut k = 0;
         for name in LandmarkName::ALL {
-            out.set(name, self.landmarks.get(name) + d[k]);
+            out.set(name, self.landmarks.get(name) + at_foot(k));
             k += 1;
         }
         for p in out.extra.values_mut() {
-            *p += d[k];
+            *p += at_foot(k);
             k += 1;
         }
         out

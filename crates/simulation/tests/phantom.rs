@@ -380,3 +380,23 @@ fn an_anatomic_implant_turned_upside_down_fills_the_upper_pole() {
     // far inside the solver's 1e-3 tolerance
     assert!((round[0].volume_ml - round[1].volume_ml).abs() < 0.5);
 }
+
+/// The landmarks move with the simulated scan: each stays as far from the simulated
+/// surface as it was from the scan (the phantom's landmarks lie on it), to round-off
+/// (1e-9 mm: a barycentric combination of the moved vertices).
+#[test]
+fn landmarks_stay_on_the_simulated_scan() {
+    let b = baseline();
+    let p = common::phantom();
+    let rest = &p.marked.scan.mesh;
+    let mut simulated = rest.clone();
+    simulated.positions = b.scan.clone();
+    let rest_index = mesh::SurfaceIndex::new(rest).unwrap();
+    let simulated_index = mesh::SurfaceIndex::new(&simulated).unwrap();
+    let moved = b.sim.landmarks();
+    for ((name, before), (_, after)) in p.landmarks().iter().zip(moved.iter()) {
+        let off_before = rest_index.closest_point(before).distance;
+        let off_after = simulated_index.closest_point(after).distance;
+        assert!(off_after <= off_before + 1e-9, "{name}: {off_before} -> {off_after} mm");
+    }
+}
