@@ -129,6 +129,8 @@ fn kernels(c: &mut Criterion) {
                 total
             })
         });
+        // assembled here too, so that a filtered run (only this bench) has a system
+        mg.assemble(&u, &[], Formulation::Corotated).unwrap();
         let rhs = mg.system().rhs.clone();
         c.bench_function(&format!("mg_vcycle_{ne}"), |b| {
             b.iter(|| {

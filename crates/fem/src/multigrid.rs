@@ -123,6 +123,13 @@
 //! stand-alone cycles converging to the f64 solution), unknowns renumbered by colour, a
 //! coarsest level small enough that its Cholesky is negligible.
 //!
+//! The block row product ([`BlockCsr::row_mul`], used by the smoother and the residual)
+//! runs on four-lane AVX2/FMA registers where the processor has them: instructions per
+//! V-cycle on the 60,984-element box (three levels, one thread, `valgrind --tool=callgrind`
+//! on three V-cycles) 62 million scalar, 35 million in lanes. Compiling the whole crate
+//! for AVX2 and FMA instead would cut the assembly's instructions by 16% and the
+//! V-cycle's by a further 8%.
+//!
 //! The barycentric Galerkin products are fused per fine row (`FusedProduct`): the row
 //! `Q_f` of `A P`, from the lowest coarse column of `P`'s row `f` on, is formed in a
 //! scratch row and scattered at once into the upper blocks `(i, j ≥ i)` of the coarse rows
@@ -1327,7 +1334,8 @@ fn sor_colour(
         // block columns) are `i` itself or rows of other colours, which no task writes
         // while this colour is relaxed; the parallel loop ends before the next colour.
         unsafe {
-            let ax = a.row_mul_by(i, |j| x.read(j));
+            let (x_ptr, len) = x.raw_parts();
+            let ax = a.row_mul_raw(i, x_ptr, len);
             x.write(i, relax(i, x.read(i), ax));
         }
     });

@@ -107,17 +107,35 @@ impl BlockCsr {
     /// `(A x)ᵢ`, row `i` of `A x`.
     #[inline]
     pub fn row_mul(&self, i: usize, x: &[DVec3]) -> DVec3 {
-        self.row_mul_by(i, |j| x[j])
+        // SAFETY: `x` is a live slice of `x.len()` entries, borrowed shared (no writer)
+        unsafe { self.row_mul_raw(i, x.as_ptr(), x.len()) }
     }
 
-    /// `(A x)ᵢ` with the entries of `x` read by `x_at(j)`.
+    /// `(A x)ᵢ` with `x` given as `len` entries at `x` (every column index is checked
+    /// against `len`). With AVX2 and FMA (detected at run time) four-lane products:
+    /// about three times fewer instructions than the scalar loop, the same result to
+    /// round-off (the sums are only ordered differently).
+    ///
+    /// # Safety
+    /// `x` must point to `len` initialised entries, and no other thread may write the
+    /// entries of this row's columns during the call.
     #[inline]
-    pub(crate) fn row_mul_by(&self, i: usize, x_at: impl Fn(usize) -> DVec3) -> DVec3 {
+    pub(crate) unsafe fn row_mul_raw(&self, i: usize, x: *const DVec3, len: usize) -> DVec3 {
         let r = self.row_ptr[i]..self.row_ptr[i + 1];
-        self.values[r.clone()]
-            .iter()
-            .zip(&self.cols[r])
-            .fold(DVec3::ZERO, |s, (b, &j)| s + block_mul(b, x_at(j as usize)))
+        let (values, cols) = (&self.values[r.clone()], &self.cols[r]);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the processor has AVX2 and FMA (checked just above); the caller
+            // vouches for `x` and `len`
+            return unsafe { row_mul_avx2(values, cols, x, len) };
+        }
+        values.iter().zip(cols).fold(DVec3::ZERO, |s, (b, &j)| {
+            let j = j as usize;
+            assert!(j < len, "column {j} out of {len}");
+            // SAFETY: in bounds (asserted); the caller vouches for the rest
+            s + block_mul(b, unsafe { x.add(j).read() })
+        })
     }
 
     /// `y = A x` (parallel over rows).
@@ -143,6 +161,42 @@ impl BlockCsr {
         }
         d
     }
+}
+
+/// [`BlockCsr::row_mul_raw`]'s four-lane kernel: per block, rows 0 and 1 of `B` are
+/// loaded as `(b₀ b₁ b₂ b₃)`, `(b₃ b₄ b₅ b₆)` against `(x y z 0)` and row 2 as
+/// `(b₅ b₆ b₇ b₈)` against `(0 x y z)`, so every load stays inside the block; the lanes
+/// are summed once per row. Written by hand: no crate offers block-sparse products
+/// with 3x3 blocks, and the compiler does not vectorise the scalar form.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn row_mul_avx2(values: &[[f64; 9]], cols: &[u32], x: *const DVec3, len: usize) -> DVec3 {
+    use std::arch::x86_64::*;
+    let first_three = _mm256_setr_epi64x(-1, -1, -1, 0);
+    let (mut row0, mut row1, mut row2) = (
+        _mm256_setzero_pd(),
+        _mm256_setzero_pd(),
+        _mm256_setzero_pd(),
+    );
+    for (b, &j) in values.iter().zip(cols) {
+        let j = j as usize;
+        assert!(j < len, "column {j} out of {len}");
+        // SAFETY: entry `j` is in bounds (asserted) and its three f64 are read with the
+        // fourth lane masked off; the block loads read b[0..4], b[3..7], b[5..9]
+        unsafe {
+            let xyz0 = _mm256_maskload_pd(x.add(j).cast::<f64>(), first_three);
+            let zero_xyz = _mm256_permute4x64_pd::<0b10_01_00_11>(xyz0);
+            let p = b.as_ptr();
+            row0 = _mm256_fmadd_pd(_mm256_loadu_pd(p), xyz0, row0);
+            row1 = _mm256_fmadd_pd(_mm256_loadu_pd(p.add(3)), xyz0, row1);
+            row2 = _mm256_fmadd_pd(_mm256_loadu_pd(p.add(5)), zero_xyz, row2);
+        }
+    }
+    let lane_sum = |v: __m256d| {
+        let pair = _mm_add_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd::<1>(v));
+        _mm_cvtsd_f64(_mm_add_sd(pair, _mm_unpackhi_pd(pair, pair)))
+    };
+    DVec3::new(lane_sum(row0), lane_sum(row1), lane_sum(row2))
 }
 
 /// `B x` for a row-major 3x3 block.
@@ -711,6 +765,12 @@ impl<T: Copy> DisjointWrites<T> {
         unsafe { self.ptr.add(i).read() }
     }
 
+    /// The start of the slice and its length, for readers taking raw entries (same
+    /// contract as [`DisjointWrites::read`] for every entry they read).
+    pub(crate) fn raw_parts(self) -> (*const T, usize) {
+        (self.ptr, self.len)
+    }
+
     /// Sets entry `i`.
     ///
     /// # Safety
@@ -787,6 +847,81 @@ fn add_rank_one(out: &mut [f64; 9], c: f64, x: [f64; 3], y: [f64; 3]) {
     for p in 0..3 {
         for q in 0..3 {
             out[3 * p + q] += c * (x[p] * y[q]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 40-row block matrix with rows of 1 to 12 blocks at scattered columns and
+    /// entries of mixed sign and size, from a fixed linear congruential sequence.
+    fn scattered_matrix() -> BlockCsr {
+        let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let n = 40;
+        let (mut row_ptr, mut cols, mut values) = (vec![0], Vec::new(), Vec::new());
+        for i in 0..n {
+            let mut row: Vec<u32> = (0..1 + (i * 7) % 12)
+                .map(|_| (next() * n as f64) as u32)
+                .collect();
+            row.sort_unstable();
+            row.dedup();
+            for j in row {
+                cols.push(j);
+                values.push(std::array::from_fn(|_| {
+                    (next() - 0.5) * 10f64.powf(4.0 * next())
+                }));
+            }
+            row_ptr.push(cols.len());
+        }
+        BlockCsr {
+            row_ptr,
+            cols,
+            values,
+        }
+    }
+
+    /// The row product (vector lanes where the processor has them) against the dense
+    /// matrix times the vector, summed in a different order: relative 1e-13 of the
+    /// row's absolute sum (a few dozen terms, each rounded at 1.1e-16).
+    #[test]
+    fn row_products_match_the_dense_product() {
+        let a = scattered_matrix();
+        let n = a.block_rows();
+        let x: Vec<DVec3> = (0..n)
+            .map(|i| DVec3::new(i as f64 - 20.0, 1.0 / (i as f64 + 1.0), (i as f64).sin()))
+            .collect();
+        let dense = a.to_dense();
+        let flat: Vec<f64> = x.iter().flat_map(|v| v.to_array()).collect();
+        for i in 0..n {
+            let got = a.row_mul(i, &x).to_array();
+            for (c, value) in got.iter().enumerate() {
+                let row = &dense[3 * i + c];
+                let expected: f64 = row.iter().zip(&flat).map(|(m, v)| m * v).sum();
+                let scale: f64 = row.iter().zip(&flat).map(|(m, v)| (m * v).abs()).sum();
+                assert!(
+                    (value - expected).abs() <= 1e-13 * scale.max(f64::MIN_POSITIVE),
+                    "row {i} component {c}: {value} against {expected}"
+                );
+            }
+        }
+    }
+
+    /// A column index beyond the vector is refused, not read.
+    #[test]
+    #[should_panic(expected = "out of")]
+    fn a_column_beyond_the_vector_panics() {
+        let a = scattered_matrix();
+        let short = vec![DVec3::ONE; 3];
+        for i in 0..a.block_rows() {
+            a.row_mul(i, &short);
         }
     }
 }

@@ -397,6 +397,9 @@ fn landmarks_stay_on_the_simulated_scan() {
     for ((name, before), (_, after)) in p.landmarks().iter().zip(moved.iter()) {
         let off_before = rest_index.closest_point(before).distance;
         let off_after = simulated_index.closest_point(after).distance;
-        assert!(off_after <= off_before + 1e-9, "{name}: {off_before} -> {off_after} mm");
+        assert!(
+            off_after <= off_before + 1e-9,
+            "{name}: {off_before} -> {off_after} mm"
+        );
     }
 }
