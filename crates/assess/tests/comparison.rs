@@ -279,3 +279,91 @@ fn bad_input_gives_clear_errors() {
         SurfaceComparison::new(&surface, vec![None; 3], &surface, sides(), 50.0).unwrap_err();
     assert!(error.to_string().contains("breast region list"), "{error}");
 }
+
+#[test]
+fn a_scan_against_a_copy_with_a_bump_on_the_left_breast() {
+    use anatomy::{AnatomicalFrame, BreastOptions, LandmarkName, build_breast_model};
+    let phantom = phantom::generate(&phantom::PhantomParams::default());
+    let reference = &phantom.scan;
+    let (index, topology) = (
+        SurfaceIndex::new(reference).unwrap(),
+        Topology::new(reference),
+    );
+    let frame = AnatomicalFrame::from_landmarks(&phantom.landmarks).unwrap();
+    let breasts = build_breast_model(
+        reference,
+        &topology,
+        &index,
+        &frame,
+        &phantom.landmarks,
+        &BreastOptions::default(),
+    )
+    .unwrap();
+    let sides = breasts.scan_vertex_sides(reference.vertex_count());
+
+    // A smooth bump along the normals on the left breast's upper pole (between the
+    // nipple and the clavicle, away from the nipple's sharp curvature): 5 mm high,
+    // 30 mm wide, so its slope stays below 0.1 and the distance of a displaced vertex
+    // to the original skin, convex there with radii of curvature far above 5 mm, is its
+    // height to well under 1%.
+    let (amplitude_mm, width_mm) = (5.0, 30.0);
+    let nipple = phantom.landmarks.get(LandmarkName::Pnl);
+    let clavicle = phantom.landmarks.get(LandmarkName::Pcl);
+    let centre = index.closest_point(nipple.lerp(clavicle, 0.35)).point;
+    let height =
+        |p: DVec3| amplitude_mm * (-p.distance_squared(centre) / (2.0 * width_mm * width_mm)).exp();
+    let heights: Vec<f64> = reference.positions.iter().map(|&p| height(p)).collect();
+    let mut test = reference.clone();
+    for ((p, normal), h) in test
+        .positions
+        .iter_mut()
+        .zip(reference.vertex_normals())
+        .zip(&heights)
+    {
+        *p += normal * *h;
+    }
+    let (test_index, test_topology) = (SurfaceIndex::new(&test).unwrap(), Topology::new(&test));
+    let comparison = SurfaceComparison::new(
+        &DistanceSurface::new(reference, &index, &topology),
+        sides.clone(),
+        &DistanceSurface::new(&test, &test_index, &test_topology),
+        sides.clone(),
+        50.0,
+    )
+    .unwrap();
+
+    for zone in [Zone::Whole, Zone::Breast(anatomy::Side::Left)] {
+        let statistics = comparison.statistics(zone).unwrap();
+        let true_rms = rms(comparison
+            .test_to_reference
+            .iter()
+            .zip(&heights)
+            .zip(&sides)
+            .filter(|((deviation, _), side)| deviation.is_some() && zone.contains(**side))
+            .map(|((_, h), _)| *h));
+        eprintln!(
+            "phantom bump, {zone:?}: rms {:.4} (true {true_rms:.4}), hausdorff {:.4} (true {amplitude_mm}), signed mean {:.4} mm, {} vertices",
+            statistics.rms_mm,
+            statistics.hausdorff_mm,
+            statistics.signed_mean_mm,
+            statistics.vertices
+        );
+        assert!((statistics.rms_mm / true_rms - 1.0).abs() < ACCEPTANCE);
+        assert!((statistics.hausdorff_mm / amplitude_mm - 1.0).abs() < ACCEPTANCE);
+        // The bump is outward everywhere.
+        assert!((statistics.signed_mean_mm - statistics.mean_mm).abs() < 1e-3);
+    }
+    // The right breast, 20 cm away, is untouched.
+    let right = comparison
+        .statistics(Zone::Breast(anatomy::Side::Right))
+        .unwrap();
+    assert!(right.hausdorff_mm < 1e-3, "{right:?}");
+
+    // Every 101st vertex against the brute-force search over all triangles.
+    for (v, deviation) in comparison.test_to_reference.iter().enumerate().step_by(101) {
+        if let Some(deviation) = deviation {
+            let brute = brute_force_distance(reference, test.positions[v]);
+            assert!((deviation.distance_mm - brute).abs() < 1e-9, "vertex {v}");
+        }
+    }
+}

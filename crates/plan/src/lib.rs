@@ -1,9 +1,10 @@
 //! The orchestration layer: loading scans and landmarks, measuring, registering, the
-//! breast model and the demo pipeline. Both front ends (CLI, GUI) call only this crate;
+//! breast model, simulation, comparing scans and the demo pipeline. Both front ends (CLI, GUI) call only this crate;
 //! it holds the glue, the algorithms live in the stage crates below it.
 
 pub mod bench;
 pub mod catalog;
+pub mod compare;
 pub mod demo;
 pub mod fem_solve;
 pub mod measure;
