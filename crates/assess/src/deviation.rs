@@ -122,6 +122,15 @@ impl<'a> DistanceSurface<'a> {
             .collect()
     }
 
+    /// The vertex nearest to `point`'s closest surface point (the corner of its triangle
+    /// with the largest barycentric weight), if that point is within `max_distance_mm`.
+    pub fn nearest_vertex(&self, point: DVec3, max_distance_mm: f64) -> Option<usize> {
+        let closest = self.index.closest_point_within(point, max_distance_mm)?;
+        let corner =
+            (0..3).max_by(|&a, &b| closest.barycentric[a].total_cmp(&closest.barycentric[b]))?;
+        Some(self.mesh.triangles[closest.triangle][corner] as usize)
+    }
+
     /// The pseudo-normal of the feature of `triangle` at `barycentric` (see the module
     /// documentation), or `None` on the boundary.
     fn pseudo_normal(&self, triangle: usize, barycentric: [f64; 3]) -> Option<DVec3> {

@@ -14,7 +14,9 @@ pub mod symmetry;
 
 pub use colormap::{DEVIATION_COLOR_MAX_MM, OUTSIDE_OVERLAP_COLOR, deviation_color};
 pub use deviation::{DEFAULT_MAX_DISTANCE_MM, DistanceSurface, PointDeviation};
-pub use statistics::{DeviationStatistics, SurfaceComparison, Zone, ZoneStatistics};
+pub use statistics::{
+    DeviationStatistics, SurfaceComparison, Zone, ZoneStatistics, transfer_sides,
+};
 pub use symmetry::{Mirror, Symmetry, SymmetryInput, analyse_symmetry};
 
 use anatomy::register::RegistrationError;

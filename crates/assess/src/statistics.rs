@@ -15,6 +15,8 @@
 use crate::AssessError;
 use crate::deviation::{DistanceSurface, PointDeviation};
 use anatomy::Side;
+use glam::DVec3;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Which vertices a statistic covers. Breast regions are the regions inside each
@@ -38,6 +40,25 @@ impl Zone {
             Zone::Breasts => side.is_some(),
         }
     }
+}
+
+/// The breast regions of `points` taken from another surface: each point gets the region
+/// of the vertex of `from` nearest to its closest point on `from` (`None` farther than
+/// `max_distance_mm`). For a scan whose own breast model is missing, its regions from
+/// the other scan's cut curves.
+pub fn transfer_sides(
+    from: &DistanceSurface<'_>,
+    from_sides: &[Option<Side>],
+    points: &[DVec3],
+    max_distance_mm: f64,
+) -> Vec<Option<Side>> {
+    points
+        .par_iter()
+        .map(|&p| {
+            from.nearest_vertex(p, max_distance_mm)
+                .and_then(|v| from_sides[v])
+        })
+        .collect()
 }
 
 /// The statistics of the deviation over one zone (mm).

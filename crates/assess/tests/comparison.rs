@@ -367,3 +367,40 @@ fn a_scan_against_a_copy_with_a_bump_on_the_left_breast() {
         }
     }
 }
+
+#[test]
+fn breast_regions_carry_over_to_a_copy_and_stay_on_their_side() {
+    use anatomy::Side;
+    // A sphere with its x > 0 cap as the "left" region and x < 0 as the "right" one.
+    let reference = icosphere(RADIUS_MM, 4);
+    let (index, topology) = (
+        SurfaceIndex::new(&reference).unwrap(),
+        Topology::new(&reference),
+    );
+    let surface = DistanceSurface::new(&reference, &index, &topology);
+    let side_of = |p: &DVec3| match p.x {
+        x if x > 20.0 => Some(Side::Left),
+        x if x < -20.0 => Some(Side::Right),
+        _ => None,
+    };
+    let sides: Vec<_> = reference.positions.iter().map(side_of).collect();
+    // Onto itself: every vertex keeps its region.
+    let carried = assess::transfer_sides(&surface, &sides, &reference.positions, 10.0);
+    assert_eq!(carried, sides);
+    // Onto a turned sphere: a point gets its nearest reference vertex's region,
+    // which agrees with the analytic region but within an edge of its border.
+    let turned = test_sphere();
+    let carried = assess::transfer_sides(&surface, &sides, &turned.positions, 10.0);
+    for (p, side) in turned.positions.iter().zip(&carried) {
+        if (p.x.abs() - 20.0).abs() > 4.0 {
+            assert_eq!(*side, side_of(p), "{p}");
+        }
+    }
+    // Beyond the maximum distance nothing is carried.
+    let far: Vec<DVec3> = turned.positions.iter().map(|p| *p * 2.0).collect();
+    assert!(
+        assess::transfer_sides(&surface, &sides, &far, 10.0)
+            .iter()
+            .all(Option::is_none)
+    );
+}

@@ -296,27 +296,10 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
             progress.finish();
-            eprintln!("error: {}", one_line(&error));
+            eprintln!("error: {}", plan::one_line(&error));
             ExitCode::FAILURE
         }
     }
-}
-
-/// The error and its causes on one line, outermost first. A cause whose message the
-/// previous one already ends with (errors that print their source) is not repeated.
-fn one_line(error: &anyhow::Error) -> String {
-    let mut line = String::new();
-    for cause in error.chain() {
-        let message = cause.to_string();
-        if line.ends_with(&message) {
-            continue;
-        }
-        if !line.is_empty() {
-            line += ": ";
-        }
-        line += &message;
-    }
-    line
 }
 
 fn run(command: Command, progress: &TerminalProgress) -> Result<()> {

@@ -1,6 +1,7 @@
 //! Human-readable summaries printed when `--json` is not given.
 
 use plan::Distance;
+use plan::compare::SymmetryReport;
 use plan::demo::DemoReport;
 use plan::model::ModelReport;
 use plan::register::RegisterReport;
@@ -365,6 +366,9 @@ pub fn bench(report: &plan::bench::BenchReport) -> String {
     out
 }
 
+/// One figure of a symmetry report.
+type SymmetryFigure = fn(&SymmetryReport) -> f64;
+
 /// The figures of `compare`.
 pub fn comparison(report: &plan::compare::CompareReport) -> String {
     let mut out = format!(
@@ -441,6 +445,10 @@ pub fn comparison(report: &plan::compare::CompareReport) -> String {
             &report.quadrant_volume_ml.test,
         ),
     ] {
+        let (Some(volumes), Some(quadrants)) = (volumes, quadrants) else {
+            let _ = writeln!(out, "{scan:<16} {:>9}", "no breast model");
+            continue;
+        };
         for (side, volume, q) in [
             ("left", volumes.left, &quadrants.left),
             ("right", volumes.right, &quadrants.right),
@@ -462,7 +470,7 @@ pub fn comparison(report: &plan::compare::CompareReport) -> String {
         "\n{:<38} {:>10} {:>10}",
         "symmetry (left against mirrored right)", "reference", "test"
     );
-    let rows: [(&str, fn(&plan::compare::SymmetryReport) -> f64); 6] = [
+    let rows: [(&str, SymmetryFigure); 6] = [
         ("volume ratio left/right", |s| s.volume_ratio_left_to_right),
         ("nipple height difference mm", |s| {
             s.nipple_height_difference_mm
@@ -474,13 +482,22 @@ pub fn comparison(report: &plan::compare::CompareReport) -> String {
         ("asymmetry rms, overall mm", |s| s.asymmetry.whole.rms_mm),
         ("mirror plane correction deg", |s| s.mirror_correction_deg),
     ];
+    let cell = |symmetry: &Option<plan::compare::SymmetryReport>,
+                value: fn(&plan::compare::SymmetryReport) -> f64| {
+        symmetry
+            .as_ref()
+            .map_or_else(|| "-".to_string(), |s| format!("{:.2}", value(s)))
+    };
     for (name, value) in rows {
         let _ = writeln!(
             out,
-            "{name:<38} {:>10.2} {:>10.2}",
-            value(&symmetry.reference),
-            value(&symmetry.test)
+            "{name:<38} {:>10} {:>10}",
+            cell(&symmetry.reference, value),
+            cell(&symmetry.test, value)
         );
+    }
+    for warning in &report.warnings {
+        let _ = writeln!(out, "\nnote: {warning}");
     }
     if let Some(path) = &report.out {
         let _ = writeln!(

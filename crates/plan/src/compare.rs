@@ -19,12 +19,13 @@ use crate::model::{PerSide, build_breasts};
 use crate::register::{RegisterReport, register};
 use crate::{MarkedScan, Progress};
 use anatomy::BreastOptions;
+use anatomy::Side;
 use anatomy::breast::{BreastModel, QuadrantVolumes};
 use anatomy::measure::Distance;
 use anyhow::{Context, Result, bail};
 use assess::{
     DeviationStatistics, DistanceSurface, SurfaceComparison, Symmetry, SymmetryInput,
-    ZoneStatistics, analyse_symmetry, deviation_color,
+    ZoneStatistics, analyse_symmetry, deviation_color, transfer_sides,
 };
 use mesh::SurfaceIndex;
 use mesh::io::{PlyEncoding, VertexScalar, write_ply_with_scalars};
@@ -81,10 +82,14 @@ pub struct CompareReport {
     pub breast_regions: BreastRegionStatistics,
     /// The clinical distances of both scans.
     pub distances: Vec<DistanceComparison>,
-    pub breast_volume_ml: Paired<PerSide<f64>>,
-    pub quadrant_volume_ml: Paired<PerSide<QuadrantVolumes>>,
-    /// The left/right symmetry of each scan.
-    pub symmetry: Paired<SymmetryReport>,
+    /// Breast and quadrant volumes (ml); `null` for a scan whose breast model failed.
+    pub breast_volume_ml: Paired<Option<PerSide<f64>>>,
+    pub quadrant_volume_ml: Paired<Option<PerSide<QuadrantVolumes>>>,
+    /// The left/right symmetry of each scan; `null` where it could not be analysed.
+    pub symmetry: Paired<Option<SymmetryReport>>,
+    /// What could not be computed and why (a breast model or a symmetry analysis that
+    /// failed); everything else in the report stands.
+    pub warnings: Vec<String>,
     /// The deviation mesh written, if any.
     pub out: Option<PathBuf>,
 }
@@ -118,16 +123,20 @@ pub struct BreastRegionStatistics {
     pub left: Option<DeviationStatistics>,
     pub right: Option<DeviationStatistics>,
     pub both: Option<DeviationStatistics>,
+    /// Where each scan's breast regions come from.
+    pub source: Paired<RegionSource>,
 }
 
-impl From<&ZoneStatistics> for BreastRegionStatistics {
-    fn from(zones: &ZoneStatistics) -> BreastRegionStatistics {
-        BreastRegionStatistics {
-            left: zones.left_breast,
-            right: zones.right_breast,
-            both: zones.both_breasts,
-        }
-    }
+/// Where a scan's breast regions come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RegionSource {
+    /// Its own cut curves.
+    CutCurves,
+    /// Its breast model failed: the other scan's regions, carried over by closest points.
+    OtherScan,
+    /// Neither scan has a breast model.
+    None,
 }
 
 /// One clinical distance on both scans: `reference_mm`, `test_mm` are the on-surface
@@ -253,25 +262,33 @@ pub fn compare(
     registered.map_positions(|p| transform.apply(p));
     let registered_index = SurfaceIndex::new(&registered)
         .with_context(|| format!("{}: the mesh has no triangles", test.scan.path.display()))?;
+    let mut warnings = Vec::new();
+    let mut warn = |message: String| {
+        progress.warn(&message);
+        warnings.push(message);
+    };
     let breasts = Paired {
-        reference: build_breasts(reference, &BreastOptions::default(), progress)
-            .context("the reference scan's breast model")?,
-        test: build_breasts(test, &BreastOptions::default(), progress)
-            .context("the test scan's breast model")?,
+        reference: breast_model(reference, "reference", &mut warn, progress),
+        test: breast_model(test, "test", &mut warn, progress),
     };
     progress.step();
-    let sides = |marked: &MarkedScan, model: &BreastModel| {
-        model.scan_vertex_sides(marked.scan.mesh.vertex_count())
-    };
+
+    let reference_surface = DistanceSurface::new(
+        &reference.scan.mesh,
+        &reference.scan.index,
+        &reference.scan.topology,
+    );
+    let test_surface = DistanceSurface::new(&registered, &registered_index, &test.scan.topology);
+    let (sides, source) = breast_regions(
+        (&reference_surface, breasts.reference.as_ref()),
+        (&test_surface, breasts.test.as_ref()),
+        options.max_distance_mm,
+    );
     let comparison = SurfaceComparison::new(
-        &DistanceSurface::new(
-            &reference.scan.mesh,
-            &reference.scan.index,
-            &reference.scan.topology,
-        ),
-        sides(reference, &breasts.reference),
-        &DistanceSurface::new(&registered, &registered_index, &test.scan.topology),
-        sides(test, &breasts.test),
+        &reference_surface,
+        sides.reference,
+        &test_surface,
+        sides.test,
         options.max_distance_mm,
     )
     .with_context(|| {
@@ -294,8 +311,9 @@ pub fn compare(
         .map(|(r, t)| DistanceComparison::new(r, t))
         .collect();
 
-    let symmetry = |marked: &MarkedScan, model: &BreastModel| {
-        analyse_symmetry(
+    let mut symmetry = |marked: &MarkedScan, model: Option<&BreastModel>, role: &str| {
+        let model = model?;
+        let analysis = analyse_symmetry(
             &SymmetryInput {
                 mesh: &marked.scan.mesh,
                 index: &marked.scan.index,
@@ -305,22 +323,38 @@ pub fn compare(
                 breasts: model,
             },
             options.max_distance_mm,
-        )
-        .with_context(|| format!("{}", marked.scan.path.display()))
+        );
+        progress.step();
+        analysis
+            .map_err(|error| {
+                warn(format!(
+                    "the {role} scan {}: no symmetry analysis: {error}",
+                    marked.scan.path.display()
+                ))
+            })
+            .ok()
     };
-    let reference_symmetry = symmetry(reference, &breasts.reference)?;
-    progress.step();
-    let test_symmetry = symmetry(test, &breasts.test)?;
-    progress.step();
+    let symmetries = Paired {
+        reference: symmetry(reference, breasts.reference.as_ref(), "reference"),
+        test: symmetry(test, breasts.test.as_ref(), "test"),
+    };
 
     if let Some(out) = &options.out {
-        write_deviation_mesh(out, registered, &comparison, &test_symmetry.comparison)?;
+        let asymmetry = symmetries.test.as_ref().map(|s| &s.comparison);
+        write_deviation_mesh(out, registered, &comparison, asymmetry)?;
     }
     progress.step();
 
-    let volumes = |model: &BreastModel| PerSide::from_fn(|side| model.breast(side).volume_ml);
-    let quadrants =
-        |model: &BreastModel| PerSide::from_fn(|side| model.breast(side).quadrant_volume_ml);
+    let volumes = |model: &Option<BreastModel>| {
+        model
+            .as_ref()
+            .map(|m| PerSide::from_fn(|side| m.breast(side).volume_ml))
+    };
+    let quadrants = |model: &Option<BreastModel>| {
+        model
+            .as_ref()
+            .map(|m| PerSide::from_fn(|side| m.breast(side).quadrant_volume_ml))
+    };
     let overall = statistics.whole;
     Ok(CompareReport {
         reference: ScanFiles::of(reference),
@@ -334,7 +368,12 @@ pub fn compare(
         overlap_fraction: comparison.test_overlap_fraction(),
         reference_overlap_fraction: comparison.reference_overlap_fraction(),
         overall,
-        breast_regions: BreastRegionStatistics::from(&statistics),
+        breast_regions: BreastRegionStatistics {
+            left: statistics.left_breast,
+            right: statistics.right_breast,
+            both: statistics.both_breasts,
+            source,
+        },
         distances,
         breast_volume_ml: Paired {
             reference: volumes(&breasts.reference),
@@ -345,11 +384,87 @@ pub fn compare(
             test: quadrants(&breasts.test),
         },
         symmetry: Paired {
-            reference: SymmetryReport::new(&reference_symmetry),
-            test: SymmetryReport::new(&test_symmetry),
+            reference: symmetries.reference.as_ref().map(SymmetryReport::new),
+            test: symmetries.test.as_ref().map(SymmetryReport::new),
         },
+        warnings,
         out: options.out.clone(),
     })
+}
+
+/// The breast model of a scan, or `None` with a warning saying why it failed: the
+/// comparison goes on without that scan's volumes and symmetry.
+fn breast_model(
+    marked: &MarkedScan,
+    role: &str,
+    warn: &mut impl FnMut(String),
+    progress: &dyn Progress,
+) -> Option<BreastModel> {
+    build_breasts(marked, &BreastOptions::default(), progress)
+        .map_err(|error| {
+            warn(format!(
+                "the {role} scan has no breast model, so no breast volumes or symmetry (its breast regions come from the other scan): {}",
+                crate::one_line(&error)
+            ))
+        })
+        .ok()
+}
+
+/// The breast region of every vertex of both scans: each scan's own cut curves, or the
+/// other scan's regions carried over where its breast model is missing.
+fn breast_regions(
+    reference: (&DistanceSurface<'_>, Option<&BreastModel>),
+    test: (&DistanceSurface<'_>, Option<&BreastModel>),
+    max_distance_mm: f64,
+) -> (Paired<Vec<Option<Side>>>, Paired<RegionSource>) {
+    let own = |(surface, model): (&DistanceSurface<'_>, Option<&BreastModel>)| {
+        model.map(|m| m.scan_vertex_sides(surface.mesh().vertex_count()))
+    };
+    let carried = |from: &DistanceSurface<'_>, sides: &[Option<Side>], to: &DistanceSurface<'_>| {
+        transfer_sides(from, sides, &to.mesh().positions, max_distance_mm)
+    };
+    match (own(reference), own(test)) {
+        (Some(reference_sides), Some(test_sides)) => (
+            Paired {
+                reference: reference_sides,
+                test: test_sides,
+            },
+            Paired {
+                reference: RegionSource::CutCurves,
+                test: RegionSource::CutCurves,
+            },
+        ),
+        (Some(reference_sides), None) => (
+            Paired {
+                test: carried(reference.0, &reference_sides, test.0),
+                reference: reference_sides,
+            },
+            Paired {
+                reference: RegionSource::CutCurves,
+                test: RegionSource::OtherScan,
+            },
+        ),
+        (None, Some(test_sides)) => (
+            Paired {
+                reference: carried(test.0, &test_sides, reference.0),
+                test: test_sides,
+            },
+            Paired {
+                reference: RegionSource::OtherScan,
+                test: RegionSource::CutCurves,
+            },
+        ),
+        (None, None) => (
+            Paired {
+                reference: vec![None; reference.0.mesh().vertex_count()],
+                test: vec![None; test.0.mesh().vertex_count()],
+            },
+            Paired {
+                reference: RegionSource::None,
+                test: RegionSource::None,
+            },
+        ),
+    }
 }
 
 /// Writes the (registered) test mesh with the deviation colour map and the distance
@@ -358,11 +473,14 @@ fn write_deviation_mesh(
     path: &Path,
     mut mesh: mesh::TriMesh,
     comparison: &SurfaceComparison,
-    symmetry: &SurfaceComparison,
+    symmetry: Option<&SurfaceComparison>,
 ) -> Result<()> {
     let distances = comparison.test_distances_mm();
     let signed = comparison.test_signed_distances_mm();
-    let asymmetry = symmetry.test_signed_distances_mm();
+    let asymmetry = symmetry.map_or_else(
+        || vec![f64::NAN; mesh.vertex_count()],
+        SurfaceComparison::test_signed_distances_mm,
+    );
     mesh.vertex_colors = Some(distances.iter().map(|&d| deviation_color(d)).collect());
     let scalars = [
         VertexScalar {

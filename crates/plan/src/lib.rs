@@ -17,6 +17,23 @@ pub use anatomy::measure::Distance;
 pub use phantom::{Cup, PhantomParams};
 pub use scan::{MarkedScan, Scan};
 
+/// The error and its causes on one line, outermost first. A cause whose message the
+/// previous one already ends with (errors that print their source) is not repeated.
+pub fn one_line(error: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in error.chain() {
+        let message = cause.to_string();
+        if line.ends_with(&message) {
+            continue;
+        }
+        if !line.is_empty() {
+            line += ": ";
+        }
+        line += &message;
+    }
+    line
+}
+
 /// Receives progress of long operations (a terminal bar, a GUI, or nothing).
 pub trait Progress: Sync {
     /// A new stage starts, with the number of steps it has.

@@ -72,10 +72,13 @@ fn a_scan_against_itself_moved_reads_zero_after_registration() {
         let difference = distance.difference_mm.unwrap();
         assert!(difference.abs() < 1e-6, "{}: {difference}", distance.name);
     }
-    let volumes = report.breast_volume_ml;
+    let (reference_volumes, test_volumes) = (
+        report.breast_volume_ml.reference.unwrap(),
+        report.breast_volume_ml.test.unwrap(),
+    );
     for (reference, test) in [
-        (volumes.reference.left, volumes.test.left),
-        (volumes.reference.right, volumes.test.right),
+        (reference_volumes.left, test_volumes.left),
+        (reference_volumes.right, test_volumes.right),
     ] {
         // Every step of the breast model works in the anatomical frame.
         assert!(
@@ -84,7 +87,7 @@ fn a_scan_against_itself_moved_reads_zero_after_registration() {
         );
     }
     // The phantom is symmetric.
-    let symmetry = &report.symmetry.test;
+    let symmetry = report.symmetry.test.as_ref().unwrap();
     assert!((symmetry.volume_ratio_left_to_right - 1.0).abs() < 0.01);
     assert!(symmetry.nipple_distance_mm < 0.1);
 
@@ -130,4 +133,32 @@ fn scans_that_do_not_overlap_or_a_mesh_file_that_is_not_ply_are_errors() {
     };
     let error = compare(&reference, &reference, &options, &Silent).unwrap_err();
     assert!(error.to_string().contains("give a .ply file"), "{error}");
+}
+
+#[test]
+fn a_scan_whose_breast_model_fails_takes_the_other_scans_breast_regions() {
+    let reference = moved_phantom(&RigidTransform::IDENTITY);
+    let mut test = moved_phantom(&RigidTransform::IDENTITY);
+    // The left fold's medial end on its lowest point: two control points coincide.
+    let lowest = test.landmarks.get(anatomy::LandmarkName::PSMFl);
+    test.landmarks.set(anatomy::LandmarkName::PSMFml, lowest);
+    let report = compare(&reference, &test, &CompareOptions::default(), &Silent).unwrap();
+
+    assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
+    assert!(report.warnings[0].contains("the test scan has no breast model"));
+    assert!(
+        report.warnings[0].contains("left breast"),
+        "{}",
+        report.warnings[0]
+    );
+    assert!(report.breast_volume_ml.test.is_none() && report.symmetry.test.is_none());
+    assert!(report.breast_volume_ml.reference.is_some() && report.symmetry.reference.is_some());
+    let regions = report.breast_regions;
+    assert_eq!(regions.source.test, plan::compare::RegionSource::OtherScan);
+    // The same surface: the carried-over regions are the reference's, vertex for vertex.
+    let both = regions.both.unwrap();
+    let left = regions.left.unwrap();
+    let right = regions.right.unwrap();
+    assert_eq!(both.vertices, left.vertices + right.vertices);
+    assert!(both.rms_mm < 1e-9 && report.rms_mm < 1e-9);
 }
