@@ -72,6 +72,26 @@ impl LandmarkName {
         }
     }
 
+    /// The same landmark on the patient's other side (`Pnl` <-> `Pnr`, ...); the midline
+    /// landmarks `Pj` and `Px` are their own.
+    pub fn opposite(self) -> LandmarkName {
+        use LandmarkName::*;
+        match self {
+            Pj => Pj,
+            Px => Px,
+            Pcl => Pcr,
+            Pcr => Pcl,
+            Pnl => Pnr,
+            Pnr => Pnl,
+            PSMFl => PSMFr,
+            PSMFr => PSMFl,
+            PSMFml => PSMFmr,
+            PSMFmr => PSMFml,
+            PSMFll => PSMFlr,
+            PSMFlr => PSMFll,
+        }
+    }
+
     /// Parses a file name of a landmark (exact spelling).
     pub fn parse(name: &str) -> Option<LandmarkName> {
         LandmarkName::ALL.into_iter().find(|n| n.as_str() == name)

@@ -150,6 +150,32 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Compare a test scan with a reference scan: surface deviation (RMS, mean, Hausdorff)
+    /// over the overlap and the breast regions, distances, volumes and symmetry of both.
+    Compare {
+        #[arg(long, value_name = "SCAN")]
+        reference: PathBuf,
+        #[arg(long, value_name = "JSON")]
+        reference_landmarks: PathBuf,
+        #[arg(long, value_name = "SCAN")]
+        test: PathBuf,
+        #[arg(long, value_name = "JSON")]
+        test_landmarks: PathBuf,
+        /// Register the test scan onto the reference first (bony landmarks, then ICP away
+        /// from the breasts).
+        #[arg(long)]
+        register: bool,
+        /// Write the test scan (registered) with the deviation colour map (green 0 mm to
+        /// red 20 mm) and the vertex properties distance_mm, signed_distance_mm and
+        /// asymmetry_mm (.ply).
+        #[arg(long, value_name = "DEVIATION.ply")]
+        out: Option<PathBuf>,
+        /// Points farther than this from the other scan are outside the overlap (mm).
+        #[arg(long, value_name = "MM", default_value_t = plan::compare::DEFAULT_MAX_DISTANCE_MM, value_parser = positive)]
+        max_distance_mm: f64,
+        #[arg(long)]
+        json: bool,
+    },
     /// Build the breast model (cut curves, breast patches, fill-ins, breast and quadrant
     /// volumes) and the closed surface, and write them to MODEL_DIR.
     Model {
@@ -270,27 +296,10 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
             progress.finish();
-            eprintln!("error: {}", one_line(&error));
+            eprintln!("error: {}", plan::one_line(&error));
             ExitCode::FAILURE
         }
     }
-}
-
-/// The error and its causes on one line, outermost first. A cause whose message the
-/// previous one already ends with (errors that print their source) is not repeated.
-fn one_line(error: &anyhow::Error) -> String {
-    let mut line = String::new();
-    for cause in error.chain() {
-        let message = cause.to_string();
-        if line.ends_with(&message) {
-            continue;
-        }
-        if !line.is_empty() {
-            line += ": ";
-        }
-        line += &message;
-    }
-    line
 }
 
 fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
@@ -388,6 +397,32 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 print_json(&report)
             } else {
                 print!("{}", summary::registration(&report));
+                Ok(())
+            }
+        }
+        Command::Compare {
+            reference,
+            reference_landmarks,
+            test,
+            test_landmarks,
+            register,
+            out,
+            max_distance_mm,
+            json,
+        } => {
+            let reference = plan::MarkedScan::load(&reference, &reference_landmarks, progress)?;
+            let test = plan::MarkedScan::load(&test, &test_landmarks, progress)?;
+            let options = plan::compare::CompareOptions {
+                register,
+                max_distance_mm,
+                out,
+            };
+            let report = plan::compare::compare(&reference, &test, &options, progress)?;
+            progress.finish();
+            if json {
+                print_json(&report)
+            } else {
+                print!("{}", summary::comparison(&report));
                 Ok(())
             }
         }

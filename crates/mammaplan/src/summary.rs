@@ -1,6 +1,7 @@
 //! Human-readable summaries printed when `--json` is not given.
 
 use plan::Distance;
+use plan::compare::SymmetryReport;
 use plan::demo::DemoReport;
 use plan::model::ModelReport;
 use plan::register::RegisterReport;
@@ -360,6 +361,149 @@ pub fn bench(report: &plan::bench::BenchReport) -> String {
             out,
             "finest system written to {}",
             dir.join("A.mtx").display()
+        );
+    }
+    out
+}
+
+/// One figure of a symmetry report.
+type SymmetryFigure = fn(&SymmetryReport) -> f64;
+
+/// The figures of `compare`.
+pub fn comparison(report: &plan::compare::CompareReport) -> String {
+    let mut out = format!(
+        "test {}\nreference {}\n",
+        report.test.scan, report.reference.scan
+    );
+    if let Some(transform) = &report.registration {
+        out += "\nregistration of the test onto the reference:\n";
+        out += &registration(transform);
+    }
+    let _ = writeln!(
+        out,
+        "\nsurface deviation, test vertices to the reference surface (overlap: {:.0}% of the test, {:.0}% of the reference; at most {} mm apart):",
+        100.0 * report.overlap_fraction,
+        100.0 * report.reference_overlap_fraction,
+        report.max_distance_mm
+    );
+    let _ = writeln!(
+        out,
+        "{:<14} {:>9} {:>8} {:>8} {:>10} {:>8} {:>13}",
+        "region", "vertices", "rms mm", "mean mm", "signed mm", "p95 mm", "hausdorff mm"
+    );
+    let regions = &report.breast_regions;
+    for (name, statistics) in [
+        ("overall", Some(report.overall)),
+        ("left breast", regions.left),
+        ("right breast", regions.right),
+        ("both breasts", regions.both),
+    ] {
+        let _ = match statistics {
+            Some(s) => writeln!(
+                out,
+                "{name:<14} {:>9} {:>8.2} {:>8.2} {:>+10.2} {:>8.2} {:>13.2}",
+                s.vertices,
+                s.rms_mm,
+                s.mean_mm,
+                s.signed_mean_mm,
+                s.percentile_95_mm,
+                s.hausdorff_mm
+            ),
+            None => writeln!(out, "{name:<14} {:>9}", "no overlap"),
+        };
+    }
+    let _ = writeln!(
+        out,
+        "\n{:<14} {:>13} {:>10} {:>14}",
+        "distance", "reference mm", "test mm", "difference mm"
+    );
+    for d in &report.distances {
+        let _ = writeln!(
+            out,
+            "{:<14} {:>13} {:>10} {:>14}",
+            d.name,
+            millimetres(d.reference_mm),
+            millimetres(d.test_mm),
+            d.difference_mm
+                .map_or_else(|| "-".to_string(), |v| format!("{v:+.1}"))
+        );
+    }
+    let _ = writeln!(
+        out,
+        "\n{:<16} {:>9} {:>7} {:>7} {:>7} {:>7}",
+        "breast volume", "total ml", "UO ml", "UI ml", "LI ml", "LO ml"
+    );
+    for (scan, volumes, quadrants) in [
+        (
+            "reference",
+            &report.breast_volume_ml.reference,
+            &report.quadrant_volume_ml.reference,
+        ),
+        (
+            "test",
+            &report.breast_volume_ml.test,
+            &report.quadrant_volume_ml.test,
+        ),
+    ] {
+        let (Some(volumes), Some(quadrants)) = (volumes, quadrants) else {
+            let _ = writeln!(out, "{scan:<16} {:>9}", "no breast model");
+            continue;
+        };
+        for (side, volume, q) in [
+            ("left", volumes.left, &quadrants.left),
+            ("right", volumes.right, &quadrants.right),
+        ] {
+            let _ = writeln!(
+                out,
+                "{:<16} {volume:>9.1} {:>7.1} {:>7.1} {:>7.1} {:>7.1}",
+                format!("{scan} {side}"),
+                q.upper_outer,
+                q.upper_inner,
+                q.lower_inner,
+                q.lower_outer
+            );
+        }
+    }
+    let symmetry = &report.symmetry;
+    let _ = writeln!(
+        out,
+        "\n{:<38} {:>10} {:>10}",
+        "symmetry (left against mirrored right)", "reference", "test"
+    );
+    let rows: [(&str, SymmetryFigure); 6] = [
+        ("volume ratio left/right", |s| s.volume_ratio_left_to_right),
+        ("nipple height difference mm", |s| {
+            s.nipple_height_difference_mm
+        }),
+        ("nipple position difference mm", |s| s.nipple_distance_mm),
+        ("asymmetry rms, breasts mm", |s| {
+            s.asymmetry.both_breasts.map_or(f64::NAN, |b| b.rms_mm)
+        }),
+        ("asymmetry rms, overall mm", |s| s.asymmetry.whole.rms_mm),
+        ("mirror plane correction deg", |s| s.mirror_correction_deg),
+    ];
+    let cell = |symmetry: &Option<plan::compare::SymmetryReport>,
+                value: fn(&plan::compare::SymmetryReport) -> f64| {
+        symmetry
+            .as_ref()
+            .map_or_else(|| "-".to_string(), |s| format!("{:.2}", value(s)))
+    };
+    for (name, value) in rows {
+        let _ = writeln!(
+            out,
+            "{name:<38} {:>10} {:>10}",
+            cell(&symmetry.reference, value),
+            cell(&symmetry.test, value)
+        );
+    }
+    for warning in &report.warnings {
+        let _ = writeln!(out, "\nnote: {warning}");
+    }
+    if let Some(path) = &report.out {
+        let _ = writeln!(
+            out,
+            "\ndeviation map (test scan, green 0 mm to red 20 mm) -> {}",
+            path.display()
         );
     }
     out

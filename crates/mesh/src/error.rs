@@ -42,6 +42,9 @@ pub enum MeshError {
     /// The mesh has no triangles at all.
     #[error("the mesh has no triangles")]
     Empty,
+    /// An extra vertex property cannot be written.
+    #[error("vertex property {name:?}: {message}")]
+    VertexProperty { name: String, message: &'static str },
     /// An attribute layer's size does not match the mesh.
     #[error("{layer} has {found} entries, expected {expected}")]
     AttributeSize {

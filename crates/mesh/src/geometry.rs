@@ -39,6 +39,28 @@ impl TriMesh {
         normals.iter().map(|n| n.normalize_or_zero()).collect()
     }
 
+    /// Angle-weighted unit vertex normals (Thürmer and Wüthrich): each triangle's unit
+    /// normal weighted by its angle at the vertex. Unlike area weighting they do not
+    /// depend on how the fan around a vertex is triangulated, and they are the vertex
+    /// pseudo-normals that decide the inside of a closed surface robustly (Bærentzen
+    /// and Aanæs 2005). Zero for a vertex without (non-degenerate) triangles.
+    pub fn angle_weighted_vertex_normals(&self) -> Vec<DVec3> {
+        let mut normals = vec![DVec3::ZERO; self.positions.len()];
+        for t in 0..self.triangles.len() {
+            let corners = self.triangle_positions(t);
+            let normal = self.triangle_normal(t);
+            for k in 0..3 {
+                let (here, next, previous) =
+                    (corners[k], corners[(k + 1) % 3], corners[(k + 2) % 3]);
+                let angle = (next - here).angle_between(previous - here);
+                if angle.is_finite() {
+                    normals[self.triangles[t][k] as usize] += normal * angle;
+                }
+            }
+        }
+        normals.iter().map(|n| n.normalize_or_zero()).collect()
+    }
+
     /// Total surface area (mm²).
     pub fn area(&self) -> f64 {
         (0..self.triangles.len())
@@ -105,6 +127,21 @@ mod tests {
         let normals = mesh.vertex_normals();
         let expected = DVec3::splat(-1.0).normalize();
         assert!(normals[0].distance(expected) < 1e-12);
+    }
+
+    #[test]
+    fn angle_weighted_normals_ignore_how_the_corner_is_triangulated() {
+        // Each cube corner meets three faces at 90° each, however they are split into
+        // triangles: the normal is the corner's diagonal.
+        let mesh = cube(2.0);
+        let centre = DVec3::splat(1.0);
+        for (p, normal) in mesh
+            .positions
+            .iter()
+            .zip(mesh.angle_weighted_vertex_normals())
+        {
+            assert!(normal.distance((*p - centre).normalize()) < 1e-12, "{p}");
+        }
     }
 
     #[test]

@@ -2,8 +2,8 @@
 //! every feature the readers support, every error case, and the shared torso scans.
 
 use mesh::io::{
-    PlyEncoding, read_mesh, read_obj, read_ply, read_stl, write_mesh, write_obj, write_ply,
-    write_stl,
+    PlyEncoding, VertexScalar, read_mesh, read_obj, read_ply, read_ply_with_scalars, read_stl,
+    write_mesh, write_obj, write_ply, write_ply_with_scalars, write_stl,
 };
 use mesh::{DVec2, DVec3, MaterialLayer, MeshError, TriMesh, UvLayer, shapes};
 use std::path::{Path, PathBuf};
@@ -110,6 +110,82 @@ fn ply_round_trip_in_every_encoding_is_exact() {
         write_ply(&path, &mesh, encoding).unwrap();
         assert_eq!(read_ply(&path).unwrap(), mesh, "{encoding:?}");
     }
+}
+
+#[test]
+fn ply_extra_vertex_scalars_round_trip_and_bad_ones_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = decorated_sphere();
+    let distance: Vec<f64> = (0..mesh.vertex_count()).map(|v| v as f64 * 0.25).collect();
+    // NaN marks "no value" (e.g. outside a comparison's overlap) and must survive.
+    let signed: Vec<f64> = (0..mesh.vertex_count())
+        .map(|v| if v % 7 == 0 { f64::NAN } else { -(v as f64) })
+        .collect();
+    let scalars = [
+        VertexScalar {
+            name: "distance_mm",
+            values: &distance,
+        },
+        VertexScalar {
+            name: "signed_distance_mm",
+            values: &signed,
+        },
+    ];
+    for encoding in [
+        PlyEncoding::Ascii,
+        PlyEncoding::BinaryLittleEndian,
+        PlyEncoding::BinaryBigEndian,
+    ] {
+        let path = dir.path().join(format!("scalars_{encoding:?}.ply"));
+        write_ply_with_scalars(&path, &mesh, encoding, &scalars).unwrap();
+        // Readers that do not ask for them see the mesh unchanged.
+        assert_eq!(read_ply(&path).unwrap(), mesh, "{encoding:?}");
+        let (read, values) =
+            read_ply_with_scalars(&path, &["signed_distance_mm", "distance_mm"]).unwrap();
+        assert_eq!(read, mesh);
+        assert_eq!(values[1], distance, "{encoding:?}");
+        for (read, written) in values[0].iter().zip(&signed) {
+            assert!(read == written || (read.is_nan() && written.is_nan()));
+        }
+        let error = read_ply_with_scalars(&path, &["curvature"]).unwrap_err();
+        assert!(
+            error.to_string().contains("no scalar property 'curvature'"),
+            "{error}"
+        );
+    }
+
+    let path = dir.path().join("refused.ply");
+    let short = [1.0, 2.0];
+    for (bad, expected) in [
+        (
+            VertexScalar {
+                name: "red",
+                values: &distance,
+            },
+            "standard property",
+        ),
+        (
+            VertexScalar {
+                name: "two words",
+                values: &distance,
+            },
+            "letters, digits",
+        ),
+        (
+            VertexScalar {
+                name: "distance_mm",
+                values: &short,
+            },
+            "expected",
+        ),
+    ] {
+        let error = write_ply_with_scalars(&path, &mesh, PlyEncoding::Ascii, &[bad]).unwrap_err();
+        assert!(error.to_string().contains(expected), "{error}");
+    }
+    let twice = [scalars[0], scalars[0]];
+    let error = write_ply_with_scalars(&path, &mesh, PlyEncoding::Ascii, &twice).unwrap_err();
+    assert!(error.to_string().contains("given twice"), "{error}");
+    assert!(!path.exists());
 }
 
 #[test]

@@ -1,9 +1,10 @@
 //! The orchestration layer: loading scans and landmarks, measuring, registering, the
-//! breast model and the demo pipeline. Both front ends (CLI, GUI) call only this crate;
+//! breast model, simulation, comparing scans and the demo pipeline. Both front ends (CLI, GUI) call only this crate;
 //! it holds the glue, the algorithms live in the stage crates below it.
 
 pub mod bench;
 pub mod catalog;
+pub mod compare;
 pub mod demo;
 pub mod fem_solve;
 pub mod measure;
@@ -15,6 +16,23 @@ pub mod simulate;
 pub use anatomy::measure::Distance;
 pub use phantom::{Cup, PhantomParams};
 pub use scan::{MarkedScan, Scan};
+
+/// The error and its causes on one line, outermost first. A cause whose message the
+/// previous one already ends with (errors that print their source) is not repeated.
+pub fn one_line(error: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in error.chain() {
+        let message = cause.to_string();
+        if line.ends_with(&message) {
+            continue;
+        }
+        if !line.is_empty() {
+            line += ": ";
+        }
+        line += &message;
+    }
+    line
+}
 
 /// Receives progress of long operations (a terminal bar, a GUI, or nothing).
 pub trait Progress: Sync {

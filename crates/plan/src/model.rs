@@ -178,7 +178,8 @@ pub struct PerSide<T> {
 }
 
 impl<T> PerSide<T> {
-    fn from_fn(mut f: impl FnMut(Side) -> T) -> PerSide<T> {
+    /// The values `f(Side::Left)` and `f(Side::Right)`.
+    pub fn from_fn(mut f: impl FnMut(Side) -> T) -> PerSide<T> {
         PerSide {
             left: f(Side::Left),
             right: f(Side::Right),
@@ -288,35 +289,9 @@ pub fn build_model(
         breast_options.control_points = Some(ControlPoints::read(path)?);
     }
     progress.stage("model", 2);
-    let breasts = build_breast_model(
-        &scan.mesh,
-        &scan.topology,
-        &scan.index,
-        &marked.frame,
-        &marked.landmarks,
-        &breast_options,
-    )
-    .with_context(|| {
-        format!(
-            "{} with {}",
-            scan.path.display(),
-            marked.landmarks_path.display()
-        )
-    })?;
+    let breasts = build_breasts(marked, &breast_options, progress)?;
     let breast_model_ms = elapsed_ms(start);
     progress.step();
-    for hole in &breasts.holes_left_open {
-        progress.warn(&format!("{}: {hole}", scan.path.display()));
-    }
-    for hole in &breasts.holes_in_breasts {
-        progress.warn(&format!(
-            "{}: a scanner hole of {:.0} mm perimeter inside the {} breast near {:.0?} was closed by the fill-in",
-            scan.path.display(),
-            hole.perimeter_mm,
-            hole.side,
-            hole.centre
-        ));
-    }
 
     let closed_start = Instant::now();
     let closed_surface = build_closed_surface(
@@ -361,6 +336,44 @@ pub fn build_model(
             total_ms: elapsed_ms(start),
         },
     })
+}
+
+/// The breast model of a scan alone (cut curves, breast patches, fill-ins, breast and
+/// quadrant volumes), warning about scanner holes it closed or left open.
+pub fn build_breasts(
+    marked: &MarkedScan,
+    options: &BreastOptions,
+    progress: &dyn Progress,
+) -> Result<BreastModel> {
+    let scan = &marked.scan;
+    let breasts = build_breast_model(
+        &scan.mesh,
+        &scan.topology,
+        &scan.index,
+        &marked.frame,
+        &marked.landmarks,
+        options,
+    )
+    .with_context(|| {
+        format!(
+            "{} with {}",
+            scan.path.display(),
+            marked.landmarks_path.display()
+        )
+    })?;
+    for hole in &breasts.holes_left_open {
+        progress.warn(&format!("{}: {hole}", scan.path.display()));
+    }
+    for hole in &breasts.holes_in_breasts {
+        progress.warn(&format!(
+            "{}: a scanner hole of {:.0} mm perimeter inside the {} breast near {:.0?} was closed by the fill-in",
+            scan.path.display(),
+            hole.perimeter_mm,
+            hole.side,
+            hole.centre
+        ));
+    }
+    Ok(breasts)
 }
 
 /// The (up to [`MAX_TET_LEVELS`]) tetrahedral meshes of the closed surface, the finest with about

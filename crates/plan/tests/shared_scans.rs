@@ -119,3 +119,50 @@ fn registration_recovers_the_known_transform_of_pair1() {
         }
     }
 }
+
+#[test]
+fn compare_of_pair1_recovers_the_registration_and_sees_the_larger_cup() {
+    let Some(dir) = shared_scans() else { return };
+    let pre = load(&dir, "pair1_pre");
+    let post = load(&dir, "pair1_post");
+    let options = plan::compare::CompareOptions {
+        register: true,
+        ..Default::default()
+    };
+    let report = plan::compare::compare(&pre, &post, &options, &Silent).unwrap();
+    let found = RigidTransform::from_row_major(&report.registration.as_ref().unwrap().matrix);
+    let error = found.after(&true_post_to_pre(&dir).inverse());
+    let worst_mm = pre
+        .scan
+        .mesh
+        .positions
+        .iter()
+        .step_by(97)
+        .map(|&p| error.apply(p).distance(p))
+        .fold(0.0, f64::max);
+    let both = report.breast_regions.both.unwrap();
+    eprintln!(
+        "pair1: registration error {worst_mm:.3} mm; rms {:.2} mm, breasts {:.2} mm (signed {:+.2}), hausdorff {:.2} mm, overlap {:.3}",
+        report.rms_mm,
+        both.rms_mm,
+        both.signed_mean_mm,
+        report.hausdorff_mm,
+        report.overlap_fraction
+    );
+    assert!(worst_mm < 0.5, "{worst_mm}");
+    assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+    assert!(report.overlap_fraction > 0.9);
+    // The larger cup lies in front of the smaller one, and the change is in the breasts.
+    assert!(both.signed_mean_mm > 3.0 && both.rms_mm > report.rms_mm);
+    let (pre_volumes, post_volumes) = (
+        report.breast_volume_ml.reference.unwrap(),
+        report.breast_volume_ml.test.unwrap(),
+    );
+    assert!(post_volumes.left > pre_volumes.left + 50.0);
+    // The body is symmetric (MakeHuman's average model).
+    for symmetry in [&report.symmetry.reference, &report.symmetry.test] {
+        let symmetry = symmetry.as_ref().unwrap();
+        assert!((symmetry.volume_ratio_left_to_right - 1.0).abs() < 0.05);
+        assert!(symmetry.asymmetry.both_breasts.unwrap().rms_mm < 1.0);
+    }
+}

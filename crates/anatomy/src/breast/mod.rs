@@ -93,6 +93,14 @@ impl Side {
         }
     }
 
+    /// The other side.
+    pub fn opposite(self) -> Side {
+        match self {
+            Side::Left => Side::Right,
+            Side::Right => Side::Left,
+        }
+    }
+
     fn landmark_names(self) -> SideLandmarks {
         use LandmarkName::*;
         match self {
@@ -200,6 +208,25 @@ impl BreastModel {
             Side::Left => &self.left,
             Side::Right => &self.right,
         }
+    }
+
+    /// For each of the first `scan_vertex_count` vertices (the scan's, which
+    /// [`BreastModel::surface`] and the cut mesh start with), the breast whose region
+    /// (inside its cut curve) it lies in, or `None` on the base. A vertex on a cut curve
+    /// belongs to the breast.
+    pub fn scan_vertex_sides(&self, scan_vertex_count: usize) -> Vec<Option<Side>> {
+        let mut sides = vec![None; scan_vertex_count];
+        let cut = &self.cut_mesh;
+        for (corners, region) in cut.mesh.triangles.iter().zip(&cut.regions) {
+            if let Region::Inside(curve) = *region {
+                for &v in corners {
+                    if let Some(side) = sides.get_mut(v as usize) {
+                        *side = Some(Side::BOTH[curve.min(1)]);
+                    }
+                }
+            }
+        }
+        sides
     }
 
     /// How smoothly the rear wall meets the base across the cut curve of `side`: the

@@ -6,7 +6,9 @@ mod ply;
 mod stl;
 
 pub use obj::{read_obj, write_obj};
-pub use ply::{PlyEncoding, read_ply, write_ply};
+pub use ply::{
+    PlyEncoding, VertexScalar, read_ply, read_ply_with_scalars, write_ply, write_ply_with_scalars,
+};
 pub use stl::{read_stl, write_stl};
 
 use crate::error::MeshError;

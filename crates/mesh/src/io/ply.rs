@@ -12,8 +12,10 @@
 //! Read: positions `x`/`y`/`z` of any scalar type; faces from the `vertex_indices` (or
 //! `vertex_index`) list of any count and index type, polygons fan-triangulated; per-vertex
 //! colour `red`/`green`/`blue` (integer types taken as 0–255, float types as 0–1); per-vertex
-//! texture coordinates `s`/`t`, `u`/`v` or `texture_u`/`texture_v`. Every other property
-//! and element (including list properties, e.g. per-face `texcoord`) is skipped.
+//! texture coordinates `s`/`t`, `u`/`v` or `texture_u`/`texture_v`; on request
+//! ([`read_ply_with_scalars`]) named scalar vertex properties (e.g. a deviation map's
+//! `distance_mm`). Every other property and element (including list properties, e.g.
+//! per-face `texcoord`) is skipped.
 
 use super::{ParseError, fan, parse_number, read_file, write_atomically};
 use crate::error::MeshError;
@@ -35,9 +37,32 @@ pub enum PlyEncoding {
 /// triangles equal the mesh triangles. Coordinates are checked to be finite; the rest of
 /// [`TriMesh::validate`] is left to the caller (`read_mesh` runs it).
 pub fn read_ply(path: &Path) -> Result<TriMesh, MeshError> {
-    let data = read_file(path)?;
-    parse(&data).map_err(|e| e.in_file(path))
+    read_ply_with_scalars(path, &[]).map(|(mesh, _)| mesh)
 }
+
+/// Reads a PLY file as [`read_ply`] does, and the scalar vertex properties `names` (as
+/// f64, one value per vertex, in the order of `names`). A missing property is an error
+/// naming it.
+pub fn read_ply_with_scalars(
+    path: &Path,
+    names: &[&str],
+) -> Result<(TriMesh, Vec<Vec<f64>>), MeshError> {
+    let data = read_file(path)?;
+    parse(&data, names).map_err(|e| e.in_file(path))
+}
+
+/// A named scalar per vertex, written as an extra `double` vertex property (e.g. a
+/// distance map for ParaView or MeshLab).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VertexScalar<'a> {
+    /// The property name: letters, digits and `_`, not one of the standard properties.
+    pub name: &'a str,
+    /// One value per vertex.
+    pub values: &'a [f64],
+}
+
+/// Vertex property names [`write_ply`] uses itself.
+const STANDARD_VERTEX_PROPERTIES: [&str; 8] = ["x", "y", "z", "red", "green", "blue", "s", "t"];
 
 /// Writes a PLY file atomically: positions as `double` (scans are stored without losing
 /// precision), colours as `uchar` `red`/`green`/`blue` if present, texture coordinates as
@@ -46,10 +71,24 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, MeshError> {
 /// vertex_indices`. Materials are not stored. Refuses a mesh that fails
 /// [`TriMesh::validate`].
 pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(), MeshError> {
+    write_ply_with_scalars(path, mesh, encoding, &[])
+}
+
+/// Writes a PLY file as [`write_ply`] does, with extra scalar vertex properties after the
+/// standard ones (`property double <name>`). Refuses a name that is empty, not made of
+/// letters, digits and `_`, standard or repeated, and a scalar without one value per
+/// vertex.
+pub fn write_ply_with_scalars(
+    path: &Path,
+    mesh: &TriMesh,
+    encoding: PlyEncoding,
+    scalars: &[VertexScalar<'_>],
+) -> Result<(), MeshError> {
     mesh.validate()?;
+    check_scalars(mesh, scalars)?;
     let uv = per_vertex_uv(mesh);
     write_atomically(path, |out| {
-        write_header(out, mesh, encoding, uv.is_some())?;
+        write_header(out, mesh, encoding, uv.is_some(), scalars)?;
         let mut record = RecordWriter {
             out,
             encoding,
@@ -67,6 +106,9 @@ pub fn write_ply(path: &Path, mesh: &TriMesh, encoding: PlyEncoding) -> Result<(
             if let Some(uv) = &uv {
                 record.value(uv[vertex].x)?;
                 record.value(uv[vertex].y)?;
+            }
+            for scalar in scalars {
+                record.value(scalar.values[vertex])?;
             }
             record.end()?;
         }
@@ -344,10 +386,12 @@ struct VertexLayout {
     /// `red`/`green`/`blue` and whether they are floats (0–1) rather than integers (0–255).
     color: Option<([usize; 3], bool)>,
     uv: Option<[usize; 2]>,
+    /// The scalar properties asked for by name, in the order asked.
+    scalars: Vec<usize>,
 }
 
 impl VertexLayout {
-    fn new(element: &Element) -> Result<VertexLayout, ParseError> {
+    fn new(element: &Element, scalar_names: &[&str]) -> Result<VertexLayout, ParseError> {
         let mut xyz = [0; 3];
         for (slot, name) in xyz.iter_mut().zip(["x", "y", "z"]) {
             *slot = element
@@ -366,7 +410,22 @@ impl VertexLayout {
         let uv = [("s", "t"), ("u", "v"), ("texture_u", "texture_v")]
             .into_iter()
             .find_map(|(u, v)| Some([element.scalar(u)?.0, element.scalar(v)?.0]));
-        Ok(VertexLayout { xyz, color, uv })
+        let scalars = scalar_names
+            .iter()
+            .map(|&name| {
+                element.scalar(name).map(|(index, _)| index).ok_or_else(|| {
+                    ParseError::new(format!(
+                        "the vertex element has no scalar property '{name}'"
+                    ))
+                })
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(VertexLayout {
+            xyz,
+            color,
+            uv,
+            scalars,
+        })
     }
 
     /// Indices of the properties we read.
@@ -376,15 +435,16 @@ impl VertexLayout {
             .into_iter()
             .chain(color)
             .chain(self.uv.into_iter().flatten())
+            .chain(self.scalars.iter().copied())
     }
 }
 
-fn roles(header: &Header) -> Result<Vec<Role>, ParseError> {
+fn roles(header: &Header, scalar_names: &[&str]) -> Result<Vec<Role>, ParseError> {
     header
         .elements
         .iter()
         .map(|element| match element.name.as_str() {
-            "vertex" => VertexLayout::new(element).map(Role::Vertices),
+            "vertex" => VertexLayout::new(element, scalar_names).map(Role::Vertices),
             "face" => element
                 .properties
                 .iter()
@@ -408,12 +468,14 @@ struct Builder {
     positions: Vec<DVec3>,
     colors: Vec<[u8; 3]>,
     uvs: Vec<DVec2>,
+    /// The requested scalar properties, one list per name.
+    scalars: Vec<Vec<f64>>,
     triangles: Vec<[u32; 3]>,
     corners: Vec<u32>,
 }
 
 impl Builder {
-    fn new(header: &Header, file_size: usize) -> Builder {
+    fn new(header: &Header, file_size: usize, scalar_count: usize) -> Builder {
         let count = |name: &str| {
             let element = header.elements.iter().find(|e| e.name == name);
             element.map_or(0, |e| e.count)
@@ -425,6 +487,7 @@ impl Builder {
             positions: Vec::with_capacity(vertex_count.min(file_size)),
             colors: Vec::new(),
             uvs: Vec::new(),
+            scalars: vec![Vec::new(); scalar_count],
             triangles: Vec::with_capacity(count("face").min(file_size)),
             corners: Vec::new(),
         }
@@ -451,6 +514,9 @@ impl Builder {
         }
         if let Some([u, v]) = layout.uv {
             self.uvs.push(DVec2::new(values[u], values[v]));
+        }
+        for (list, &p) in self.scalars.iter_mut().zip(&layout.scalars) {
+            list.push(values[p]);
         }
         Ok(())
     }
@@ -480,28 +546,30 @@ impl Builder {
         Ok(())
     }
 
-    fn finish(self) -> TriMesh {
+    /// The mesh and the requested scalars.
+    fn finish(self) -> (TriMesh, Vec<Vec<f64>>) {
         let uv = (!self.uvs.is_empty()).then(|| UvLayer {
             coords: self.uvs,
             triangles: self.triangles.clone(),
         });
-        TriMesh {
+        let mesh = TriMesh {
             positions: self.positions,
             triangles: self.triangles,
             vertex_colors: (!self.colors.is_empty()).then_some(self.colors),
             uv,
             materials: None,
-        }
+        };
+        (mesh, self.scalars)
     }
 }
 
-fn parse(data: &[u8]) -> Result<TriMesh, ParseError> {
+fn parse(data: &[u8], scalar_names: &[&str]) -> Result<(TriMesh, Vec<Vec<f64>>), ParseError> {
     let header = parse_header(data)?;
-    let roles = roles(&header)?;
+    let roles = roles(&header, scalar_names)?;
     if !roles.iter().any(|r| matches!(r, Role::Vertices(_))) {
         return Err(ParseError::new("the file has no vertex element"));
     }
-    let mut mesh = Builder::new(&header, data.len());
+    let mut mesh = Builder::new(&header, data.len(), scalar_names.len());
     let body = &data[header.body_start..];
     let elements = header.elements.iter().zip(&roles);
     match header.encoding {
@@ -790,11 +858,40 @@ fn per_vertex_uv(mesh: &TriMesh) -> Option<Vec<DVec2>> {
     )
 }
 
+/// Checks the names and sizes of extra vertex scalars (see [`write_ply_with_scalars`]).
+fn check_scalars(mesh: &TriMesh, scalars: &[VertexScalar<'_>]) -> Result<(), MeshError> {
+    for (k, scalar) in scalars.iter().enumerate() {
+        let name = scalar.name;
+        let error = |message| MeshError::VertexProperty {
+            name: name.to_string(),
+            message,
+        };
+        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+            return Err(error("a name must be letters, digits and '_'"));
+        }
+        if STANDARD_VERTEX_PROPERTIES.contains(&name) {
+            return Err(error("the name is taken by a standard property"));
+        }
+        if scalars[..k].iter().any(|other| other.name == name) {
+            return Err(error("the name is given twice"));
+        }
+        if scalar.values.len() != mesh.vertex_count() {
+            return Err(MeshError::AttributeSize {
+                layer: "vertex scalar",
+                found: scalar.values.len(),
+                expected: mesh.vertex_count(),
+            });
+        }
+    }
+    Ok(())
+}
+
 fn write_header(
     out: &mut impl Write,
     mesh: &TriMesh,
     encoding: PlyEncoding,
     uv: bool,
+    scalars: &[VertexScalar<'_>],
 ) -> std::io::Result<()> {
     let format = match encoding {
         PlyEncoding::Ascii => "ascii",
@@ -818,6 +915,9 @@ fn write_header(
     }
     if uv {
         writeln!(out, "property double s\nproperty double t")?;
+    }
+    for scalar in scalars {
+        writeln!(out, "property double {}", scalar.name)?;
     }
     writeln!(out, "element face {}", mesh.triangles.len())?;
     writeln!(out, "property list uchar int vertex_indices\nend_header")
