@@ -58,7 +58,8 @@ pub fn render_html(content: &ReportContent) -> String {
                     p {
                         "The simulated shape is the prediction of a biomechanical (finite-element) model "
                         "built from the pre-operative scan; it is not a guarantee of the surgical outcome. "
-                        "Lengths in millimetres, volumes in millilitres (cm³); left and right are the patient's."
+                        "Lengths in millimetres, volumes in millilitres (cm³); left and right are the patient's; "
+                        "a dash marks a value that is not available."
                     }
                     p { (content.case.software) " · " (content.case.created) }
                 }
