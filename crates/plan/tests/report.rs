@@ -219,9 +219,7 @@ fn missing_and_malformed_folders_are_named() {
     let error = |inputs: ReportInputs| {
         format!(
             "{:#}",
-            report_content(&inputs, &Silent)
-                .err()
-                .expect("the report must fail")
+            report_content(&inputs, &Silent).expect_err("the report must fail")
         )
     };
     let message = error(inputs("nowhere", "simulation"));
