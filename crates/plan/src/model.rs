@@ -654,16 +654,31 @@ pub(crate) struct LevelRecord {
 
 /// Reads the `model.json` of a model folder.
 pub(crate) fn read_model_record(model_dir: &Path) -> Result<ModelRecord> {
-    let report_path = model_dir.join("model.json");
-    let text = std::fs::read_to_string(&report_path).with_context(|| {
+    read_folder_json(model_dir, "model.json", "model", "model")
+}
+
+/// Reads `file` of a folder that `mammaplan {command}` writes (a `{kind}` folder) as `T`.
+/// Errors name the file and the folder expected.
+pub(crate) fn read_folder_json<T: serde::de::DeserializeOwned>(
+    folder: &Path,
+    file: &str,
+    kind: &str,
+    command: &str,
+) -> Result<T> {
+    let path = folder.join(file);
+    let text = std::fs::read_to_string(&path).with_context(|| {
         format!(
-            "reading {} (is {} a model folder written by `mammaplan model`?)",
-            report_path.display(),
-            model_dir.display()
+            "reading {} (is {} a {kind} folder written by `mammaplan {command}`?)",
+            path.display(),
+            folder.display()
         )
     })?;
-    serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a model report", report_path.display()))
+    serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: not a {kind} report of this mammaplan version (run `mammaplan {command}` again)",
+            path.display()
+        )
+    })
 }
 
 /// Reopens a model folder written by [`write_model`]: reads the scan and landmarks named

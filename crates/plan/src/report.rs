@@ -14,7 +14,7 @@
 //! and post-operative scans and read from `result.json` for the simulation.
 
 use crate::measure::measure;
-use crate::model::{PerSide, build_breasts, read_model_record};
+use crate::model::{PerSide, build_breasts, read_folder_json, read_model_record};
 use crate::simulate::MaterialsReport;
 use crate::{Distance, MarkedScan, Progress};
 use anatomy::breast::{BreastModel, QuadrantVolumes};
@@ -345,20 +345,7 @@ struct SolverRecord {
 }
 
 fn read_simulation_record(simulation_dir: &Path) -> Result<SimulationRecord> {
-    let path = simulation_dir.join("result.json");
-    let text = std::fs::read_to_string(&path).with_context(|| {
-        format!(
-            "reading {} (is {} a simulation folder written by `mammaplan simulate`?)",
-            path.display(),
-            simulation_dir.display()
-        )
-    })?;
-    serde_json::from_str(&text).with_context(|| {
-        format!(
-            "{}: not a simulation result of this mammaplan version (run `mammaplan simulate` again)",
-            path.display()
-        )
-    })
+    read_folder_json(simulation_dir, "result.json", "simulation", "simulate")
 }
 
 fn breast_volumes(breast_ml: f64, quadrants: Option<QuadrantVolumes>) -> report::BreastVolumes {

@@ -249,5 +249,5 @@ fn missing_and_malformed_folders_are_named() {
     std::fs::create_dir_all(dir.path().join("simulation")).unwrap();
     std::fs::write(dir.path().join("simulation/result.json"), "{}").unwrap();
     let message = error(inputs("model", "simulation"));
-    assert!(message.contains("not a simulation result"), "{message}");
+    assert!(message.contains("not a simulation report"), "{message}");
 }
