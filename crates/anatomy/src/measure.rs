@@ -9,7 +9,7 @@ use mesh::geodesic::GeodesicSolver;
 use mesh::section::plane_section_path;
 use mesh::{SurfaceIndex, SurfacePoint, Topology, TriMesh};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// A distance to measure, by landmark names.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -48,7 +48,7 @@ pub fn clinical_distances() -> Vec<DistanceSpec> {
 
 /// One measured distance (mm). A surface measure that cannot be traced (e.g. the section
 /// leaves the scan through a hole) is `None`, with the reason in `note`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Distance {
     pub name: String,
     pub from: String,
@@ -56,7 +56,7 @@ pub struct Distance {
     pub euclidean_mm: f64,
     pub surface_mm: Option<f64>,
     pub geodesic_mm: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
 }
 

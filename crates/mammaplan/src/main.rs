@@ -248,6 +248,26 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// One self-contained HTML page about a plan (printable, nothing fetched): case, implants,
+    /// views, distances and volumes before, as simulated and after, symmetry, and the
+    /// comparison with the post-operative scan when given.
+    Report {
+        /// A model folder written by `mammaplan model`.
+        #[arg(long, value_name = "MODEL_DIR")]
+        model: PathBuf,
+        /// A simulation folder written by `mammaplan simulate` from that model.
+        #[arg(long, value_name = "SIM_DIR")]
+        simulation: PathBuf,
+        /// The post-operative scan (PLY, OBJ or STL).
+        #[arg(long, value_name = "SCAN", requires = "postop_landmarks")]
+        postop: Option<PathBuf>,
+        /// The post-operative scan's landmark file.
+        #[arg(long, value_name = "JSON", requires = "postop")]
+        postop_landmarks: Option<PathBuf>,
+        /// The report (HTML).
+        #[arg(long, value_name = "HTML")]
+        out: PathBuf,
+    },
     /// The paper's Table I on this machine: implant set-up, multigrid cycles and the
     /// direct solver on the phantom's models.
     Bench {
@@ -482,6 +502,26 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 print!("{}", summary::simulation(&report));
                 Ok(())
             }
+        }
+        Command::Report {
+            model,
+            simulation,
+            postop,
+            postop_landmarks,
+            out,
+        } => {
+            let inputs = plan::report::ReportInputs {
+                model_dir: model,
+                simulation_dir: simulation,
+                postoperative: postop
+                    .zip(postop_landmarks)
+                    .map(|(scan, landmarks)| plan::report::PostoperativeScan { scan, landmarks }),
+                created: std::time::SystemTime::now(),
+            };
+            let report = plan::report::write_report(&inputs, &out, progress)?;
+            progress.finish();
+            print!("{}", summary::report(&report));
+            Ok(())
         }
         Command::Fem {
             command:

@@ -93,6 +93,8 @@ pub fn demo(report: &DemoReport) -> String {
     );
     out += "simulation:\n";
     out += &simulation_figures(&report.simulation);
+    out += "\n";
+    out += &self::report(&report.report);
     out += "\nfiles:\n";
     for file in &report.files {
         let _ = writeln!(out, "  {}", file.display());
@@ -507,4 +509,21 @@ pub fn comparison(report: &plan::compare::CompareReport) -> String {
         );
     }
     out
+}
+
+/// What `report` wrote.
+pub fn report(report: &plan::report::ReportSummary) -> String {
+    let mut parts = vec![format!("{} views", report.views)];
+    if report.postoperative {
+        parts.push("post-operative scan".into());
+    }
+    if report.comparison {
+        parts.push("comparison".into());
+    }
+    format!(
+        "report -> {} ({} kB; {})\n",
+        report.out.display(),
+        report.bytes.div_ceil(1000),
+        parts.join(", ")
+    )
 }

@@ -682,6 +682,77 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
         ]),
         "model.json",
     );
+
+    // The demo's report, and one with the follow-up scan as the post-operative scan.
+    let demo_report = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+    assert!(demo_report.contains("catalog:R-MOD-120"));
+    assert!(!demo_report.contains("Post-op"));
+    let report_path = dir.path().join("with_postop.html");
+    let report = mammaplan(&[
+        "report",
+        "--model",
+        model.to_str().unwrap(),
+        "--simulation",
+        dir.path().join("simulation").to_str().unwrap(),
+        "--postop",
+        dir.path().join("followup_scan.ply").to_str().unwrap(),
+        "--postop-landmarks",
+        dir.path().join("followup_landmarks.json").to_str().unwrap(),
+        "--out",
+        report_path.to_str().unwrap(),
+    ]);
+    assert!(report.status.success(), "{}", stderr(&report));
+    assert!(String::from_utf8_lossy(&report.stdout).contains("with_postop.html"));
+    let page = std::fs::read_to_string(&report_path).unwrap();
+    assert!(page.contains("Post-op − simulated"));
+    assert!(page.contains("followup_scan.ply"));
+}
+
+#[test]
+fn bad_report_input_fails_cleanly_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("report.html");
+    let path = |name: &str| dir.path().join(name).to_str().unwrap().to_string();
+    let report = |extra: &[&str]| {
+        let mut args = vec!["report", "--out", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        mammaplan(&args)
+    };
+    let (model, simulation) = (path("model"), path("simulation"));
+    assert_clean_failure(
+        &report(&["--model", &model, "--simulation", &simulation]),
+        "model.json",
+    );
+    std::fs::create_dir_all(dir.path().join("model")).unwrap();
+    std::fs::write(dir.path().join("model/model.json"), "not json").unwrap();
+    assert_clean_failure(
+        &report(&["--model", &model, "--simulation", &simulation]),
+        "not a model report",
+    );
+    assert_clean_failure(
+        &report(&[
+            "--model",
+            &model,
+            "--simulation",
+            &simulation,
+            "--postop",
+            &path("postop.ply"),
+        ]),
+        "--postop-landmarks",
+    );
+    assert_clean_failure(
+        &report(&[
+            "--model",
+            &model,
+            "--simulation",
+            &simulation,
+            "--postop-landmarks",
+            &path("postop.json"),
+        ]),
+        "--postop",
+    );
+    assert_clean_failure(&report(&["--model", &model]), "--simulation");
+    assert!(!out.exists());
 }
 
 #[test]

@@ -400,7 +400,8 @@ fn breast_model(
     warn: &mut impl FnMut(String),
     progress: &dyn Progress,
 ) -> Option<BreastModel> {
-    build_breasts(marked, &BreastOptions::default(), progress)
+    build_breasts(marked, &BreastOptions::default(), None, progress)
+        .map(|(breasts, _)| breasts)
         .map_err(|error| {
             warn(format!(
                 "the {role} scan has no breast model, so no breast volumes or symmetry (its breast regions come from the other scan): {}",

@@ -4,6 +4,7 @@
 use crate::measure::{MeasureReport, measure};
 use crate::model::{ModelOptions, ModelReport, PerSide, build_model, write_model};
 use crate::register::{RegisterReport, register, write_registered_mesh};
+use crate::report::{ReportInputs, ReportSummary, write_report};
 use crate::simulate::{ImplantRequest, Session, SimulateOptions, SimulateReport, run_session};
 use crate::{MarkedScan, Progress, Scan};
 use anatomy::register::RigidTransform;
@@ -13,6 +14,7 @@ use phantom::{Phantom, PhantomParams};
 use serde::Serialize;
 use serde_json::json;
 use std::path::{Path, PathBuf};
+use std::time::SystemTime;
 
 /// Generates a phantom and writes its scan and landmark file; the landmark file also
 /// carries the phantom's true breast volumes (`true_breast_volume_ml`).
@@ -65,6 +67,8 @@ pub struct DemoReport {
     pub breast_volume_error_percent: PerSide<f64>,
     /// A round 250 ml implant ([`DEMO_IMPLANT`]) on both sides, written to `simulation/`.
     pub simulation: SimulateReport,
+    /// The report of the model and the simulation, `report.html`.
+    pub report: ReportSummary,
     pub files: Vec<PathBuf>,
 }
 
@@ -82,8 +86,8 @@ fn follow_up_motion() -> RigidTransform {
 
 /// Runs the pipeline on the phantom into `out_dir`: phantom scan, measurements, a second
 /// noisy scan in a moved frame and its registration back onto the first, the breast
-/// model of the first (in `out_dir/model`) and the simulation of [`DEMO_IMPLANT`] on both
-/// sides (in `out_dir/simulation`).
+/// model of the first (in `out_dir/model`), the simulation of [`DEMO_IMPLANT`] on both
+/// sides (in `out_dir/simulation`) and the report of both (`out_dir/report.html`).
 pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let path = |name: &str| out_dir.join(name);
@@ -171,6 +175,17 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
             .iter()
             .map(|name| path("simulation").join(name)),
     );
+    let report = write_report(
+        &ReportInputs {
+            model_dir: path("model"),
+            simulation_dir: path("simulation"),
+            postoperative: None,
+            created: SystemTime::now(),
+        },
+        &path("report.html"),
+        progress,
+    )?;
+    files.push(path("report.html"));
     let truth = phantom.breast_volume_ml;
     let breast_volume_error_percent = PerSide {
         left: 100.0 * (model.breast_volume_ml.left / truth.left - 1.0),
@@ -193,6 +208,7 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
         model,
         breast_volume_error_percent,
         simulation,
+        report,
         files,
     })
 }

@@ -10,6 +10,7 @@ pub mod fem_solve;
 pub mod measure;
 pub mod model;
 pub mod register;
+pub mod report;
 pub mod scan;
 pub mod simulate;
 

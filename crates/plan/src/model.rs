@@ -171,7 +171,7 @@ pub struct RefinementReport {
 }
 
 /// Left and right values.
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 pub struct PerSide<T> {
     pub left: T,
     pub right: T,
@@ -284,12 +284,13 @@ pub fn build_model(
 ) -> Result<PatientModel> {
     let start = Instant::now();
     let scan = &marked.scan;
-    let mut breast_options = options.breast.clone();
-    if let Some(path) = &options.control_points_file {
-        breast_options.control_points = Some(ControlPoints::read(path)?);
-    }
     progress.stage("model", 2);
-    let breasts = build_breasts(marked, &breast_options, progress)?;
+    let (breasts, pc_ratio) = build_breasts(
+        marked,
+        &options.breast,
+        options.control_points_file.as_deref(),
+        progress,
+    )?;
     let breast_model_ms = elapsed_ms(start);
     progress.step();
 
@@ -320,7 +321,7 @@ pub fn build_model(
         scan_path: scan.path.clone(),
         landmarks_path: marked.landmarks_path.clone(),
         control_points_file: options.control_points_file.clone(),
-        pc_ratio: breast_options.pc_ratio,
+        pc_ratio,
         breasts,
         closed_surface,
         tets,
@@ -339,20 +340,27 @@ pub fn build_model(
 }
 
 /// The breast model of a scan alone (cut curves, breast patches, fill-ins, breast and
-/// quadrant volumes), warning about scanner holes it closed or left open.
+/// quadrant volumes), with the control points of `control_points_file` instead of those
+/// of `options` when given, warning about scanner holes it closed or left open. Returns
+/// it with the upper control point ratio used.
 pub fn build_breasts(
     marked: &MarkedScan,
     options: &BreastOptions,
+    control_points_file: Option<&Path>,
     progress: &dyn Progress,
-) -> Result<BreastModel> {
+) -> Result<(BreastModel, f64)> {
     let scan = &marked.scan;
+    let mut options = options.clone();
+    if let Some(path) = control_points_file {
+        options.control_points = Some(ControlPoints::read(path)?);
+    }
     let breasts = build_breast_model(
         &scan.mesh,
         &scan.topology,
         &scan.index,
         &marked.frame,
         &marked.landmarks,
-        options,
+        &options,
     )
     .with_context(|| {
         format!(
@@ -373,7 +381,7 @@ pub fn build_breasts(
             hole.centre
         ));
     }
-    Ok(breasts)
+    Ok((breasts, options.pc_ratio))
 }
 
 /// The (up to [`MAX_TET_LEVELS`]) tetrahedral meshes of the closed surface, the finest with about
@@ -629,21 +637,52 @@ pub fn write_closed_polyline(path: &Path, points: &[mesh::DVec3]) -> Result<()> 
     Ok(())
 }
 
-/// What [`load_model`] reads back from `model.json`.
+/// What [`load_model`] and the report read back from `model.json`.
 #[derive(Debug, Deserialize)]
-struct ModelRecord {
-    scan: PathBuf,
-    landmarks: PathBuf,
-    elements_requested: usize,
-    rear_wall_offset_mm: f64,
-    refinement: Option<Refinement>,
-    levels: Vec<LevelRecord>,
+pub(crate) struct ModelRecord {
+    pub scan: PathBuf,
+    pub landmarks: PathBuf,
+    pub elements_requested: usize,
+    pub rear_wall_offset_mm: f64,
+    pub refinement: Option<Refinement>,
+    pub levels: Vec<LevelRecord>,
+    pub breast_volume_ml: PerSide<f64>,
+    pub quadrant_volume_ml: PerSide<QuadrantVolumes>,
 }
 
 #[derive(Debug, Deserialize)]
-struct LevelRecord {
-    elements: usize,
-    nodes: usize,
+pub(crate) struct LevelRecord {
+    pub elements: usize,
+    pub nodes: usize,
+}
+
+/// Reads the `model.json` of a model folder.
+pub(crate) fn read_model_record(model_dir: &Path) -> Result<ModelRecord> {
+    read_folder_json(model_dir, "model.json", "model", "model")
+}
+
+/// Reads `file` of a folder that `mammaplan {command}` writes (a `{kind}` folder) as `T`.
+/// Errors name the file and the folder expected.
+pub(crate) fn read_folder_json<T: serde::de::DeserializeOwned>(
+    folder: &Path,
+    file: &str,
+    kind: &str,
+    command: &str,
+) -> Result<T> {
+    let path = folder.join(file);
+    let text = std::fs::read_to_string(&path).with_context(|| {
+        format!(
+            "reading {} (is {} a {kind} folder written by `mammaplan {command}`?)",
+            path.display(),
+            folder.display()
+        )
+    })?;
+    serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: not a {kind} report of this mammaplan version (run `mammaplan {command}` again)",
+            path.display()
+        )
+    })
 }
 
 /// Reopens a model folder written by [`write_model`]: reads the scan and landmarks named
@@ -653,15 +692,7 @@ struct LevelRecord {
 /// Returns the marked scan with the model.
 pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedScan, PatientModel)> {
     let report_path = model_dir.join("model.json");
-    let text = std::fs::read_to_string(&report_path).with_context(|| {
-        format!(
-            "reading {} (is {} a model folder written by `mammaplan model`?)",
-            report_path.display(),
-            model_dir.display()
-        )
-    })?;
-    let record: ModelRecord = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a model report", report_path.display()))?;
+    let record = read_model_record(model_dir)?;
     let marked = MarkedScan::load(&record.scan, &record.landmarks, progress)
         .with_context(|| format!("the scan named in {}", report_path.display()))?;
     let mut options = ModelOptions {

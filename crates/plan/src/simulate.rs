@@ -19,7 +19,7 @@ use anatomy::breast::Side;
 use anyhow::{Context, Result};
 use glam::DVec3;
 use implant::{Catalog, ImplantShape, ImplantSpec};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use simulation::{PatientInput, PlacedImplant, Simulation, SimulationOptions};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -140,7 +140,14 @@ pub struct SolverReport {
 #[derive(Debug, Clone, Serialize)]
 pub struct ImplantSummary {
     pub spec: String,
+    /// The catalog entry's id and family, for a `catalog:ID` spec.
+    pub catalog_id: Option<String>,
+    pub family: Option<String>,
     pub shape: ImplantShape,
+    /// Width (the diameter of a round implant), height and projection (mm).
+    pub width_mm: f64,
+    pub height_mm: f64,
+    pub projection_mm: f64,
     pub volume_ml: f64,
     /// The move asked for (mm, anatomical frame).
     pub move_mm: [f64; 3],
@@ -150,6 +157,39 @@ pub struct ImplantSummary {
     /// The further move of the anchor along the bed that made the footprint fit (mm,
     /// implant's `x'` to the patient's left and `y'` up; zero when it fitted as asked).
     pub fit_shift_mm: [f64; 2],
+}
+
+/// An isotropic elastic material of the simulation.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct MaterialReport {
+    pub young_kpa: f64,
+    pub poisson_ratio: f64,
+    pub density_kg_m3: f64,
+}
+
+/// The materials of the simulation.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct MaterialsReport {
+    pub tissue: MaterialReport,
+    pub implant: MaterialReport,
+}
+
+impl MaterialsReport {
+    fn new(options: &SimulationOptions) -> MaterialsReport {
+        let tissue = options.tissue;
+        MaterialsReport {
+            tissue: MaterialReport {
+                young_kpa: tissue.young_kpa,
+                poisson_ratio: tissue.poisson_ratio,
+                density_kg_m3: tissue.density_kg_m3,
+            },
+            implant: MaterialReport {
+                young_kpa: tissue.young_kpa * options.implant_young_ratio,
+                poisson_ratio: options.implant_poisson_ratio,
+                density_kg_m3: options.implant_density_kg_m3,
+            },
+        }
+    }
 }
 
 /// The JSON of `simulate` and `result.json` (GUIDE section 5).
@@ -167,6 +207,7 @@ pub struct SimulateReport {
     pub distances: Vec<crate::Distance>,
     pub solver: SolverReport,
     pub no_gravity: bool,
+    pub materials: MaterialsReport,
     pub out_dir: PathBuf,
     pub files: Vec<String>,
 }
@@ -208,10 +249,22 @@ pub fn run_session(
                 move_mm: request.move_mm,
                 rotation_deg: request.rotation_deg,
             };
+            let catalog_entry = match ImplantSpec::parse(&request.spec) {
+                Ok(ImplantSpec::Catalog(id)) => session.catalog.get(&id),
+                _ => None,
+            };
+            let (catalog_id, family) = catalog_entry
+                .map(|entry| (entry.id().to_string(), entry.family().to_string()))
+                .unzip();
             let placed = session.set_implant(side, &request.spec, placement)?;
             *implants.get_mut(side) = Some(ImplantSummary {
                 spec: request.spec.clone(),
+                catalog_id,
+                family,
                 shape: placed.shape,
+                width_mm: placed.shape.width_mm(),
+                height_mm: placed.shape.height_mm(),
+                projection_mm: placed.shape.projection_mm(),
                 volume_ml: placed.shape.volume_ml(),
                 move_mm: request.move_mm.to_array(),
                 rotation_deg: request.rotation_deg,
@@ -299,6 +352,7 @@ pub fn run_session(
         distances,
         solver,
         no_gravity: options.no_gravity,
+        materials: MaterialsReport::new(session.simulation.options()),
         out_dir: out_dir.to_path_buf(),
         files,
     };

@@ -19,12 +19,12 @@
 
 use glam::{DVec2, DVec3};
 use mesh::TriMesh;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
 
 /// The volumes of the four quadrants of one breast (ml). "Inner" is medial (towards the
 /// midline), "outer" lateral.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct QuadrantVolumes {
     pub upper_outer: f64,
     pub upper_inner: f64,

@@ -1,0 +1,591 @@
+//! `mammaplan report`: one self-contained HTML page (crate `report`) about a plan, from
+//! a model folder (`model.json`, `control_points.json`), a simulation folder
+//! (`result.json`, `simulated_scan.ply`, `simulated_landmarks.json`) and optionally the
+//! post-operative scan with its landmarks.
+//!
+//! Every scan shown is loaded with its landmarks ([`ShownScan`]). The pre-operative one
+//! is cut into breasts with the model's own control points, the post-operative one with
+//! the default control points from its landmarks: their breast and quadrant volumes.
+//! The simulated breast volumes are the simulation's (`result.json`: the pre-operative
+//! breast patch moved with the tissue, closed by a fill-in rebuilt on the moved chest);
+//! a breast model built afresh from the simulated landmarks would not measure the same
+//! breast, because the fold landmarks move with the tissue in front of the implant. The
+//! simulation has no quadrant volumes. The clinical distances are measured on the pre-
+//! and post-operative scans and read from `result.json` for the simulation.
+
+use crate::measure::measure;
+use crate::model::{PerSide, build_breasts, read_folder_json, read_model_record};
+use crate::simulate::MaterialsReport;
+use crate::{Distance, MarkedScan, Progress};
+use anatomy::breast::{BreastModel, QuadrantVolumes};
+use anatomy::{AnatomicalFrame, BreastOptions, LandmarkName, Landmarks};
+use anyhow::{Context, Result};
+use glam::DVec3;
+use serde::{Deserialize, Serialize};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+/// What a report is made from.
+#[derive(Debug, Clone)]
+pub struct ReportInputs {
+    /// A model folder written by `mammaplan model`.
+    pub model_dir: PathBuf,
+    /// A simulation folder written by `mammaplan simulate` from that model.
+    pub simulation_dir: PathBuf,
+    /// The post-operative scan, when there is one.
+    pub postoperative: Option<PostoperativeScan>,
+    /// When the report is made (shown as UTC date and time).
+    pub created: SystemTime,
+}
+
+/// A post-operative scan and its landmark file.
+#[derive(Debug, Clone)]
+pub struct PostoperativeScan {
+    pub scan: PathBuf,
+    pub landmarks: PathBuf,
+}
+
+/// What was written.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReportSummary {
+    pub out: PathBuf,
+    pub bytes: usize,
+    pub views: usize,
+    pub postoperative: bool,
+    pub comparison: bool,
+}
+
+/// A scan the report shows: with its landmarks and frame, and cut into breasts where
+/// the report measures its volumes.
+pub struct ShownScan {
+    pub marked: MarkedScan,
+    /// Cut curves, breast patches, volumes.
+    pub breasts: Option<BreastModel>,
+}
+
+impl ShownScan {
+    /// Loads a scan with its landmarks.
+    pub fn load(scan: &Path, landmarks: &Path, progress: &dyn Progress) -> Result<ShownScan> {
+        Ok(ShownScan {
+            marked: MarkedScan::load(scan, landmarks, progress)?,
+            breasts: None,
+        })
+    }
+
+    /// Loads a scan with its landmarks and builds its breast model, with the control
+    /// points of `control_points_file` when given (else the defaults from the landmarks).
+    pub fn load_with_breasts(
+        scan: &Path,
+        landmarks: &Path,
+        control_points_file: Option<&Path>,
+        progress: &dyn Progress,
+    ) -> Result<ShownScan> {
+        let marked = MarkedScan::load(scan, landmarks, progress)?;
+        let (breasts, _) = build_breasts(
+            &marked,
+            &BreastOptions::default(),
+            control_points_file,
+            progress,
+        )?;
+        Ok(ShownScan {
+            marked,
+            breasts: Some(breasts),
+        })
+    }
+}
+
+/// Breast and quadrant volumes of a breast model (ml).
+fn model_volumes(breasts: &BreastModel) -> report::PerSide<report::BreastVolumes> {
+    let side = |breast: &anatomy::breast::Breast| {
+        breast_volumes(breast.volume_ml, Some(breast.quadrant_volume_ml))
+    };
+    report::PerSide {
+        left: side(&breasts.left),
+        right: side(&breasts.right),
+    }
+}
+
+/// The scans of a report.
+pub struct ReportScans {
+    pub preoperative: ShownScan,
+    pub simulated: ShownScan,
+    pub postoperative: Option<ShownScan>,
+}
+
+/// The rendered views of the report: the scans from the front, the sides and obliquely,
+/// with landmarks and cut curves, and the deviation map of the simulated against the
+/// post-operative scan. Until the `render` crate is wired in, returns no views.
+pub fn report_views(_scans: &ReportScans) -> Result<Vec<report::View>> {
+    Ok(Vec::new())
+}
+
+/// The surface deviation of the simulated scan from the post-operative scan (RMS, mean
+/// and Hausdorff distance over the whole overlap and over each breast). Until the
+/// `assess` crate is wired in, returns no comparison.
+pub fn compare_with_postoperative(
+    _simulated: &ShownScan,
+    _postoperative: &ShownScan,
+) -> Result<Option<report::Comparison>> {
+    Ok(None)
+}
+
+/// Builds the report of `inputs` and writes it to `out` (atomically).
+pub fn write_report(
+    inputs: &ReportInputs,
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<ReportSummary> {
+    let content = report_content(inputs, progress)?;
+    let page = report::render_html(&content);
+    mesh::io::write_atomically(out, |w| w.write_all(page.as_bytes()))
+        .with_context(|| format!("writing {}", out.display()))?;
+    Ok(ReportSummary {
+        out: out.to_path_buf(),
+        bytes: page.len(),
+        views: content.views.len(),
+        postoperative: inputs.postoperative.is_some(),
+        comparison: content.comparison.is_some(),
+    })
+}
+
+/// What the report shows about `inputs`.
+pub fn report_content(
+    inputs: &ReportInputs,
+    progress: &dyn Progress,
+) -> Result<report::ReportContent> {
+    let model_dir = &inputs.model_dir;
+    let simulation_dir = &inputs.simulation_dir;
+    let model = read_model_record(model_dir)?;
+    let simulation = read_simulation_record(simulation_dir)?;
+
+    progress.stage("report", 3 + 2 * inputs.postoperative.is_some() as u64);
+    let preoperative = ShownScan::load_with_breasts(
+        &model.scan,
+        &model.landmarks,
+        Some(&model_dir.join("control_points.json")),
+        progress,
+    )
+    .with_context(|| {
+        format!(
+            "the pre-operative scan named in {}",
+            model_dir.join("model.json").display()
+        )
+    })?;
+    let preoperative_distances = measure(&preoperative.marked, &[], progress)?.distances;
+    progress.step();
+    let simulated = ShownScan::load(
+        &simulation_dir.join("simulated_scan.ply"),
+        &simulation_dir.join("simulated_landmarks.json"),
+        progress,
+    )
+    .with_context(|| format!("the simulated scan in {}", simulation_dir.display()))?;
+    let (scan_vertices, simulated_vertices) = (
+        preoperative.marked.scan.mesh.vertex_count(),
+        simulated.marked.scan.mesh.vertex_count(),
+    );
+    anyhow::ensure!(
+        scan_vertices == simulated_vertices,
+        "{}: {simulated_vertices} vertices, but the model's scan {} has {scan_vertices}: the \
+         simulation was not made from the model in {}",
+        simulation_dir.join("simulated_scan.ply").display(),
+        model.scan.display(),
+        model_dir.display()
+    );
+    progress.step();
+    let (postoperative, postoperative_distances) = match &inputs.postoperative {
+        None => (None, None),
+        Some(files) => {
+            let scan = ShownScan::load_with_breasts(&files.scan, &files.landmarks, None, progress)
+                .context("the post-operative scan")?;
+            progress.step();
+            let distances = measure(&scan.marked, &[], progress)?.distances;
+            progress.step();
+            (Some(scan), Some(distances))
+        }
+    };
+    let scans = ReportScans {
+        preoperative,
+        simulated,
+        postoperative,
+    };
+    let comparison = match &scans.postoperative {
+        Some(postoperative) => compare_with_postoperative(&scans.simulated, postoperative)?,
+        None => None,
+    };
+    let views = report_views(&scans)?;
+    progress.step();
+
+    let volumes = report::VolumeTable {
+        preoperative: report::PerSide {
+            left: breast_volumes(
+                model.breast_volume_ml.left,
+                Some(model.quadrant_volume_ml.left),
+            ),
+            right: breast_volumes(
+                model.breast_volume_ml.right,
+                Some(model.quadrant_volume_ml.right),
+            ),
+        },
+        simulated: Some(report::PerSide {
+            left: breast_volumes(simulation.breast_volume_ml.left, None),
+            right: breast_volumes(simulation.breast_volume_ml.right, None),
+        }),
+        postoperative: scans
+            .postoperative
+            .as_ref()
+            .and_then(|scan| scan.breasts.as_ref())
+            .map(model_volumes),
+    };
+    let mut symmetry = vec![symmetry_row(
+        "Pre-operative",
+        &scans.preoperative.marked,
+        &volumes.preoperative,
+    )];
+    if let Some(simulated_volumes) = &volumes.simulated {
+        symmetry.push(symmetry_row(
+            "Simulated",
+            &scans.simulated.marked,
+            simulated_volumes,
+        ));
+    }
+    if let (Some(scan), Some(post_volumes)) = (&scans.postoperative, &volumes.postoperative) {
+        symmetry.push(symmetry_row("Post-operative", &scan.marked, post_volumes));
+    }
+
+    let mut files = vec![
+        case_file("Pre-operative scan", &model.scan),
+        case_file("Pre-operative landmarks", &model.landmarks),
+        case_file("Simulated scan", &simulation_dir.join("simulated_scan.ply")),
+    ];
+    if let Some(post) = &inputs.postoperative {
+        files.push(case_file("Post-operative scan", &post.scan));
+        files.push(case_file("Post-operative landmarks", &post.landmarks));
+    }
+    let finest = model
+        .levels
+        .first()
+        .context("model.json lists no tetrahedral level")?;
+    let case = report::CaseInfo {
+        created: utc_date_time(inputs.created),
+        software: format!("mammaplan {}", env!("CARGO_PKG_VERSION")),
+        files,
+        model: report::ModelParameters {
+            finest_elements: finest.elements,
+            finest_nodes: finest.nodes,
+            mesh_levels: model.levels.len(),
+            rear_wall_offset_mm: model.rear_wall_offset_mm,
+            tissue: material(&simulation.materials.tissue),
+            implant_material: material(&simulation.materials.implant),
+            gravity_correction: !simulation.no_gravity,
+            solver: report::SolverSummary {
+                vcycles: simulation.solver.vcycles,
+                relative_residual: simulation.solver.relative_residual,
+                converged: simulation.solver.converged,
+            },
+        },
+    };
+
+    Ok(report::ReportContent {
+        title: "Breast augmentation plan".into(),
+        notes: notes(&simulation, model_dir),
+        case,
+        implants: report::PerSide {
+            left: simulation.implants.left.map(implant_choice),
+            right: simulation.implants.right.map(implant_choice),
+        },
+        views,
+        measurements: measurement_rows(
+            &preoperative_distances,
+            &simulation.distances,
+            postoperative_distances.as_deref(),
+        ),
+        volumes,
+        comparison,
+        symmetry,
+    })
+}
+
+/// What the report reads back from `result.json`.
+#[derive(Debug, Deserialize)]
+struct SimulationRecord {
+    model: PathBuf,
+    implants: PerSide<Option<ImplantRecord>>,
+    breast_volume_ml: PerSide<f64>,
+    distances: Vec<Distance>,
+    solver: SolverRecord,
+    no_gravity: bool,
+    materials: MaterialsReport,
+}
+
+#[derive(Debug, Deserialize)]
+struct ImplantRecord {
+    spec: String,
+    catalog_id: Option<String>,
+    family: Option<String>,
+    shape: ShapeRecord,
+    width_mm: f64,
+    height_mm: f64,
+    projection_mm: f64,
+    volume_ml: f64,
+    move_mm: [f64; 3],
+    rotation_deg: f64,
+    fit_shift_mm: [f64; 2],
+}
+
+/// The implant shape's kind and variant in `result.json`.
+#[derive(Debug, Deserialize)]
+struct ShapeRecord {
+    shape: String,
+    profile: Option<String>,
+    taper: Option<String>,
+}
+
+#[derive(Debug, Deserialize)]
+struct SolverRecord {
+    vcycles: usize,
+    relative_residual: f64,
+    converged: bool,
+    inverted_elements: usize,
+}
+
+fn read_simulation_record(simulation_dir: &Path) -> Result<SimulationRecord> {
+    read_folder_json(simulation_dir, "result.json", "simulation", "simulate")
+}
+
+fn breast_volumes(breast_ml: f64, quadrants: Option<QuadrantVolumes>) -> report::BreastVolumes {
+    report::BreastVolumes {
+        breast_ml,
+        quadrants_ml: quadrants.map(|q| report::QuadrantVolumes {
+            upper_outer_ml: q.upper_outer,
+            upper_inner_ml: q.upper_inner,
+            lower_inner_ml: q.lower_inner,
+            lower_outer_ml: q.lower_outer,
+        }),
+    }
+}
+
+fn material(material: &crate::simulate::MaterialReport) -> report::MaterialParameters {
+    report::MaterialParameters {
+        young_kpa: material.young_kpa,
+        poisson_ratio: material.poisson_ratio,
+        density_kg_m3: material.density_kg_m3,
+    }
+}
+
+fn implant_choice(implant: ImplantRecord) -> report::ImplantChoice {
+    let variant = match (&implant.shape.profile, &implant.shape.taper) {
+        (Some(profile), _) => format!(", {profile} profile"),
+        (None, Some(taper)) => format!(", {taper} taper"),
+        (None, None) => String::new(),
+    };
+    report::ImplantChoice {
+        catalog: implant.catalog_id.map(|id| report::CatalogReference {
+            id,
+            family: implant.family.unwrap_or_default(),
+        }),
+        shape: format!("{}{variant}", implant.shape.shape),
+        spec: implant.spec,
+        width_mm: implant.width_mm,
+        height_mm: implant.height_mm,
+        projection_mm: implant.projection_mm,
+        volume_ml: implant.volume_ml,
+        offset_mm: implant.move_mm,
+        rotation_deg: implant.rotation_deg,
+        fit_shift_mm: implant.fit_shift_mm,
+    }
+}
+
+/// The clinical distances along the skin, one row per distance of the pre-operative
+/// table, the other scans' values matched by name.
+fn measurement_rows(
+    preoperative: &[Distance],
+    simulated: &[Distance],
+    postoperative: Option<&[Distance]>,
+) -> Vec<report::MeasurementRow> {
+    let along_skin = |distances: &[Distance], name: &str| {
+        distances
+            .iter()
+            .find(|d| d.name == name)
+            .and_then(|d| d.surface_mm)
+    };
+    preoperative
+        .iter()
+        .map(|distance| report::MeasurementRow {
+            name: distance.name.clone(),
+            preoperative_mm: distance.surface_mm,
+            simulated_mm: along_skin(simulated, &distance.name),
+            postoperative_mm: postoperative.and_then(|d| along_skin(d, &distance.name)),
+        })
+        .collect()
+}
+
+/// Left against right on one scan: the breast volume ratio and the nipples compared
+/// across the mid-sagittal plane.
+fn symmetry_row(
+    scan: &str,
+    marked: &MarkedScan,
+    volumes: &report::PerSide<report::BreastVolumes>,
+) -> report::SymmetryRow {
+    let nipples = NippleSymmetry::new(&marked.frame, &marked.landmarks);
+    report::SymmetryRow {
+        scan: scan.to_string(),
+        volume_ratio_left_to_right: volumes.left.breast_ml / volumes.right.breast_ml,
+        nipple_height_difference_mm: nipples.height_difference_mm,
+        nipple_midline_difference_mm: nipples.midline_difference_mm,
+        nipple_mirror_distance_mm: nipples.mirror_distance_mm,
+    }
+}
+
+/// The nipples compared across the mid-sagittal plane, the anatomical frame's `x = 0`
+/// (through Pj and Px, orthogonal to the line Pcr-Pcl). Differences are left minus right.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NippleSymmetry {
+    /// Height along the frame's `y` (mm).
+    pub height_difference_mm: f64,
+    /// Distance to the mid-sagittal plane (mm).
+    pub midline_difference_mm: f64,
+    /// Distance from the left nipple to the right one mirrored across the plane (mm).
+    pub mirror_distance_mm: f64,
+}
+
+impl NippleSymmetry {
+    pub fn new(frame: &AnatomicalFrame, landmarks: &Landmarks) -> NippleSymmetry {
+        let left = frame.to_local(landmarks.get(LandmarkName::Pnl));
+        let right = frame.to_local(landmarks.get(LandmarkName::Pnr));
+        let mirrored_right = DVec3::new(-right.x, right.y, right.z);
+        NippleSymmetry {
+            height_difference_mm: left.y - right.y,
+            midline_difference_mm: left.x.abs() - right.x.abs(),
+            mirror_distance_mm: left.distance(mirrored_right),
+        }
+    }
+}
+
+/// Remarks the reader must see: a solve that did not converge, inverted elements, a
+/// simulation that names another model folder.
+fn notes(simulation: &SimulationRecord, model_dir: &Path) -> Vec<String> {
+    let mut notes = Vec::new();
+    let solver = &simulation.solver;
+    if !solver.converged {
+        notes.push(format!(
+            "The simulation stopped after {} multigrid cycles at relative residual {:.1e} \
+             without reaching its tolerance: the prediction is approximate.",
+            solver.vcycles, solver.relative_residual
+        ));
+    }
+    if solver.inverted_elements > 0 {
+        notes.push(format!(
+            "{} finite elements of the simulation are inverted: the prediction is unreliable \
+             near the implants.",
+            solver.inverted_elements
+        ));
+    }
+    let same_folder = match (
+        std::fs::canonicalize(&simulation.model),
+        std::fs::canonicalize(model_dir),
+    ) {
+        (Ok(recorded), Ok(given)) => recorded == given,
+        _ => simulation.model == model_dir,
+    };
+    if !same_folder {
+        notes.push(format!(
+            "The simulation was made from the model folder {}, not from {}, the one given \
+             for this report.",
+            simulation.model.display(),
+            model_dir.display()
+        ));
+    }
+    notes
+}
+
+/// An input file by its role, file name only (folders may name the patient).
+fn case_file(role: &str, path: &Path) -> report::CaseFile {
+    report::CaseFile {
+        role: role.to_string(),
+        name: path.file_name().map_or_else(
+            || path.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        ),
+    }
+}
+
+/// `YYYY-MM-DD hh:mm UTC`.
+pub fn utc_date_time(time: SystemTime) -> String {
+    let seconds = time.duration_since(UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let (year, month, day) = civil_date(seconds / 86_400);
+    let minutes = seconds % 86_400 / 60;
+    format!(
+        "{year:04}-{month:02}-{day:02} {:02}:{:02} UTC",
+        minutes / 60,
+        minutes % 60
+    )
+}
+
+/// The proleptic Gregorian date of a day counted from 1970-01-01 (H. Hinnant's
+/// `civil_from_days`: 400-year eras of 146,097 days, years starting in March).
+fn civil_date(days_since_epoch: u64) -> (u64, u64, u64) {
+    let days = days_since_epoch + 719_468; // from 0000-03-01
+    let era = days / 146_097;
+    let day_of_era = days % 146_097;
+    let year_of_era =
+        (day_of_era - day_of_era / 1460 + day_of_era / 36_524 - day_of_era / 146_096) / 365;
+    let day_of_year = day_of_era - (365 * year_of_era + year_of_era / 4 - year_of_era / 100);
+    let month_from_march = (5 * day_of_year + 2) / 153;
+    let day = day_of_year - (153 * month_from_march + 2) / 5 + 1;
+    let month = if month_from_march < 10 {
+        month_from_march + 3
+    } else {
+        month_from_march - 9
+    };
+    let year = year_of_era + era * 400 + u64::from(month <= 2);
+    (year, month, day)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{DMat3, DQuat};
+    use std::time::Duration;
+
+    #[test]
+    fn dates_match_the_calendar() {
+        // Seconds since 1970 of known UTC times (computed with Python's datetime).
+        let at = |seconds| utc_date_time(UNIX_EPOCH + Duration::from_secs(seconds));
+        assert_eq!(at(0), "1970-01-01 00:00 UTC");
+        assert_eq!(at(951_782_400), "2000-02-29 00:00 UTC");
+        assert_eq!(at(951_868_799), "2000-02-29 23:59 UTC");
+        assert_eq!(at(1_767_225_599), "2025-12-31 23:59 UTC");
+        assert_eq!(at(4_107_542_400), "2100-03-01 00:00 UTC");
+        assert_eq!(at(1_795_339_260), "2026-11-22 09:21 UTC");
+    }
+
+    #[test]
+    fn nipple_symmetry_follows_the_frame_not_the_file() {
+        // Landmarks built in the anatomical frame (x left, y up, z forwards, Pj at the
+        // origin), then moved rigidly: the figures come from the local positions.
+        let local = |name| match name {
+            LandmarkName::Pj => DVec3::ZERO,
+            LandmarkName::Px => DVec3::new(0.0, -180.0, 0.0),
+            LandmarkName::Pcl => DVec3::new(80.0, -10.0, -5.0),
+            LandmarkName::Pcr => DVec3::new(-80.0, -10.0, -5.0),
+            LandmarkName::Pnl => DVec3::new(95.0, -180.0, 80.0),
+            LandmarkName::Pnr => DVec3::new(-90.0, -185.0, 78.0),
+            _ => DVec3::new(0.0, -200.0, 50.0),
+        };
+        let rotation = DMat3::from_quat(DQuat::from_axis_angle(
+            DVec3::new(0.3, 1.0, -0.2).normalize(),
+            0.7,
+        ));
+        let shift = DVec3::new(12.0, 900.0, -40.0);
+        let landmarks = Landmarks::new(|name| rotation * local(name) + shift);
+        let frame = AnatomicalFrame::from_landmarks(&landmarks).unwrap();
+        let nipples = NippleSymmetry::new(&frame, &landmarks);
+        // Left 5 mm higher, 5 mm further from the midline, 2 mm further forward.
+        let tolerance_mm = 1e-9; // round-off of a rigid motion of ~1 m coordinates
+        assert!((nipples.height_difference_mm - 5.0).abs() < tolerance_mm);
+        assert!((nipples.midline_difference_mm - 5.0).abs() < tolerance_mm);
+        let expected = (5f64 * 5.0 + 5.0 * 5.0 + 2.0 * 2.0).sqrt();
+        assert!((nipples.mirror_distance_mm - expected).abs() < tolerance_mm);
+    }
+}

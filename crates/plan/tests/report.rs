@@ -1,0 +1,253 @@
+//! `plan::report` on real folders: a small phantom model, a simulation with one implant,
+//! and an asymmetric phantom standing in for the post-operative scan. The report must
+//! show what `result.json` and `model.json` hold, and the post-operative scan's volumes
+//! and symmetry against the phantom's truth.
+
+use phantom::PhantomParams;
+use plan::model::{ModelOptions, build_model, write_model};
+use plan::report::{PostoperativeScan, ReportInputs, report_content, write_report};
+use plan::simulate::{ImplantRequest, SimulateOptions, simulate};
+use plan::{MarkedScan, Silent};
+use serde_json::Value;
+use std::time::{Duration, UNIX_EPOCH};
+
+/// Tetrahedra of the small model: enough for a stable simulation, fast to build.
+const ELEMENTS: usize = 8_000;
+
+fn read_json(path: &std::path::Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+#[test]
+fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name);
+    plan::demo::write_phantom(
+        &PhantomParams::default(),
+        &path("scan.ply"),
+        &path("landmarks.json"),
+    )
+    .unwrap();
+    let marked = MarkedScan::load(&path("scan.ply"), &path("landmarks.json"), &Silent).unwrap();
+    let options = ModelOptions {
+        elements: ELEMENTS,
+        ..Default::default()
+    };
+    let model = build_model(&marked, &options, &Silent).unwrap();
+    write_model(&path("model"), &model, &Silent).unwrap();
+    let left = ImplantRequest {
+        spec: "anatomic:width=115,height=110,projection=38".into(),
+        move_mm: [2.0, -3.0, 0.0].into(),
+        rotation_deg: 0.0,
+    };
+    simulate(
+        &path("model"),
+        &path("simulation"),
+        &SimulateOptions {
+            left: Some(left),
+            ..Default::default()
+        },
+        &Silent,
+    )
+    .unwrap();
+    // The post-operative stand-in: a phantom with one breast about 9% larger and its
+    // nipple about 6 mm lower (phantom::PhantomParams::asymmetry).
+    let postop_params = PhantomParams {
+        asymmetry: 1.0,
+        ..Default::default()
+    };
+    let postop = plan::demo::write_phantom(
+        &postop_params,
+        &path("postop.ply"),
+        &path("postop_landmarks.json"),
+    )
+    .unwrap();
+
+    let inputs = ReportInputs {
+        model_dir: path("model"),
+        simulation_dir: path("simulation"),
+        postoperative: Some(PostoperativeScan {
+            scan: path("postop.ply"),
+            landmarks: path("postop_landmarks.json"),
+        }),
+        created: UNIX_EPOCH + Duration::from_secs(1_795_339_260),
+    };
+    let content = report_content(&inputs, &Silent).unwrap();
+    let result = read_json(&path("simulation/result.json"));
+    let model_json = read_json(&path("model/model.json"));
+
+    // Case: file names only, the finest level of model.json, the materials of result.json.
+    assert_eq!(content.case.created, "2026-11-22 09:21 UTC");
+    let names: Vec<&str> = content.case.files.iter().map(|f| f.name.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "scan.ply",
+            "landmarks.json",
+            "simulated_scan.ply",
+            "postop.ply",
+            "postop_landmarks.json"
+        ]
+    );
+    let finest = &model_json["levels"][0];
+    assert_eq!(
+        content.case.model.finest_elements as u64,
+        finest["elements"].as_u64().unwrap()
+    );
+    assert_eq!(
+        content.case.model.tissue.young_kpa,
+        result["materials"]["tissue"]["young_kpa"].as_f64().unwrap()
+    );
+
+    // Implants as result.json has them: the left one, none on the right.
+    let implant = content.implants.left.as_ref().unwrap();
+    let left = &result["implants"]["left"];
+    assert_eq!(implant.spec, "anatomic:width=115,height=110,projection=38");
+    assert_eq!(implant.volume_ml, left["volume_ml"].as_f64().unwrap());
+    assert_eq!(
+        implant.volume_ml,
+        result["implant_volume_ml"]["left"].as_f64().unwrap()
+    );
+    assert_eq!(
+        (implant.width_mm, implant.height_mm, implant.projection_mm),
+        (115.0, 110.0, 38.0)
+    );
+    assert_eq!(implant.offset_mm, [2.0, -3.0, 0.0]);
+    assert!(implant.catalog.is_none());
+    assert!(implant.shape.starts_with("anatomic, "), "{}", implant.shape);
+    assert!(content.implants.right.is_none());
+
+    // The distance table: simulated values are result.json's, row for row.
+    let distances = result["distances"].as_array().unwrap();
+    assert_eq!(content.measurements.len(), distances.len());
+    for (row, distance) in content.measurements.iter().zip(distances) {
+        assert_eq!(row.name, distance["name"].as_str().unwrap());
+        assert_eq!(row.simulated_mm, distance["surface_mm"].as_f64());
+        assert!(row.preoperative_mm.is_some() && row.postoperative_mm.is_some());
+    }
+
+    // Volumes: model.json before, result.json as simulated, the phantom's truth after.
+    let volumes = &content.volumes;
+    assert_eq!(
+        volumes.preoperative.left.breast_ml,
+        model_json["breast_volume_ml"]["left"].as_f64().unwrap()
+    );
+    let quadrants = volumes.preoperative.left.quadrants_ml.unwrap();
+    assert_eq!(
+        quadrants.upper_outer_ml,
+        model_json["quadrant_volume_ml"]["left"]["upper_outer"]
+            .as_f64()
+            .unwrap()
+    );
+    let simulated = volumes.simulated.unwrap();
+    assert_eq!(
+        simulated.left.breast_ml,
+        result["breast_volume_ml"]["left"].as_f64().unwrap()
+    );
+    let post = volumes.postoperative.unwrap();
+    for (measured, truth) in [
+        (post.left.breast_ml, postop.breast_volume_ml.left),
+        (post.right.breast_ml, postop.breast_volume_ml.right),
+    ] {
+        // The breast model's bound on the phantom (README: within 2.3%), with margin.
+        assert!(
+            (measured / truth - 1.0).abs() < 0.05,
+            "{measured} ml against {truth} ml"
+        );
+        let quadrants = post.left.quadrants_ml.unwrap();
+        let sum: f64 = quadrants.values_ml().iter().sum();
+        assert!((sum - post.left.breast_ml).abs() < 1e-6 * post.left.breast_ml);
+    }
+
+    // Symmetry: the symmetric phantom before; the asymmetric one after, against its truth.
+    assert_eq!(content.symmetry.len(), 3);
+    let before = &content.symmetry[0];
+    assert!((before.volume_ratio_left_to_right - 1.0).abs() < 1e-6);
+    // Exact landmarks of a mirror-symmetric phantom: only round-off.
+    assert!(before.nipple_height_difference_mm.abs() < 1e-6);
+    assert!(before.nipple_mirror_distance_mm < 1e-6);
+    let after = &content.symmetry[2];
+    let true_ratio = postop.breast_volume_ml.left / postop.breast_volume_ml.right;
+    assert!(
+        (after.volume_ratio_left_to_right / true_ratio - 1.0).abs() < 0.05,
+        "{} against {true_ratio}",
+        after.volume_ratio_left_to_right
+    );
+    // The larger breast's nipple is the lower one (by about 6 mm).
+    let larger_is_left = true_ratio > 1.0;
+    let lower_is_left = after.nipple_height_difference_mm < 0.0;
+    assert_eq!(larger_is_left, lower_is_left);
+    assert!(
+        (3.0..9.0).contains(&after.nipple_height_difference_mm.abs()),
+        "{}",
+        after.nipple_height_difference_mm
+    );
+
+    // Not wired yet: no views, no comparison.
+    assert!(content.views.is_empty());
+    assert!(content.comparison.is_none());
+    assert!(content.notes.is_empty(), "{:?}", content.notes);
+
+    // The page as written: the implant volume and the simulated distances as printed.
+    let summary = write_report(&inputs, &path("report.html"), &Silent).unwrap();
+    let page = std::fs::read_to_string(path("report.html")).unwrap();
+    assert_eq!(summary.bytes, page.len());
+    assert!(page.contains(&format!(
+        "<strong>{:.0}</strong>",
+        left["volume_ml"].as_f64().unwrap()
+    )));
+    for distance in distances {
+        let name = distance["name"].as_str().unwrap();
+        let value = format!("{:.1}", distance["surface_mm"].as_f64().unwrap());
+        let row = page
+            .split("<tr>")
+            .find(|row| row.contains(&format!(">{name}</th>")))
+            .unwrap_or_else(|| panic!("no row {name}"));
+        assert!(row.contains(&format!(">{value}</td>")), "{name}: {value}");
+    }
+}
+
+#[test]
+fn missing_and_malformed_folders_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = |model: &str, simulation: &str| ReportInputs {
+        model_dir: dir.path().join(model),
+        simulation_dir: dir.path().join(simulation),
+        postoperative: None,
+        created: UNIX_EPOCH,
+    };
+    let error = |inputs: ReportInputs| {
+        format!(
+            "{:#}",
+            report_content(&inputs, &Silent).expect_err("the report must fail")
+        )
+    };
+    let message = error(inputs("nowhere", "simulation"));
+    assert!(message.contains("model.json"), "{message}");
+    assert!(message.contains("a model folder"), "{message}");
+
+    std::fs::create_dir_all(dir.path().join("model")).unwrap();
+    std::fs::write(dir.path().join("model/model.json"), "{\"scan\": 3}").unwrap();
+    let message = error(inputs("model", "simulation"));
+    assert!(message.contains("not a model report"), "{message}");
+
+    // A well-formed model.json, then a missing and a malformed result.json.
+    let record = serde_json::json!({
+        "scan": "scan.ply", "landmarks": "landmarks.json", "elements_requested": 8000,
+        "rear_wall_offset_mm": 15.0, "refinement": null,
+        "levels": [{"elements": 8000, "nodes": 2000}],
+        "breast_volume_ml": {"left": 300.0, "right": 300.0},
+        "quadrant_volume_ml": {
+            "left": {"upper_outer": 75.0, "upper_inner": 75.0, "lower_inner": 75.0, "lower_outer": 75.0},
+            "right": {"upper_outer": 75.0, "upper_inner": 75.0, "lower_inner": 75.0, "lower_outer": 75.0}
+        }
+    });
+    std::fs::write(dir.path().join("model/model.json"), record.to_string()).unwrap();
+    let message = error(inputs("model", "simulation"));
+    assert!(message.contains("result.json"), "{message}");
+    assert!(message.contains("a simulation folder"), "{message}");
+    std::fs::create_dir_all(dir.path().join("simulation")).unwrap();
+    std::fs::write(dir.path().join("simulation/result.json"), "{}").unwrap();
+    let message = error(inputs("model", "simulation"));
+    assert!(message.contains("not a simulation report"), "{message}");
+}
