@@ -4,9 +4,10 @@
 //! post-operative scan with its landmarks.
 //!
 //! Every scan shown is loaded with its landmarks ([`ShownScan`]). The pre-operative one
-//! is cut into breasts with the model's own control points, the post-operative one with
-//! the default control points from its landmarks: their breast and quadrant volumes.
-//! The simulated breast volumes are the simulation's (`result.json`: the pre-operative
+//! is cut into breasts with the model's own control points (the model's cut curves, for
+//! the views; its volumes are `model.json`'s), the post-operative one with the default
+//! control points from its landmarks (its breast and quadrant volumes). The simulated
+//! breast volumes are the simulation's (`result.json`: the pre-operative
 //! breast patch moved with the tissue, closed by a fill-in rebuilt on the moved chest);
 //! a breast model built afresh from the simulated landmarks would not measure the same
 //! breast, because the fold landmarks move with the tissue in front of the implant. The
