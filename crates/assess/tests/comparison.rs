@@ -4,10 +4,13 @@
 //! per-vertex distance is also checked against an independent brute-force
 //! point-to-triangle implementation.
 
+mod common;
+
 use assess::{AssessError, DistanceSurface, SurfaceComparison, Zone};
 use glam::{DQuat, DVec3};
 use mesh::shapes::{grid, icosphere};
 use mesh::{SurfaceIndex, Topology, TriMesh};
+use tetra::locate::closest_point_on_triangle;
 
 const RADIUS_MM: f64 = 50.0;
 
@@ -57,48 +60,12 @@ fn rms(values: impl Iterator<Item = f64>) -> f64 {
     (sum / count as f64).sqrt()
 }
 
-/// The closest point of triangle `abc` to `p`, by the Voronoi regions of its corners,
-/// edges and face (Ericson, Real-Time Collision Detection, 5.1.5): an implementation
-/// independent of the BVH's.
-fn closest_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denominator = 1.0 / (va + vb + vc);
-    a + ab * (vb * denominator) + ac * (vc * denominator)
-}
-
-/// The distance from `p` to `mesh` by trying every triangle.
+/// The distance from `p` to `mesh` by trying every triangle, each by the Voronoi regions
+/// of its corners, edges and face (`tetra`'s point location primitive): independent of
+/// the BVH and of parry's projection that the comparison uses.
 fn brute_force_distance(mesh: &TriMesh, p: DVec3) -> f64 {
     (0..mesh.triangle_count())
-        .map(|t| {
-            let [a, b, c] = mesh.triangle_positions(t);
-            closest_on_triangle(p, a, b, c).distance(p)
-        })
+        .map(|t| closest_point_on_triangle(p, mesh.triangle_positions(t)).distance(p))
         .fold(f64::INFINITY, f64::min)
 }
 
@@ -282,24 +249,11 @@ fn bad_input_gives_clear_errors() {
 
 #[test]
 fn a_scan_against_a_copy_with_a_bump_on_the_left_breast() {
-    use anatomy::{AnatomicalFrame, BreastOptions, LandmarkName, build_breast_model};
-    let phantom = phantom::generate(&phantom::PhantomParams::default());
+    use anatomy::LandmarkName;
+    let marked = common::marked_phantom(&phantom::PhantomParams::default());
+    let (phantom, index, topology) = (&marked.phantom, &marked.index, &marked.topology);
     let reference = &phantom.scan;
-    let (index, topology) = (
-        SurfaceIndex::new(reference).unwrap(),
-        Topology::new(reference),
-    );
-    let frame = AnatomicalFrame::from_landmarks(&phantom.landmarks).unwrap();
-    let breasts = build_breast_model(
-        reference,
-        &topology,
-        &index,
-        &frame,
-        &phantom.landmarks,
-        &BreastOptions::default(),
-    )
-    .unwrap();
-    let sides = breasts.scan_vertex_sides(reference.vertex_count());
+    let sides = marked.breasts.scan_vertex_sides(reference.vertex_count());
 
     // A smooth bump along the normals on the left breast's upper pole (between the
     // nipple and the clavicle, away from the nipple's sharp curvature): 5 mm high,
@@ -324,7 +278,7 @@ fn a_scan_against_a_copy_with_a_bump_on_the_left_breast() {
     }
     let (test_index, test_topology) = (SurfaceIndex::new(&test).unwrap(), Topology::new(&test));
     let comparison = SurfaceComparison::new(
-        &DistanceSurface::new(reference, &index, &topology),
+        &DistanceSurface::new(reference, index, topology),
         sides.clone(),
         &DistanceSurface::new(&test, &test_index, &test_topology),
         sides.clone(),

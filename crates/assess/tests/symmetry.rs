@@ -2,39 +2,28 @@
 //! whose asymmetry is known: a symmetric torso must read as symmetric, and a torso with
 //! one larger, lower breast must give its true volume ratio and nipple offset.
 
-use anatomy::{AnatomicalFrame, BreastOptions, LandmarkName, Side, build_breast_model};
+mod common;
+
+use anatomy::{AnatomicalFrame, LandmarkName, Side};
 use assess::{DEFAULT_MAX_DISTANCE_MM, Symmetry, SymmetryInput, Zone, analyse_symmetry};
 use glam::DVec3;
-use mesh::{SurfaceIndex, Topology};
 use phantom::{Phantom, PhantomParams};
 
 fn analyse(params: &PhantomParams) -> (Phantom, AnatomicalFrame, Symmetry) {
-    let phantom = phantom::generate(params);
-    let mesh = &phantom.scan;
-    let (index, topology) = (SurfaceIndex::new(mesh).unwrap(), Topology::new(mesh));
-    let frame = AnatomicalFrame::from_landmarks(&phantom.landmarks).unwrap();
-    let breasts = build_breast_model(
-        mesh,
-        &topology,
-        &index,
-        &frame,
-        &phantom.landmarks,
-        &BreastOptions::default(),
-    )
-    .unwrap();
+    let marked = common::marked_phantom(params);
     let symmetry = analyse_symmetry(
         &SymmetryInput {
-            mesh,
-            index: &index,
-            topology: &topology,
-            landmarks: &phantom.landmarks,
-            frame: &frame,
-            breasts: &breasts,
+            mesh: &marked.phantom.scan,
+            index: &marked.index,
+            topology: &marked.topology,
+            landmarks: &marked.phantom.landmarks,
+            frame: &marked.frame,
+            breasts: &marked.breasts,
         },
         DEFAULT_MAX_DISTANCE_MM,
     )
     .unwrap();
-    (phantom, frame, symmetry)
+    (marked.phantom, marked.frame, symmetry)
 }
 
 #[test]

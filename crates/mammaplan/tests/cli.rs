@@ -34,6 +34,16 @@ fn assert_clean_failure(output: &Output, expected: &str) {
     );
 }
 
+/// Fails if an atomic write left a temporary file in `dir`.
+fn assert_no_temporary_files(dir: &Path) {
+    let leftovers: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
 /// `mammaplan measure` on a scan and landmark file.
 fn measure(scan: &Path, landmarks: &Path) -> Output {
     mammaplan(&[
@@ -206,13 +216,7 @@ fn register_writes_the_registered_scan_and_reports_json() {
     assert!(json["surface_rms_mm"].as_f64().unwrap() < 1e-6);
     assert!((json["matrix"][0][0].as_f64().unwrap() - 1.0).abs() < 1e-9);
     assert!(out.is_file());
-    // No temporary files left behind.
-    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
-        .collect();
-    assert!(leftovers.is_empty());
+    assert_no_temporary_files(dir.path());
 }
 
 /// `mammaplan compare` of a test scan with a reference scan (scan, landmarks), with
@@ -318,12 +322,7 @@ fn compare_reports_json_and_writes_the_deviation_map() {
     assert!(number(&both["rms_mm"]) > number(&json["rms_mm"]));
     assert_eq!(json["out"].as_str(), out.to_str());
     assert!(out.is_file());
-    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
-        .collect();
-    assert!(leftovers.is_empty());
+    assert_no_temporary_files(dir.path());
 
     // Without --json: the summary.
     let output = compare((&small, &small_landmarks), (&small, &small_landmarks), &[]);
@@ -499,12 +498,7 @@ fn model_writes_every_file_and_the_volumes() {
         .map(|f| f.as_str().unwrap())
         .collect();
     assert_eq!(files, MODEL_FILES);
-    let leftovers: Vec<_> = std::fs::read_dir(&out)
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
-        .collect();
-    assert!(leftovers.is_empty());
+    assert_no_temporary_files(&out);
     // A cut curve: one vertex per point and one closed line through them.
     let curve = std::fs::read_to_string(out.join("cut_curve_left.obj")).unwrap();
     let points = curve.lines().filter(|l| l.starts_with("v ")).count();

@@ -2,22 +2,20 @@
 //! deviation, the distance differences and the volume differences vanish, and the
 //! deviation mesh holds the map. Bad input gives errors naming the problem.
 
+mod common;
+
 use anatomy::register::RigidTransform;
 use glam::{DMat3, DQuat, DVec3};
 use plan::compare::{CompareOptions, compare};
-use plan::{MarkedScan, PhantomParams, Scan, Silent};
-use std::path::Path;
+use plan::{MarkedScan, PhantomParams, Silent};
 
 /// The phantom (small cup: the smallest scan) moved by `motion`.
 fn moved_phantom(motion: &RigidTransform) -> MarkedScan {
-    let mut phantom = phantom::generate(&PhantomParams {
+    let params = PhantomParams {
         cup: plan::Cup::Small,
         ..PhantomParams::default()
-    });
-    phantom.scan.map_positions(|p| motion.apply(p));
-    phantom.landmarks.map_positions(|p| motion.apply(p));
-    let scan = Scan::from_mesh(phantom.scan, Path::new("phantom.ply")).unwrap();
-    MarkedScan::new(scan, phantom.landmarks, Path::new("phantom.json"), &Silent).unwrap()
+    };
+    common::marked_phantom(&params, Some(motion))
 }
 
 fn motion() -> RigidTransform {
@@ -46,14 +44,7 @@ fn a_scan_against_itself_moved_reads_zero_after_registration() {
     // The registration finds the inverse motion: the landmarks fit exactly, ICP keeps it.
     let registration = report.registration.as_ref().unwrap();
     let found = RigidTransform::from_row_major(&registration.matrix);
-    let error = found.after(&motion());
-    let worst_mm = reference
-        .scan
-        .mesh
-        .positions
-        .iter()
-        .map(|&p| error.apply(p).distance(p))
-        .fold(0.0, f64::max);
+    let (_, worst_mm) = common::registration_errors(&found, &motion().inverse(), &reference);
     assert!(worst_mm < 1e-6, "{worst_mm}");
     // The same surface on itself: nothing but round-off.
     assert!(

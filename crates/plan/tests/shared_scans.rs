@@ -79,6 +79,17 @@ fn true_post_to_pre(dir: &std::path::Path) -> RigidTransform {
     RigidTransform::from_row_major(&matrix)
 }
 
+/// How far a registration error moves every 97th vertex of `scan` (mm).
+fn displacement_errors_mm(error: &RigidTransform, scan: &MarkedScan) -> Vec<f64> {
+    scan.scan
+        .mesh
+        .positions
+        .iter()
+        .step_by(97)
+        .map(|&p| error.apply(p).distance(p))
+        .collect()
+}
+
 #[test]
 fn registration_recovers_the_known_transform_of_pair1() {
     let Some(dir) = shared_scans() else { return };
@@ -90,14 +101,7 @@ fn registration_recovers_the_known_transform_of_pair1() {
         let error = found.after(&truth.inverse());
         // Worst displacement error over the scan's extent: rotation about the file origin
         // is not meaningful (y ~ 1200 mm), so compare where the body is.
-        let errors: Vec<f64> = pre
-            .scan
-            .mesh
-            .positions
-            .iter()
-            .step_by(97)
-            .map(|&p| error.apply(p).distance(p))
-            .collect();
+        let errors = displacement_errors_mm(&error, &pre);
         let worst_mm = errors.iter().copied().fold(0.0, f64::max);
         let rms_mm = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
         let centre = pre.scan.mesh.centroid();
@@ -132,13 +136,8 @@ fn compare_of_pair1_recovers_the_registration_and_sees_the_larger_cup() {
     let report = plan::compare::compare(&pre, &post, &options, &Silent).unwrap();
     let found = RigidTransform::from_row_major(&report.registration.as_ref().unwrap().matrix);
     let error = found.after(&true_post_to_pre(&dir).inverse());
-    let worst_mm = pre
-        .scan
-        .mesh
-        .positions
-        .iter()
-        .step_by(97)
-        .map(|&p| error.apply(p).distance(p))
+    let worst_mm = displacement_errors_mm(&error, &pre)
+        .into_iter()
         .fold(0.0, f64::max);
     let both = report.breast_regions.both.unwrap();
     eprintln!(
