@@ -11,6 +11,7 @@ pub mod model;
 pub mod register;
 pub mod scan;
 pub mod simulate;
+pub mod views;
 
 pub use anatomy::measure::Distance;
 pub use phantom::{Cup, PhantomParams};

@@ -1,0 +1,308 @@
+//! [`render`]: a scene through a camera into an image.
+
+use crate::RenderError;
+use crate::camera::{Camera, Projection};
+use crate::image::Image;
+use crate::overlay;
+use crate::raster::{NO_TRIANGLE, SampleBuffer, ScreenVertex};
+use crate::scene::Scene;
+use crate::shade::{PreparedLayer, linear_to_srgb, locate, srgb_colour_to_linear};
+use glam::{DVec2, DVec3};
+use rayon::prelude::*;
+
+/// Largest supersampling factor (samples per pixel side).
+const MAX_SUPERSAMPLING: u32 = 4;
+/// Largest number of samples (width × height × supersampling²): about 0.5 GB per depth
+/// buffer.
+const MAX_SAMPLES: u64 = 1 << 26;
+
+/// How a surface's colour is shown.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shading {
+    /// Lit by a key and a fill light with a soft highlight: shows the shape.
+    Lit,
+    /// The colour as it is: exact colour-map values, no shape.
+    Unlit,
+}
+
+/// Picture settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderOptions {
+    /// Samples per pixel side (1 to 4): 2 gives 4 samples per pixel, smooth edges.
+    pub supersampling: u32,
+    /// sRGB and alpha where no surface is.
+    pub background: [u8; 4],
+    pub shading: Shading,
+    /// Radius of a marker's disc (pixels).
+    pub marker_radius_px: f64,
+}
+
+impl Default for RenderOptions {
+    fn default() -> RenderOptions {
+        RenderOptions {
+            supersampling: 2,
+            background: [255, 255, 255, 255],
+            shading: Shading::Lit,
+            marker_radius_px: 5.0,
+        }
+    }
+}
+
+/// Whether a marker can be seen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Visibility {
+    /// In the image and in front of every opaque surface (or on it): drawn as a disc.
+    Visible,
+    /// In the image but behind an opaque surface: drawn as a dashed ring.
+    Hidden,
+    /// Outside the image (or behind a perspective camera): not drawn.
+    OutsideImage,
+}
+
+/// Where a marker landed in the image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerPlacement {
+    pub label: String,
+    /// Pixels from the image's top-left corner, y down (pixel `(i, j)` has its centre at
+    /// `(i + 0.5, j + 0.5)`).
+    pub pixel: DVec2,
+    pub visibility: Visibility,
+}
+
+/// A rendered picture and where its markers are.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rendering {
+    pub image: Image,
+    /// One per marker of the scene, in order.
+    pub markers: Vec<MarkerPlacement>,
+}
+
+/// Renders `scene` through `camera` into a `width` × `height` picture: opaque layers
+/// depth-tested, translucent layers blended over them (each layer's nearest surface),
+/// then polylines and markers on top where they are not hidden.
+pub fn render(
+    scene: &Scene,
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    options: &RenderOptions,
+) -> Result<Rendering, RenderError> {
+    check_size(width, height, options.supersampling)?;
+    camera.validate()?;
+    scene.validate()?;
+    let total_triangles: usize = scene.layers.iter().map(|l| l.mesh.triangle_count()).sum();
+    if total_triangles >= NO_TRIANGLE as usize {
+        return Err(RenderError::Framing(
+            "more triangles than a picture can hold",
+        ));
+    }
+    let supersampling = options.supersampling as usize;
+    let (sample_width, sample_height) = (
+        width as usize * supersampling,
+        height as usize * supersampling,
+    );
+
+    let mut first_id = 0;
+    let layers: Vec<PreparedLayer> = scene
+        .layers
+        .iter()
+        .map(|layer| {
+            let prepared = PreparedLayer::new(
+                layer,
+                camera,
+                sample_width as f64,
+                sample_height as f64,
+                first_id,
+            );
+            first_id += layer.mesh.triangle_count() as u32;
+            prepared
+        })
+        .collect();
+    let mut opaque = SampleBuffer::new(sample_width, sample_height);
+    for layer in layers.iter().filter(|l| l.opacity >= 1.0) {
+        opaque.rasterise(&layer.vertices, layer.triangles, layer.first_id);
+    }
+    let translucent: Vec<SampleBuffer> = layers
+        .iter()
+        .filter(|l| l.opacity > 0.0 && l.opacity < 1.0)
+        .map(|layer| {
+            let mut buffer = SampleBuffer::in_front_of(&opaque);
+            buffer.rasterise(&layer.vertices, layer.triangles, layer.first_id);
+            buffer
+        })
+        .collect();
+
+    let mut image = Image::filled(width, height, options.background);
+    Resolve {
+        layers: &layers,
+        opaque: &opaque,
+        translucent: &translucent,
+        supersampling,
+        shading: options.shading,
+        background: options.background,
+    }
+    .shade_into(&mut image);
+    let markers = overlay::draw(
+        &mut image,
+        scene,
+        camera,
+        &opaque,
+        &layers,
+        supersampling,
+        options.marker_radius_px,
+    );
+    Ok(Rendering { image, markers })
+}
+
+fn check_size(width: u32, height: u32, supersampling: u32) -> Result<(), RenderError> {
+    if width == 0 || height == 0 {
+        return Err(RenderError::EmptyImage { width, height });
+    }
+    if !(1..=MAX_SUPERSAMPLING).contains(&supersampling) {
+        return Err(RenderError::Supersampling {
+            found: supersampling,
+            max: MAX_SUPERSAMPLING,
+        });
+    }
+    let samples = u64::from(width) * u64::from(height) * u64::from(supersampling).pow(2);
+    if samples > MAX_SAMPLES {
+        return Err(RenderError::ImageTooLarge {
+            width,
+            height,
+            supersampling,
+            max_samples: MAX_SAMPLES,
+        });
+    }
+    Ok(())
+}
+
+/// A point on a sample grid of `width` × `height` for the rasteriser: x and y in samples,
+/// a depth key linear across the screen (depth itself for an orthographic camera, minus
+/// its reciprocal for a perspective one), NaN where it cannot be drawn.
+pub(crate) fn screen_vertex(
+    camera: &Camera,
+    point: DVec3,
+    width: f64,
+    height: f64,
+) -> ScreenVertex {
+    match camera.project(point, width, height) {
+        Some(projected) => {
+            let (key, attribute_weight) = match camera.projection {
+                Projection::Orthographic => (projected.depth_mm, 1.0),
+                Projection::Perspective { .. } => {
+                    (-1.0 / projected.depth_mm, 1.0 / projected.depth_mm)
+                }
+            };
+            ScreenVertex {
+                x: projected.pixel.x as f32,
+                y: projected.pixel.y as f32,
+                key: key as f32,
+                attribute_weight: attribute_weight as f32,
+            }
+        }
+        None => ScreenVertex {
+            x: f32::NAN,
+            y: f32::NAN,
+            key: f32::NAN,
+            attribute_weight: 0.0,
+        },
+    }
+}
+
+/// The depth (mm, as [`crate::ProjectedPoint::depth_mm`]) of a depth key of
+/// [`screen_vertex`].
+pub(crate) fn key_depth_mm(projection: Projection, key: f32) -> f64 {
+    match projection {
+        Projection::Orthographic => f64::from(key),
+        Projection::Perspective { .. } => -1.0 / f64::from(key),
+    }
+}
+
+/// Shades every sample and averages them into pixels.
+struct Resolve<'a> {
+    layers: &'a [PreparedLayer<'a>],
+    opaque: &'a SampleBuffer,
+    translucent: &'a [SampleBuffer],
+    supersampling: usize,
+    shading: Shading,
+    background: [u8; 4],
+}
+
+impl Resolve<'_> {
+    fn shade_into(&self, image: &mut Image) {
+        let width = image.width() as usize;
+        let s = self.supersampling;
+        let background_alpha = f32::from(self.background[3]) / 255.0;
+        let background =
+            srgb_colour_to_linear([self.background[0], self.background[1], self.background[2]])
+                .map(|c| c * background_alpha);
+        let samples_per_pixel = (s * s) as f32;
+        image
+            .rgba_mut()
+            .par_chunks_mut(4 * width)
+            .enumerate()
+            .for_each(|(row, pixels)| {
+                let mut in_front = Vec::with_capacity(self.translucent.len());
+                for (column, pixel) in pixels.chunks_exact_mut(4).enumerate() {
+                    let mut sum = [0f32; 4];
+                    for sy in row * s..(row + 1) * s {
+                        for sx in column * s..(column + 1) * s {
+                            let sample =
+                                self.sample(sx, sy, background, background_alpha, &mut in_front);
+                            for k in 0..4 {
+                                sum[k] += sample[k];
+                            }
+                        }
+                    }
+                    let alpha = sum[3] / samples_per_pixel;
+                    if alpha > 0.0 {
+                        for k in 0..3 {
+                            pixel[k] = linear_to_srgb(sum[k] / sum[3]);
+                        }
+                    }
+                    pixel[3] = (255.0 * alpha).round() as u8;
+                }
+            });
+    }
+
+    /// Premultiplied linear RGBA of the sample at column `x`, row `y`; `in_front` is
+    /// scratch space.
+    fn sample(
+        &self,
+        x: usize,
+        y: usize,
+        background: [f32; 3],
+        background_alpha: f32,
+        in_front: &mut Vec<(f32, u32)>,
+    ) -> [f32; 4] {
+        let index = self.opaque.index(x, y);
+        let (sx, sy) = (x as f32 + 0.5, y as f32 + 0.5);
+        let (mut colour, mut alpha) = match self.opaque.id[index] {
+            NO_TRIANGLE => (background, background_alpha),
+            id => (self.shade(id, sx, sy), 1.0),
+        };
+        // Translucent layers in front of the opaque surface, farthest first.
+        in_front.clear();
+        in_front.extend(
+            self.translucent
+                .iter()
+                .filter(|buffer| buffer.id[index] != NO_TRIANGLE)
+                .map(|buffer| (buffer.key[index], buffer.id[index])),
+        );
+        in_front.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for &(_, id) in in_front.iter() {
+            let opacity = locate(self.layers, id).0.opacity;
+            let layer_colour = self.shade(id, sx, sy);
+            for k in 0..3 {
+                colour[k] += opacity * (layer_colour[k] - colour[k]);
+            }
+            alpha += opacity * (1.0 - alpha);
+        }
+        [colour[0], colour[1], colour[2], alpha]
+    }
+
+    fn shade(&self, id: u32, x: f32, y: f32) -> [f32; 3] {
+        let (layer, t) = locate(self.layers, id);
+        layer.shade(t, x, y, self.shading)
+    }
+}
