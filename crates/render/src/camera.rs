@@ -256,7 +256,7 @@ impl Camera {
 
     /// A direction (file frame) in screen coordinates: x right, y up, z towards the
     /// viewer.
-    pub(crate) fn to_screen_axes(&self, direction: DVec3) -> DVec3 {
+    pub(crate) fn to_screen_axes(self, direction: DVec3) -> DVec3 {
         DVec3::new(
             direction.dot(self.right),
             direction.dot(self.up),
@@ -306,7 +306,7 @@ impl ScreenExtent {
         }
         let size = self.max - self.min;
         let needed = size.y.max(size.x / aspect);
-        if !(needed > 0.0) {
+        if !(needed > 0.0 && needed.is_finite()) {
             return Err(RenderError::Framing(
                 "the points all project onto one pixel",
             ));

@@ -190,9 +190,30 @@ impl Edge {
         }
     }
 
+    /// The same edge with its sign times `orientation` (±1: exact).
+    fn oriented(self, orientation: f32) -> Edge {
+        Edge {
+            sign: self.sign * orientation,
+            ..self
+        }
+    }
+
     #[inline]
     fn at(&self, x: f32, y: f32) -> f32 {
-        self.sign * (self.dx * (y - self.y0) - self.dy * (x - self.x0))
+        self.at_row(self.row_term(y), x)
+    }
+
+    /// The part of the edge function that depends on the row only.
+    #[inline]
+    fn row_term(&self, y: f32) -> f32 {
+        self.dx * (y - self.y0)
+    }
+
+    /// The edge function at column `x` of the row with `row_term` (the same operations as
+    /// [`Edge::at`], so the same value).
+    #[inline]
+    fn at_row(&self, row_term: f32, x: f32) -> f32 {
+        self.sign * (row_term - self.dy * (x - self.x0))
     }
 }
 
@@ -212,11 +233,13 @@ impl BandTarget<'_> {
         // that corner's barycentric coordinate.
         let edges = [Edge::new(b, c), Edge::new(c, a), Edge::new(a, b)];
         let twice_area = edges[0].at(a.1.x, a.1.y);
-        if !(twice_area.abs() > 0.0) {
+        // Skips degenerate triangles and NaN (a vertex that cannot be drawn).
+        if !(twice_area.abs() > 0.0 && twice_area.is_finite()) {
             return;
         }
-        let orientation = twice_area.signum();
-        let keys = [a.1.key, b.1.key, c.1.key].map(|k| k / twice_area);
+        // Oriented so that inside all three are non-negative.
+        let edges = edges.map(|edge| edge.oriented(twice_area.signum()));
+        let keys = [a.1.key, b.1.key, c.1.key].map(|k| k / twice_area.abs());
         let (xs, ys) = ([a.1.x, b.1.x, c.1.x], [a.1.y, b.1.y, c.1.y]);
         let (Some(columns), Some(rows)) = (
             SampleRange::covering(min3(xs), max3(xs), self.width),
@@ -226,14 +249,12 @@ impl BandTarget<'_> {
         };
         for row in rows.first.max(self.first_row)..=rows.last {
             let y = row as f32 + 0.5;
+            let row_terms = edges.map(|edge| edge.row_term(y));
             let line = (row - self.first_row) * self.width;
             for column in columns.first..=columns.last {
                 let x = column as f32 + 0.5;
-                let e = edges.map(|edge| edge.at(x, y));
-                if orientation * e[0] >= 0.0
-                    && orientation * e[1] >= 0.0
-                    && orientation * e[2] >= 0.0
-                {
+                let e = [0, 1, 2].map(|k| edges[k].at_row(row_terms[k], x));
+                if e[0] >= 0.0 && e[1] >= 0.0 && e[2] >= 0.0 {
                     let key = e[0] * keys[0] + e[1] * keys[1] + e[2] * keys[2];
                     let sample = line + column;
                     if key < self.keys[sample] {

@@ -7,7 +7,7 @@ use crate::overlay;
 use crate::raster::{NO_TRIANGLE, SampleBuffer, ScreenVertex};
 use crate::scene::Scene;
 use crate::shade::{PreparedLayer, linear_to_srgb, locate, srgb_colour_to_linear};
-use glam::{DVec2, DVec3};
+use glam::{DVec2, DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 
 /// Largest supersampling factor (samples per pixel side).
@@ -218,7 +218,9 @@ pub(crate) fn key_depth_mm(projection: Projection, key: f32) -> f64 {
     }
 }
 
-/// Shades every sample and averages them into pixels.
+/// Shades every pixel's samples and averages them. Each triangle seen in a pixel is
+/// shaded once, at the centroid of its samples there (as multisampling does on a GPU):
+/// the colour varies little across a pixel, the shading is the costly part.
 struct Resolve<'a> {
     layers: &'a [PreparedLayer<'a>],
     opaque: &'a SampleBuffer,
@@ -228,60 +230,99 @@ struct Resolve<'a> {
     background: [u8; 4],
 }
 
+/// A triangle seen in a pixel: where its samples are (summed) and its colour there.
+struct PixelHit {
+    id: u32,
+    position_sum: [f32; 2],
+    samples: f32,
+    /// Linear RGB.
+    colour: Vec3,
+}
+
 impl Resolve<'_> {
     fn shade_into(&self, image: &mut Image) {
         let width = image.width() as usize;
         let s = self.supersampling;
-        let background_alpha = f32::from(self.background[3]) / 255.0;
+        let [r, g, b, a] = self.background;
+        let background_alpha = f32::from(a) / 255.0;
         let background =
-            srgb_colour_to_linear([self.background[0], self.background[1], self.background[2]])
-                .map(|c| c * background_alpha);
+            Vec3::from_array(srgb_colour_to_linear([r, g, b])).extend(1.0) * background_alpha;
         let samples_per_pixel = (s * s) as f32;
         image
             .rgba_mut()
             .par_chunks_mut(4 * width)
             .enumerate()
             .for_each(|(row, pixels)| {
+                let mut hits: Vec<PixelHit> = Vec::new();
                 let mut in_front = Vec::with_capacity(self.translucent.len());
                 for (column, pixel) in pixels.chunks_exact_mut(4).enumerate() {
-                    let mut sum = [0f32; 4];
-                    for sy in row * s..(row + 1) * s {
-                        for sx in column * s..(column + 1) * s {
-                            let sample =
-                                self.sample(sx, sy, background, background_alpha, &mut in_front);
-                            for k in 0..4 {
-                                sum[k] += sample[k];
+                    let samples = (row * s..(row + 1) * s)
+                        .flat_map(|y| (column * s..(column + 1) * s).map(move |x| (x, y)));
+                    hits.clear();
+                    let mut empty_samples = 0.0;
+                    for (x, y) in samples.clone() {
+                        let index = self.opaque.index(x, y);
+                        let opaque_id = self.opaque.id[index];
+                        empty_samples += f32::from(u8::from(opaque_id == NO_TRIANGLE));
+                        let layer_ids = self.translucent.iter().map(|buffer| buffer.id[index]);
+                        for id in std::iter::once(opaque_id).chain(layer_ids) {
+                            if id != NO_TRIANGLE {
+                                record_hit(&mut hits, id, x, y);
                             }
                         }
                     }
-                    let alpha = sum[3] / samples_per_pixel;
-                    if alpha > 0.0 {
-                        for k in 0..3 {
-                            pixel[k] = linear_to_srgb(sum[k] / sum[3]);
-                        }
+                    if hits.is_empty() {
+                        // The image is filled with the background already.
+                        continue;
                     }
-                    pixel[3] = (255.0 * alpha).round() as u8;
+                    for hit in &mut hits {
+                        let [x, y] = hit.position_sum.map(|p| p / hit.samples + 0.5);
+                        let (layer, t) = locate(self.layers, hit.id);
+                        hit.colour = Vec3::from_array(layer.shade(t, x, y, self.shading));
+                    }
+                    let sum: Vec4 = if self.translucent.is_empty() {
+                        // Opaque surfaces only: each triangle's colour counts once per
+                        // sample it covers.
+                        hits.iter().fold(background * empty_samples, |sum, hit| {
+                            sum + hit.colour.extend(1.0) * hit.samples
+                        })
+                    } else {
+                        samples
+                            .map(|(x, y)| {
+                                let index = self.opaque.index(x, y);
+                                self.composite(index, &hits, background, &mut in_front)
+                            })
+                            .sum()
+                    };
+                    let alpha = sum.w / samples_per_pixel;
+                    if alpha > 0.0 {
+                        let colour = sum.truncate() / sum.w;
+                        pixel[..3].copy_from_slice(&colour.to_array().map(linear_to_srgb));
+                    }
+                    pixel[3] = (255.0 * alpha + 0.5) as u8;
                 }
             });
     }
 
-    /// Premultiplied linear RGBA of the sample at column `x`, row `y`; `in_front` is
-    /// scratch space.
-    fn sample(
+    /// Premultiplied linear RGBA of sample `index`: the opaque surface (or the background)
+    /// with the translucent layers in front of it blended over, farthest first. `hits`
+    /// hold the colours of the pixel's triangles; `in_front` is scratch space.
+    fn composite(
         &self,
-        x: usize,
-        y: usize,
-        background: [f32; 3],
-        background_alpha: f32,
+        index: usize,
+        hits: &[PixelHit],
+        background: Vec4,
         in_front: &mut Vec<(f32, u32)>,
-    ) -> [f32; 4] {
-        let index = self.opaque.index(x, y);
-        let (sx, sy) = (x as f32 + 0.5, y as f32 + 0.5);
-        let (mut colour, mut alpha) = match self.opaque.id[index] {
-            NO_TRIANGLE => (background, background_alpha),
-            id => (self.shade(id, sx, sy), 1.0),
+    ) -> Vec4 {
+        let colour_of = |id| {
+            hits.iter()
+                .find(|hit| hit.id == id)
+                .map_or(Vec3::ZERO, |hit| hit.colour)
         };
-        // Translucent layers in front of the opaque surface, farthest first.
+        let mut premultiplied = match self.opaque.id[index] {
+            NO_TRIANGLE => background,
+            id => colour_of(id).extend(1.0),
+        };
         in_front.clear();
         in_front.extend(
             self.translucent
@@ -292,17 +333,26 @@ impl Resolve<'_> {
         in_front.sort_by(|a, b| b.0.total_cmp(&a.0));
         for &(_, id) in in_front.iter() {
             let opacity = locate(self.layers, id).0.opacity;
-            let layer_colour = self.shade(id, sx, sy);
-            for k in 0..3 {
-                colour[k] += opacity * (layer_colour[k] - colour[k]);
-            }
-            alpha += opacity * (1.0 - alpha);
+            premultiplied = premultiplied.lerp(colour_of(id).extend(1.0), opacity);
         }
-        [colour[0], colour[1], colour[2], alpha]
+        premultiplied
     }
+}
 
-    fn shade(&self, id: u32, x: f32, y: f32) -> [f32; 3] {
-        let (layer, t) = locate(self.layers, id);
-        layer.shade(t, x, y, self.shading)
+/// Counts sample `(x, y)` for triangle `id` among the pixel's hits.
+fn record_hit(hits: &mut Vec<PixelHit>, id: u32, x: usize, y: usize) {
+    let position = [x as f32, y as f32];
+    match hits.iter_mut().find(|hit| hit.id == id) {
+        Some(hit) => {
+            hit.position_sum[0] += position[0];
+            hit.position_sum[1] += position[1];
+            hit.samples += 1.0;
+        }
+        None => hits.push(PixelHit {
+            id,
+            position_sum: position,
+            samples: 1.0,
+            colour: Vec3::ZERO,
+        }),
     }
 }

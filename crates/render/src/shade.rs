@@ -22,7 +22,7 @@ const FILL: f32 = 0.2;
 /// The soft Blinn-Phong highlight of the key light: strength and exponent (skin is not
 /// glossy: a broad, weak highlight).
 const SPECULAR: f32 = 0.1;
-const SHININESS: f32 = 20.0;
+const SHININESS: i32 = 20;
 /// The inside of an open surface is shown in this grey (linear), mixed half and half with
 /// the surface's colour, so it reads as the inside.
 const BACK_FACE_GREY: [f32; 3] = [0.32, 0.34, 0.38];
@@ -71,7 +71,8 @@ pub(crate) fn srgb_colour_to_linear(colour: [u8; 3]) -> [f32; 3] {
 /// Linear light (clamped to 0-1) as an sRGB level.
 #[inline]
 pub(crate) fn linear_to_srgb(linear: f32) -> u8 {
-    let step = (linear.clamp(0.0, 1.0) * (LINEAR_TO_SRGB_STEPS - 1) as f32).round();
+    // Non-negative, so adding one half and truncating rounds.
+    let step = linear.clamp(0.0, 1.0) * (LINEAR_TO_SRGB_STEPS - 1) as f32 + 0.5;
     LINEAR_TO_SRGB[step as usize]
 }
 
@@ -227,17 +228,29 @@ pub(crate) fn locate<'l, 'a>(
     (layer, (id - layer.first_id) as usize)
 }
 
+/// Unit light directions in screen axes.
+struct Lights {
+    key: Vec3,
+    fill: Vec3,
+    /// Halfway between the key light and the viewer (+z), for the highlight.
+    half_way: Vec3,
+}
+
+static LIGHTS: LazyLock<Lights> = LazyLock::new(|| Lights {
+    key: KEY_DIRECTION.normalize(),
+    fill: FILL_DIRECTION.normalize(),
+    half_way: (KEY_DIRECTION.normalize() + Vec3::Z).normalize(),
+});
+
 /// Lambert key and fill light plus a soft highlight, for a unit `normal` in screen axes
 /// seen along -z.
 fn light(albedo: [f32; 3], normal: Vec3) -> [f32; 3] {
-    let key_direction = KEY_DIRECTION.normalize();
-    let fill_direction = FILL_DIRECTION.normalize();
-    let key = normal.dot(key_direction).max(0.0);
-    let fill = normal.dot(fill_direction).max(0.0);
+    let lights = &*LIGHTS;
+    let key = normal.dot(lights.key).max(0.0);
+    let fill = normal.dot(lights.fill).max(0.0);
     let diffuse = AMBIENT + KEY * key + FILL * fill;
-    let half_way = (key_direction + Vec3::Z).normalize();
     let highlight = if key > 0.0 {
-        SPECULAR * normal.dot(half_way).max(0.0).powf(SHININESS)
+        SPECULAR * normal.dot(lights.half_way).max(0.0).powi(SHININESS)
     } else {
         0.0
     };
