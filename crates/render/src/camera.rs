@@ -18,7 +18,8 @@ const AXES_TOLERANCE: f64 = 1e-6;
 /// drawn (the near plane).
 const NEAR_FRACTION: f64 = 0.05;
 
-/// A standard clinical view, named for the side of the patient the viewer looks at.
+/// A standard clinical view, named for the side of the patient the viewer looks at (the
+/// GUI's view buttons too).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum StandardView {
     Front,
@@ -33,14 +34,14 @@ pub enum StandardView {
 }
 
 impl StandardView {
-    /// Every view, from the patient's right round the front to the left (the order a
-    /// report shows them in).
+    /// Every view: the front, then the patient's left side, then her right (the order
+    /// of the GUI's toolbar and of a report's pictures).
     pub const ALL: [StandardView; 5] = [
-        StandardView::Right,
-        StandardView::RightOblique,
         StandardView::Front,
         StandardView::LeftOblique,
         StandardView::Left,
+        StandardView::RightOblique,
+        StandardView::Right,
     ];
 
     /// A label for people.

@@ -66,6 +66,20 @@ fn quad(x0: f64, x1: f64, y0: f64, y1: f64, z: f64) -> TriMesh {
     )
 }
 
+/// `scene` unlit on white from the front, one pixel per mm, 100x100 pixels centred on
+/// the origin.
+fn front_picture(scene: &Scene) -> Image {
+    render(
+        scene,
+        &front_camera(DVec3::ZERO, 100),
+        100,
+        100,
+        &unlit([255; 4]),
+    )
+    .unwrap()
+    .image
+}
+
 fn rgb(image: &Image, x: u32, y: u32) -> [u8; 3] {
     let [r, g, b, _] = image.pixel(x, y).unwrap();
     [r, g, b]
@@ -290,14 +304,11 @@ fn colours_interpolate_linearly_across_a_triangle() {
     let mut triangle = TriMesh::new(corners.to_vec(), vec![[0, 1, 2]]);
     let colours = [[255, 0, 0], [0, 255, 0], [0, 0, 255]];
     triangle.vertex_colors = Some(colours.to_vec());
-    let camera = front_camera(DVec3::ZERO, 100);
     let scene = Scene {
         layers: vec![MeshLayer::new(&triangle, Colouring::MeshColours)],
         ..Scene::default()
     };
-    let image = render(&scene, &camera, 100, 100, &unlit([255; 4]))
-        .unwrap()
-        .image;
+    let image = front_picture(&scene);
     for (column, row) in [(50u32, 50u32), (30, 70), (70, 75), (50, 20), (45, 60)] {
         // The pixel's centre in mm (one pixel per mm, y up) and its barycentric weights.
         let p = DVec2::new(
@@ -338,15 +349,7 @@ fn a_translucent_layer_mixes_with_what_is_behind_it_in_linear_light() {
         ],
         ..Scene::default()
     };
-    let image = render(
-        &scene,
-        &front_camera(DVec3::ZERO, 100),
-        100,
-        100,
-        &unlit([255; 4]),
-    )
-    .unwrap()
-    .image;
+    let image = front_picture(&scene);
     let got = rgb(&image, 50, 50);
     for k in 0..3 {
         let mixed = (1.0 - opacity) * to_linear(RED[k]) + opacity * to_linear(BLUE[k]);
@@ -375,15 +378,7 @@ fn a_texture_is_painted_through_the_texture_coordinates() {
         layers: vec![MeshLayer::new(&square, Colouring::Texture(&texture))],
         ..Scene::default()
     };
-    let image = render(
-        &scene,
-        &front_camera(DVec3::ZERO, 100),
-        100,
-        100,
-        &unlit([255; 4]),
-    )
-    .unwrap()
-    .image;
+    let image = front_picture(&scene);
     // Each block covers a quarter of the square; their centres are ±20 mm from the
     // middle, where bilinear sampling mixes texels of one block only.
     assert_eq!(rgb(&image, 30, 30), blocks[0], "top left");
@@ -404,15 +399,7 @@ fn the_inside_of_an_open_surface_is_drawn_tinted() {
             layers: vec![MeshLayer::new(mesh, Colouring::Uniform(RED))],
             ..Scene::default()
         };
-        let image = render(
-            &scene,
-            &front_camera(DVec3::ZERO, 100),
-            100,
-            100,
-            &unlit([255; 4]),
-        )
-        .unwrap()
-        .image;
+        let image = front_picture(&scene);
         rgb(&image, 50, 50)
     };
     assert_eq!(colour_of(&facing), RED);
