@@ -46,12 +46,13 @@ impl SampleBuffer {
         }
     }
 
-    /// A buffer for what lies in front of `opaque`: its depths, no triangles.
-    pub fn in_front_of(opaque: &SampleBuffer) -> SampleBuffer {
+    /// A buffer for what lies in front of `opaque`, or behind it by less than the
+    /// depth keys `behind` gives: those depths, no triangles.
+    pub fn in_front_of(opaque: &SampleBuffer, behind: impl Fn(f32) -> f32 + Sync) -> SampleBuffer {
         SampleBuffer {
             width: opaque.width,
             height: opaque.height,
-            key: opaque.key.clone(),
+            key: opaque.key.par_iter().map(|&key| behind(key)).collect(),
             id: vec![NO_TRIANGLE; opaque.id.len()],
         }
     }

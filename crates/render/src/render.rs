@@ -10,6 +10,10 @@ use crate::shade::{PreparedLayer, linear_to_srgb, locate, srgb_colour_to_linear}
 use glam::{DVec2, DVec3, Vec3, Vec4};
 use rayon::prelude::*;
 
+/// A translucent layer shows also where it lies up to this far behind the opaque
+/// surfaces (mm): two scans of one body differ by their noise (0.2 mm on the shared
+/// scans) and would otherwise show through each other in specks.
+const TRANSLUCENT_DEPTH_OFFSET_MM: f64 = 1.0;
 /// Largest supersampling factor (samples per pixel side).
 const MAX_SUPERSAMPLING: u32 = 4;
 /// Largest number of samples (width × height × supersampling²): about 0.5 GB per depth
@@ -126,7 +130,13 @@ pub fn render(
         .iter()
         .filter(|l| l.opacity > 0.0 && l.opacity < 1.0)
         .map(|layer| {
-            let mut buffer = SampleBuffer::in_front_of(&opaque);
+            let mut buffer = SampleBuffer::in_front_of(&opaque, |key| {
+                if key == f32::INFINITY {
+                    return key; // no opaque surface
+                }
+                let depth_mm = key_depth_mm(camera.projection, key);
+                depth_key(camera.projection, depth_mm + TRANSLUCENT_DEPTH_OFFSET_MM)
+            });
             buffer.rasterise(&layer.vertices, layer.triangles, layer.first_id);
             buffer
         })
@@ -177,8 +187,7 @@ fn check_size(width: u32, height: u32, supersampling: u32) -> Result<(), RenderE
 }
 
 /// A point on a sample grid of `width` × `height` for the rasteriser: x and y in samples,
-/// a depth key linear across the screen (depth itself for an orthographic camera, minus
-/// its reciprocal for a perspective one), NaN where it cannot be drawn.
+/// its [`depth_key`], NaN where it cannot be drawn.
 pub(crate) fn screen_vertex(
     camera: &Camera,
     point: DVec3,
@@ -187,16 +196,14 @@ pub(crate) fn screen_vertex(
 ) -> ScreenVertex {
     match camera.project(point, width, height) {
         Some(projected) => {
-            let (key, attribute_weight) = match camera.projection {
-                Projection::Orthographic => (projected.depth_mm, 1.0),
-                Projection::Perspective { .. } => {
-                    (-1.0 / projected.depth_mm, 1.0 / projected.depth_mm)
-                }
+            let attribute_weight = match camera.projection {
+                Projection::Orthographic => 1.0,
+                Projection::Perspective { .. } => 1.0 / projected.depth_mm,
             };
             ScreenVertex {
                 x: projected.pixel.x as f32,
                 y: projected.pixel.y as f32,
-                key: key as f32,
+                key: depth_key(camera.projection, projected.depth_mm),
                 attribute_weight: attribute_weight as f32,
             }
         }
@@ -206,6 +213,16 @@ pub(crate) fn screen_vertex(
             key: f32::NAN,
             attribute_weight: 0.0,
         },
+    }
+}
+
+/// The depth key of a depth (mm, as [`crate::ProjectedPoint::depth_mm`]): the depth for
+/// an orthographic camera, minus its reciprocal for a perspective one (linear across the
+/// screen, larger farther).
+fn depth_key(projection: Projection, depth_mm: f64) -> f32 {
+    match projection {
+        Projection::Orthographic => depth_mm as f32,
+        Projection::Perspective { .. } => (-1.0 / depth_mm) as f32,
     }
 }
 

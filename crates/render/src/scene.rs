@@ -62,7 +62,8 @@ pub struct MeshLayer<'a> {
     pub mesh: &'a TriMesh,
     pub colouring: Colouring<'a>,
     /// 1 opaque, below 1 translucent (the nearest surface of the layer is blended over
-    /// what lies behind it), 0 not drawn.
+    /// what lies behind it, also where it lies up to 1 mm behind an opaque surface, as a
+    /// second scan of the same body does), 0 not drawn.
     pub opacity: f64,
 }
 

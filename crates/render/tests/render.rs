@@ -356,6 +356,21 @@ fn a_translucent_layer_mixes_with_what_is_behind_it_in_linear_light() {
         assert!((f64::from(got[k]) - to_srgb(mixed)).abs() <= 1.0, "{got:?}");
     }
     assert_eq!(rgb(&image, 15, 50), RED, "outside the translucent quad");
+
+    // A second scan of the same surface lies on it within its noise, in front or behind:
+    // it tints the whole surface (no specks), until it lies clearly behind.
+    for (offset_mm, tinted) in [(0.3, true), (0.0, true), (-0.3, true), (-3.0, false)] {
+        let copy = quad(-40.0, 40.0, -40.0, 40.0, offset_mm);
+        let scene = Scene {
+            layers: vec![
+                MeshLayer::new(&back, Colouring::Uniform(RED)),
+                MeshLayer::new(&copy, Colouring::Uniform(BLUE)).with_opacity(opacity),
+            ],
+            ..Scene::default()
+        };
+        let shown = rgb(&front_picture(&scene), 50, 50);
+        assert_eq!(shown == got, tinted, "offset {offset_mm} mm: {shown:?}");
+    }
 }
 
 #[test]
