@@ -85,6 +85,48 @@ impl AnatomicalFrame {
     pub fn to_file(&self, local: DVec3) -> DVec3 {
         self.origin + self.axes * local
     }
+
+    /// Axes for pictures: the frame's axes turned about its left axis until up follows
+    /// the long axis of `points` (mm, file frame; a torso scan's vertices), so the torso
+    /// stands upright. The frame's own up, Px towards Pj, leans back with the sternum
+    /// (about 20-25° on the shared scans), which tilts side views. Columns: left, up,
+    /// anterior. The long axis is the direction of largest spread of the points in the
+    /// sagittal plane; the frame's axes are kept when the points spread more from front
+    /// to back than from top to bottom.
+    pub fn upright_axes(&self, points: &[DVec3]) -> DMat3 {
+        let local: Vec<(f64, f64)> = points
+            .iter()
+            .map(|&p| {
+                let l = self.to_local(p);
+                (l.y, l.z)
+            })
+            .filter(|(y, z)| y.is_finite() && z.is_finite())
+            .collect();
+        if local.len() < 2 {
+            return self.axes;
+        }
+        let (sum_y, sum_z) = local
+            .iter()
+            .fold((0.0, 0.0), |(a, b), &(y, z)| (a + y, b + z));
+        let count = local.len() as f64;
+        let (mean_y, mean_z) = (sum_y / count, sum_z / count);
+        let (mut yy, mut yz, mut zz) = (0.0, 0.0, 0.0);
+        for &(y, z) in &local {
+            let (dy, dz) = (y - mean_y, z - mean_z);
+            yy += dy * dy;
+            yz += dy * dz;
+            zz += dz * dz;
+        }
+        if yy <= zz {
+            // No spread, or deeper than tall: not a standing torso, keep the frame.
+            return self.axes;
+        }
+        // The principal direction of the 2x2 covariance, at angle `tilt` from up towards
+        // anterior; with more spread along up than along anterior, under 45°.
+        let tilt = 0.5 * (2.0 * yz).atan2(yy - zz);
+        let up = self.up() * tilt.cos() + self.anterior() * tilt.sin();
+        DMat3::from_cols(self.left(), up, self.left().cross(up))
+    }
 }
 
 #[cfg(test)]
@@ -126,6 +168,29 @@ mod tests {
                 < 1e-9
         );
         assert!(frame.to_file(local).distance(nipple) < 1e-12);
+    }
+
+    #[test]
+    fn upright_axes_follow_the_long_axis_of_a_leaning_body() {
+        // Points along a line 400 mm long leaning 20° forward from the frame's up, spread
+        // 50 mm across it (left-right spread does not matter).
+        let frame = AnatomicalFrame::from_landmarks(&upright_landmarks()).unwrap();
+        let lean = 20f64.to_radians();
+        let long = frame.up() * lean.cos() + frame.anterior() * lean.sin();
+        let across = frame.left().cross(long);
+        let points: Vec<DVec3> = (0..=40)
+            .flat_map(|i| {
+                let along = frame.origin + long * (10.0 * i as f64 - 300.0);
+                [-25.0, 25.0].map(|d| along + across * d + frame.left() * (i % 7) as f64 * 30.0)
+            })
+            .collect();
+        let axes = frame.upright_axes(&points);
+        assert!(axes.y_axis.distance(long) < 1e-9, "{}", axes.y_axis);
+        assert!(axes.x_axis.distance(frame.left()) < 1e-12);
+        assert!((axes.transpose() * axes - DMat3::IDENTITY).abs_diff_eq(DMat3::ZERO, 1e-12));
+        assert!((axes.determinant() - 1.0).abs() < 1e-12);
+        // Without points the frame's own axes.
+        assert_eq!(frame.upright_axes(&[]), frame.axes);
     }
 
     #[test]

@@ -10,6 +10,8 @@
 //! placed, the file's axes before.
 
 use glam::{DMat3, DMat4, DVec2, DVec3};
+/// The standard views are the reports' (`render`): same names, same directions.
+pub use render::StandardView;
 
 /// Elevation is kept inside ±this so the view never flips over the pole (radians).
 const MAX_ELEVATION: f64 = 89.0 * std::f64::consts::PI / 180.0;
@@ -20,55 +22,6 @@ const MIN_DISTANCE_MM: f64 = 1.0;
 /// Near and far clip planes as fractions / multiples of the eye distance.
 const NEAR_FRACTION: f64 = 0.02;
 const FAR_MULTIPLE: f64 = 20.0;
-
-/// A standard view, named for the side of the patient the surgeon looks at.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum StandardView {
-    Front,
-    /// Between front and the patient's left side, 45°.
-    LeftOblique,
-    /// The patient's left side.
-    Left,
-    /// Between front and the patient's right side, 45°.
-    RightOblique,
-    /// The patient's right side.
-    Right,
-}
-
-impl StandardView {
-    /// Every view, in the order of the toolbar.
-    pub const ALL: [StandardView; 5] = [
-        StandardView::Front,
-        StandardView::LeftOblique,
-        StandardView::Left,
-        StandardView::RightOblique,
-        StandardView::Right,
-    ];
-
-    /// The button label.
-    pub fn label(self) -> &'static str {
-        match self {
-            StandardView::Front => "Front",
-            StandardView::LeftOblique => "Left oblique",
-            StandardView::Left => "Left",
-            StandardView::RightOblique => "Right oblique",
-            StandardView::Right => "Right",
-        }
-    }
-
-    /// Azimuth of the eye about the body's up axis, from anterior towards the patient's
-    /// left (radians).
-    pub fn azimuth(self) -> f64 {
-        let degrees: f64 = match self {
-            StandardView::Front => 0.0,
-            StandardView::LeftOblique => 45.0,
-            StandardView::Left => 90.0,
-            StandardView::RightOblique => -45.0,
-            StandardView::Right => -90.0,
-        };
-        degrees.to_radians()
-    }
-}
 
 /// A ray from the eye through a pixel: `origin + t * direction`, `direction` unit.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -13,6 +13,7 @@ pub mod register;
 pub mod report;
 pub mod scan;
 pub mod simulate;
+pub mod views;
 
 pub use anatomy::measure::Distance;
 pub use phantom::{Cup, PhantomParams};

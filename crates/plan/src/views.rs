@@ -1,0 +1,127 @@
+//! The standard views of a scan for a report: front, obliques and sides in the
+//! anatomical frame from its landmarks, with an optional colour map, the landmarks as
+//! markers and curves (e.g. the cut curves) on the surface, as PNG files in memory.
+
+use anatomy::{AnatomicalFrame, Landmarks};
+use anyhow::{Context, Result};
+use glam::DVec3;
+use mesh::TriMesh;
+use render::{
+    Camera, Colouring, Marker, MarkerPlacement, MeshLayer, Polyline, RenderOptions, SKIN_TONE,
+    Scene, StandardView, encode_png, render,
+};
+
+/// Marker colours (sRGB): the patient's left side, her right side, the midline; none of
+/// them green, yellow or red, the colours of a deviation map.
+const LEFT_MARKER: [u8; 3] = [0, 90, 200];
+const RIGHT_MARKER: [u8; 3] = [210, 0, 140];
+const MIDLINE_MARKER: [u8; 3] = [35, 35, 35];
+/// Curve colour (sRGB) and stroke width (pixels).
+const CURVE_COLOUR: [u8; 3] = [100, 40, 150];
+const CURVE_WIDTH_PX: f64 = 2.5;
+
+/// What the views show besides the scan and its landmarks.
+#[derive(Debug, Clone, Copy)]
+pub struct ViewContent<'a> {
+    /// One colour per scan vertex (e.g. a deviation map); without it the scan's own
+    /// vertex colours, or a skin tone.
+    pub colours: Option<&'a [[u8; 3]]>,
+    /// Closed curves on the surface (mm, scan frame), e.g. the breasts' cut curves.
+    pub curves: &'a [Vec<DVec3>],
+    /// Picture size (pixels).
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Default for ViewContent<'_> {
+    fn default() -> Self {
+        ViewContent {
+            colours: None,
+            curves: &[],
+            width: 800,
+            height: 1000,
+        }
+    }
+}
+
+/// One rendered view.
+#[derive(Debug, Clone)]
+pub struct RenderedView {
+    pub view: StandardView,
+    /// For people: "Front", "Left oblique", ...
+    pub name: &'static str,
+    pub png: Vec<u8>,
+    pub width: u32,
+    pub height: u32,
+    /// Each landmark (required ones first, then extras) in the picture, for its label.
+    pub markers: Vec<MarkerPlacement>,
+}
+
+/// Renders `scan` in every [`StandardView`], all at the same scale, looking from the
+/// anatomical frame of `landmarks` stood upright
+/// ([`AnatomicalFrame::upright_axes`]).
+pub fn standard_views(
+    scan: &TriMesh,
+    landmarks: &Landmarks,
+    content: &ViewContent,
+) -> Result<Vec<RenderedView>> {
+    let frame = AnatomicalFrame::from_landmarks(landmarks)
+        .context("the views look from the landmarks' anatomical frame")?;
+    let colouring = match (content.colours, &scan.vertex_colors) {
+        (Some(colours), _) => Colouring::PerVertex(colours),
+        (None, Some(_)) => Colouring::MeshColours,
+        (None, None) => Colouring::Uniform(SKIN_TONE),
+    };
+    let scene = Scene {
+        layers: vec![MeshLayer::new(scan, colouring)],
+        markers: landmarks
+            .iter()
+            .map(|(name, position)| Marker {
+                position,
+                colour: marker_colour(name),
+                label: name.to_owned(),
+            })
+            .collect(),
+        polylines: content
+            .curves
+            .iter()
+            .map(|curve| Polyline {
+                points: curve.clone(),
+                colour: CURVE_COLOUR,
+                closed: true,
+                width_px: CURVE_WIDTH_PX,
+            })
+            .collect(),
+    };
+    let aspect = f64::from(content.width) / f64::from(content.height);
+    let axes = frame.upright_axes(&scan.positions);
+    let cameras =
+        Camera::standard_views(axes, &scan.positions, aspect).context("framing the scan")?;
+    let options = RenderOptions::default();
+    cameras
+        .into_iter()
+        .map(|(view, camera)| {
+            let rendering = render(&scene, &camera, content.width, content.height, &options)
+                .with_context(|| format!("rendering the {} view", view.label()))?;
+            Ok(RenderedView {
+                view,
+                name: view.label(),
+                png: encode_png(&rendering.image)?,
+                width: content.width,
+                height: content.height,
+                markers: rendering.markers,
+            })
+        })
+        .collect()
+}
+
+/// Landmarks of the patient's left side end in `l`, of her right side in `r`
+/// (`Pcl`, `PSMFlr`, ...); the rest (`Pj`, `Px`, extras) are drawn as midline points.
+fn marker_colour(name: &str) -> [u8; 3] {
+    let suffix = anatomy::LandmarkName::parse(name).and_then(|n| n.as_str().chars().last());
+    match suffix {
+        Some('l') => LEFT_MARKER,
+        Some('r') => RIGHT_MARKER,
+        _ => MIDLINE_MARKER,
+    }
+}
