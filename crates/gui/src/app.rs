@@ -1,19 +1,31 @@
-//! The window: menu and path bar, landmark list, 3D viewport, distance table, status
-//! line. Everything here is presentation and input; the work is done by [`Document`],
-//! [`Camera`], [`LiveDistances`] and the `plan`/`mesh`/`anatomy` functions behind them.
+//! The window: menu and path bar, landmark list and breast model on the left, 3D
+//! viewport, implants, simulation and measurements on the right, status line.
+//! Everything here is presentation and input; the work is done by [`Document`],
+//! [`Camera`], [`LiveDistances`], [`ModelBuild`], [`LiveSimulation`] and the
+//! `plan`/`mesh`/`anatomy` functions behind them.
+
+mod planning;
+mod scripted;
 
 use crate::camera::{Camera, StandardView};
 use crate::document::{Document, Placing};
 use crate::hints::hint;
+use crate::implant_plan::{ImplantPlan, MoveDirection};
 use crate::live_distances::{LiveDistances, Table};
-use crate::render::{self, SceneMesh, ViewportCallback};
+use crate::live_simulation::LiveSimulation;
+use crate::model_build::ModelBuild;
+use crate::render::{self, Layer, LayerStyle, SceneMesh, ViewportCallback};
 use anatomy::LandmarkName;
 use anatomy::measure::clinical_distances;
 use eframe::egui::{self, Color32, Key, PointerButton, Pos2, Rect, Sense, Stroke};
 use eframe::egui_wgpu;
 use glam::{DMat3, DVec2, DVec3};
+use plan::case::PlanningCase;
+use plan::catalog::Catalog;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+pub use planning::{DisplayMode, ModelFigures, ModelSettings};
 
 /// Markers closer than this to the pointer are grabbed by a drag (points).
 const GRAB_RADIUS: f32 = 10.0;
@@ -27,6 +39,9 @@ const ERROR_COLOR: Color32 = Color32::from_rgb(235, 90, 80);
 const PLACED_COLOR: Color32 = Color32::from_rgb(60, 200, 120);
 const SELECTED_COLOR: Color32 = Color32::from_rgb(255, 200, 40);
 const EXTRA_COLOR: Color32 = Color32::from_rgb(90, 170, 255);
+const CURVE_COLOR: Color32 = Color32::from_rgb(255, 120, 200);
+/// Width of the cut curves on screen (points).
+const CURVE_WIDTH: f32 = 2.0;
 
 /// A message in the status line.
 enum Status {
@@ -57,6 +72,21 @@ pub struct GuiApp {
     status: Status,
     drag: Option<Drag>,
     viewport_rect: Option<Rect>,
+    /// Model building and simulation settings (saved in planning cases).
+    settings: ModelSettings,
+    catalog: Catalog,
+    build: Option<ModelBuild>,
+    model: Option<ModelFigures>,
+    live: Option<LiveSimulation>,
+    implants: ImplantPlan,
+    /// Why the implants cannot be simulated as edited (bad custom dimensions).
+    implant_error: Option<String>,
+    display: DisplayMode,
+    show_curves: bool,
+    export_folder: String,
+    /// The window's context once it has drawn a frame (workers wake the window with it).
+    ctx: Option<egui::Context>,
+    script: Option<scripted::ScriptRun>,
 }
 
 impl GuiApp {
@@ -83,6 +113,18 @@ impl GuiApp {
             ),
             drag: None,
             viewport_rect: None,
+            settings: ModelSettings::default(),
+            catalog: Catalog::builtin(),
+            build: None,
+            model: None,
+            live: None,
+            implants: ImplantPlan::default(),
+            implant_error: None,
+            display: DisplayMode::PreOperative,
+            show_curves: true,
+            export_folder: String::new(),
+            ctx: None,
+            script: None,
         };
         if let Some(document) = document {
             app.set_document(document);
@@ -117,6 +159,10 @@ impl GuiApp {
     pub fn show(&mut self, ui: &mut egui::Ui) {
         self.take_dropped_files(ui);
         self.view_keys(ui);
+        self.move_keys(ui);
+        self.poll_build(ui.ctx());
+        self.advance_script(ui.ctx());
+        self.update_simulation();
         if let (Some(document), None) = (&self.document, &self.distances) {
             let ctx = ui.ctx().clone();
             let mut distances =
@@ -134,13 +180,35 @@ impl GuiApp {
             }
         });
         egui::Panel::left("landmarks")
-            .default_size(290.0)
+            .default_size(300.0)
             .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| self.landmark_panel(ui));
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    egui::CollapsingHeader::new("Landmarks")
+                        .default_open(true)
+                        .show(ui, |ui| self.landmark_panel(ui));
+                    egui::CollapsingHeader::new("Breast model")
+                        .default_open(true)
+                        .show(ui, |ui| self.model_panel(ui));
+                });
             });
-        egui::Panel::right("distances")
-            .default_size(360.0)
-            .show(ui, |ui| self.distance_panel(ui));
+        egui::Panel::right("planning")
+            .default_size(400.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    egui::CollapsingHeader::new("Implants")
+                        .default_open(true)
+                        .show(ui, |ui| self.implant_panel(ui));
+                    egui::CollapsingHeader::new("Simulation")
+                        .default_open(true)
+                        .show(ui, |ui| self.simulation_panel(ui));
+                    egui::CollapsingHeader::new("Distances (mm)")
+                        .default_open(true)
+                        .show(ui, |ui| self.distance_panel(ui));
+                    egui::CollapsingHeader::new("Measurements")
+                        .default_open(true)
+                        .show(ui, |ui| self.measurement_panel(ui));
+                });
+            });
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
     }
 
@@ -152,8 +220,14 @@ impl GuiApp {
         self.status = Status::Error(format!("{error:#}"));
     }
 
-    /// Shows a new scan: frames it from the front and restarts the distance worker.
+    /// Shows a new scan: frames it from the front, restarts the distance worker and
+    /// drops the model and simulation of the previous one.
     fn set_document(&mut self, document: Document) {
+        self.cancel_build();
+        self.model = None;
+        self.live = None;
+        self.settings.control_points = None;
+        self.display = DisplayMode::PreOperative;
         self.scene = Some(Arc::new(SceneMesh::new(&document.scan.mesh)));
         self.info(format!(
             "{}: {} vertices, {} triangles",
@@ -182,16 +256,24 @@ impl GuiApp {
         self.camera.set_view(view, body);
     }
 
-    /// Tells the distance worker that the landmarks changed.
+    /// Tells the distance worker that the landmarks changed; a model built before no
+    /// longer matches them (nor do its control points).
     fn landmarks_changed(&mut self) {
         if let (Some(document), Some(distances)) = (&self.document, &mut self.distances) {
             distances.update(&document.landmarks);
         }
+        self.settings.control_points = None;
+        if let Some(model) = &mut self.model {
+            model.stale = true;
+        }
     }
 
-    /// Opens a scan, or a landmark file (`.json`) for the open scan.
-    fn open(&mut self, path: &Path) {
-        if Document::is_landmark_file(path) {
+    /// Opens a planning case, a scan, or a landmark file (`.json`) for the open scan, as
+    /// the path field's Open button does.
+    pub fn open(&mut self, path: &Path) {
+        if PlanningCase::is_case_file(path) {
+            self.open_case(path);
+        } else if Document::is_landmark_file(path) {
             let Some(document) = &mut self.document else {
                 self.status = Status::Error(format!(
                     "{}: open a scan before its landmarks",
@@ -285,6 +367,20 @@ impl GuiApp {
         }
     }
 
+    /// The arrow keys move the edited implant as the move buttons do, in the directions
+    /// they point on the screen in the front view (the patient's left is screen right);
+    /// Page Up and Page Down move it to the front and back.
+    fn move_keys(&mut self, ui: &egui::Ui) {
+        if ui.ctx().egui_wants_keyboard_input() || self.live.is_none() {
+            return;
+        }
+        for direction in MoveDirection::ALL {
+            if ui.input(|i| i.key_pressed(move_key(direction))) {
+                self.implants.step(direction);
+            }
+        }
+    }
+
     fn toolbar(&mut self, ui: &mut egui::Ui) {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
@@ -314,6 +410,13 @@ impl GuiApp {
             {
                 self.save_landmarks();
             }
+            if ui
+                .add_enabled(has_document, egui::Button::new("Save case"))
+                .on_hover_text("the scan, landmarks, model settings and implants, as JSON")
+                .clicked()
+            {
+                self.save_case();
+            }
             ui.separator();
             for view in StandardView::ALL {
                 let button = ui
@@ -327,7 +430,6 @@ impl GuiApp {
     }
 
     fn landmark_panel(&mut self, ui: &mut egui::Ui) {
-        ui.heading("Landmarks");
         let Some(document) = &mut self.document else {
             ui.label("No scan open.");
             return;
@@ -439,7 +541,6 @@ impl GuiApp {
     }
 
     fn distance_panel(&mut self, ui: &mut egui::Ui) {
-        ui.heading("Distances (mm)");
         let Some(distances) = &mut self.distances else {
             ui.label("No scan open.");
             return;
@@ -495,7 +596,19 @@ impl GuiApp {
         let local =
             |pos: Pos2| DVec2::new(f64::from(pos.x - rect.min.x), f64::from(pos.y - rect.min.y));
         let painter = ui.painter_at(rect);
-        let (Some(document), Some(scene)) = (&mut self.document, &self.scene) else {
+        let layers = self.layers();
+        // Landmarks are placed, shown and dragged on the pre-operative scan only.
+        let editing = self.shows_pre_operative();
+        let curves: Vec<Vec<DVec3>> = match &self.model {
+            Some(model) if self.show_curves && editing => {
+                vec![
+                    model.cut_curves.left.clone(),
+                    model.cut_curves.right.clone(),
+                ]
+            }
+            _ => Vec::new(),
+        };
+        let Some(document) = &mut self.document else {
             painter.rect_filled(rect, 0.0, render::background());
             painter.text(
                 rect.center(),
@@ -515,6 +628,7 @@ impl GuiApp {
             let origin = ui.input(|i| i.pointer.press_origin());
             self.drag = if response.dragged_by(PointerButton::Primary) && !shift {
                 let grabbed = origin
+                    .filter(|_| editing)
                     .and_then(|origin| nearest_marker(document, &self.camera, local(origin), size));
                 Some(grabbed.map_or(Drag::Orbit, Drag::Point))
             } else {
@@ -544,6 +658,7 @@ impl GuiApp {
         }
         let mut placed = None;
         if response.clicked()
+            && editing
             && let Some(pointer) = response.interact_pointer_pos()
         {
             let ray = self.camera.ray(local(pointer), size);
@@ -563,13 +678,13 @@ impl GuiApp {
             }
         }
 
-        // Drawing: the shaded scan (GPU), then the markers on top.
+        // Drawing: the shaded scans (GPU), then the cut curves and markers on top.
         if self.gpu {
             painter.add(egui_wgpu::Callback::new_paint_callback(
                 rect,
                 ViewportCallback {
                     camera: self.camera,
-                    scene: Arc::clone(scene),
+                    layers,
                     size_points: size,
                 },
             ));
@@ -577,11 +692,36 @@ impl GuiApp {
             painter.rect_filled(rect, 0.0, render::background());
         }
         let eye = self.camera.eye();
-        for (name, point) in document.landmarks.iter() {
-            let Some(pixel) = self.camera.project(point, size) else {
+        let on_screen = |point: DVec3| {
+            let pixel = self.camera.project(point, size)?;
+            Some(rect.min + egui::vec2(pixel.x as f32, pixel.y as f32))
+        };
+        for curve in &curves {
+            // A closed curve; segments whose ends are both in sight are drawn.
+            let shown: Vec<Option<Pos2>> = curve
+                .iter()
+                .map(|&p| {
+                    document
+                        .visible_from(eye, p, OCCLUSION_TOLERANCE_MM)
+                        .then(|| on_screen(p))
+                        .flatten()
+                })
+                .collect();
+            for k in 0..shown.len() {
+                if let (Some(a), Some(b)) = (shown[k], shown[(k + 1) % shown.len()]) {
+                    painter.line_segment([a, b], Stroke::new(CURVE_WIDTH, CURVE_COLOR));
+                }
+            }
+        }
+        let markers: Vec<(&str, DVec3)> = if editing {
+            document.landmarks.iter().collect()
+        } else {
+            Vec::new()
+        };
+        for (name, point) in markers {
+            let Some(at) = on_screen(point) else {
                 continue;
             };
-            let at = rect.min + egui::vec2(pixel.x as f32, pixel.y as f32);
             let visible = document.visible_from(eye, point, OCCLUSION_TOLERANCE_MM);
             let selected = document.selected.as_deref() == Some(name);
             let color = if selected {
@@ -632,6 +772,38 @@ impl GuiApp {
             self.landmarks_changed();
         }
     }
+
+    /// The meshes the viewport draws in the current display mode.
+    fn layers(&self) -> Vec<Layer> {
+        let Some(scene) = &self.scene else {
+            return Vec::new();
+        };
+        let pre_operative = Layer {
+            scene: Arc::clone(scene),
+            style: LayerStyle::Opaque,
+        };
+        let simulated = self.live.as_ref().and_then(|live| live.frame.as_ref());
+        match (self.display, simulated) {
+            (_, None) | (DisplayMode::PreOperative, _) => vec![pre_operative],
+            (DisplayMode::Simulated, Some(frame)) => vec![Layer {
+                scene: Arc::clone(&frame.scene),
+                style: LayerStyle::Opaque,
+            }],
+            (DisplayMode::Overlay, Some(frame)) => vec![
+                pre_operative,
+                Layer {
+                    scene: Arc::clone(&frame.scene),
+                    style: LayerStyle::Translucent,
+                },
+            ],
+        }
+    }
+
+    /// Whether the pre-operative scan is drawn opaque (landmarks and cut curves are on it).
+    fn shows_pre_operative(&self) -> bool {
+        self.display != DisplayMode::Simulated
+            || self.live.as_ref().is_none_or(|live| live.frame.is_none())
+    }
 }
 
 impl eframe::App for GuiApp {
@@ -648,6 +820,18 @@ fn view_key(view: StandardView) -> Key {
         StandardView::Left => Key::Num3,
         StandardView::RightOblique => Key::Num4,
         StandardView::Right => Key::Num5,
+    }
+}
+
+/// The key of a move button (see [`GuiApp::move_keys`]).
+fn move_key(direction: MoveDirection) -> Key {
+    match direction {
+        MoveDirection::Left => Key::ArrowRight,
+        MoveDirection::Right => Key::ArrowLeft,
+        MoveDirection::Up => Key::ArrowUp,
+        MoveDirection::Down => Key::ArrowDown,
+        MoveDirection::Front => Key::PageUp,
+        MoveDirection::Back => Key::PageDown,
     }
 }
 

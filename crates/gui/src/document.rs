@@ -3,9 +3,10 @@
 //! No egui here; the surface queries go through `mesh` and the files through `plan` and
 //! `anatomy`.
 
-use anatomy::{LandmarkName, PartialLandmarks};
+use anatomy::{LandmarkName, Landmarks, PartialLandmarks};
 use anyhow::{Context, Result, bail};
 use glam::DVec3;
+use plan::case::{PlanningCase, ScanSource};
 use plan::{MarkedScan, PhantomParams, Scan, Silent};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -13,6 +14,8 @@ use std::sync::Arc;
 /// A scan with the landmarks placed on it so far.
 pub struct Document {
     pub scan: Arc<Scan>,
+    /// Where the scan came from (a file or the phantom), as a planning case records it.
+    pub source: ScanSource,
     pub landmarks: PartialLandmarks,
     /// Where the landmarks were read from or last saved to.
     pub landmarks_path: Option<PathBuf>,
@@ -46,10 +49,11 @@ impl Placing {
 }
 
 impl Document {
-    /// A scan with no landmarks yet.
-    pub fn new(scan: Scan) -> Document {
+    /// A scan (owned or shared) with no landmarks yet; `source` is where it came from.
+    pub fn new(scan: impl Into<Arc<Scan>>, source: ScanSource) -> Document {
         Document {
-            scan: Arc::new(scan),
+            scan: scan.into(),
+            source,
             landmarks: PartialLandmarks::default(),
             landmarks_path: None,
             selected: None,
@@ -60,12 +64,14 @@ impl Document {
 
     /// Reads a scan (PLY, OBJ or STL).
     pub fn open_scan(path: &Path) -> Result<Document> {
-        Ok(Document::new(Scan::load(path, &Silent)?))
+        let source = ScanSource::File(path.to_path_buf());
+        Ok(Document::new(Scan::load(path, &Silent)?, source))
     }
 
     /// The built-in phantom, with its exact landmarks or with none placed.
     pub fn phantom(with_landmarks: bool) -> Result<Document> {
-        let marked = MarkedScan::phantom(&PhantomParams::default())?;
+        let params = PhantomParams::default();
+        let marked = MarkedScan::phantom(&params)?;
         let landmarks = if with_landmarks {
             PartialLandmarks::from(&marked.landmarks)
         } else {
@@ -73,8 +79,40 @@ impl Document {
         };
         Ok(Document {
             landmarks,
-            ..Document::new(marked.scan)
+            ..Document::new(marked.scan, ScanSource::Phantom(params))
         })
+    }
+
+    /// The scan of a planning case with the case's landmarks (snapped onto it); returns
+    /// the snapping warnings too.
+    pub fn from_case(case: &PlanningCase, case_path: &Path) -> Result<(Document, Vec<String>)> {
+        let scan = case.scan.load(&Silent)?;
+        let mut landmarks = case.landmarks.clone();
+        let warnings = landmarks
+            .snap_to_surface(&scan.index)
+            .with_context(|| format!("the landmarks of {}", case_path.display()))?;
+        let document = Document {
+            landmarks,
+            ..Document::new(scan, case.scan.clone())
+        };
+        let warnings = warnings
+            .iter()
+            .map(|w| format!("{}: {w}", case_path.display()))
+            .collect();
+        Ok((document, warnings))
+    }
+
+    /// The scan with its landmarks, once all required ones are placed: what a model is
+    /// built from.
+    pub fn marked(&self) -> Result<MarkedScan> {
+        let path = self.landmarks_path.clone().unwrap_or_else(|| {
+            PathBuf::from(format!(
+                "the landmarks placed on {}",
+                self.scan.path.display()
+            ))
+        });
+        let landmarks: Landmarks = self.landmarks.complete(&path)?;
+        MarkedScan::new(Arc::clone(&self.scan), landmarks, &path, &Silent)
     }
 
     /// Reads a landmark file (required landmarks may be missing) and snaps its points
@@ -210,8 +248,9 @@ mod tests {
     use super::*;
 
     fn grid_document() -> Document {
-        let scan = Scan::from_mesh(mesh::shapes::grid(20, 20, 1.0), Path::new("grid.ply")).unwrap();
-        Document::new(scan)
+        let path = Path::new("grid.ply");
+        let scan = Scan::from_mesh(mesh::shapes::grid(20, 20, 1.0), path).unwrap();
+        Document::new(scan, ScanSource::File(path.to_path_buf()))
     }
 
     #[test]

@@ -1,7 +1,10 @@
 //! The desktop planning application (`mammaplan gui`): a window with a lit 3D view of a
-//! scan, landmark placement by clicking on the surface, and the clinical distances
-//! updated live. A thin layer over `plan`, `anatomy` and `mesh`: geometry queries and
-//! file formats live there; this crate holds presentation, input and the camera.
+//! scan, landmark placement by clicking on the surface, the clinical distances updated
+//! live, the breast model built on a worker thread, implants chosen and moved with the
+//! simulation running live on another, measurements, exports and planning cases. A
+//! thin layer over `plan`, `anatomy` and `mesh`: geometry queries, simulation and file
+//! formats live there; this crate holds presentation, input, the camera and the
+//! workers that keep the window responsive.
 //!
 //! Built on eframe/egui with the wgpu backend; the scan is drawn through an
 //! `egui_wgpu` paint callback ([`render`]), picking is a CPU ray cast on the scan's BVH.
@@ -10,16 +13,28 @@ pub mod app;
 pub mod camera;
 pub mod document;
 mod hints;
+pub mod implant_plan;
 pub mod live_distances;
+pub mod live_simulation;
+pub mod model_build;
 pub mod render;
+pub mod script;
 
 pub use app::GuiApp;
 pub use document::Document;
 
 use eframe::egui;
 
-/// Opens the window and runs until it is closed; `document` is shown first if given.
-pub fn run(document: Option<Document>) -> anyhow::Result<()> {
+/// What the window shows first.
+pub enum Start {
+    Empty,
+    Document(Box<Document>),
+    /// A planning case file.
+    Case(std::path::PathBuf),
+}
+
+/// Opens the window and runs until it is closed; `script`, if given, is run in it.
+pub fn run(start: Start, script: Option<script::Script>) -> anyhow::Result<()> {
     let options = eframe::NativeOptions {
         renderer: eframe::Renderer::Wgpu,
         viewport: egui::ViewportBuilder::default()
@@ -36,10 +51,20 @@ pub fn run(document: Option<Document>) -> anyhow::Result<()> {
         "mammaplan",
         options,
         Box::new(move |cc| {
-            Ok(Box::new(GuiApp::new(
-                cc.wgpu_render_state.as_ref(),
-                document,
-            )))
+            let render_state = cc.wgpu_render_state.as_ref();
+            let mut app = match start {
+                Start::Empty => GuiApp::new(render_state, None),
+                Start::Document(document) => GuiApp::new(render_state, Some(*document)),
+                Start::Case(path) => {
+                    let mut app = GuiApp::new(render_state, None);
+                    app.open(&path);
+                    app
+                }
+            };
+            if let Some(script) = script {
+                app.run_script(script);
+            }
+            Ok(Box::new(app))
         }),
     )
     .map_err(|error| anyhow::anyhow!("cannot open the window: {error}"))

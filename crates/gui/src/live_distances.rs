@@ -129,7 +129,7 @@ mod tests {
     fn the_worker_measures_the_pairs_that_are_placed() {
         let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
         let full = PartialLandmarks::from(&marked.landmarks);
-        let mut live = LiveDistances::start(Arc::new(marked.scan), || {});
+        let mut live = LiveDistances::start(marked.scan, || {});
         assert_eq!(*live.poll(), Table::Preparing);
 
         let mut partial = PartialLandmarks::default();

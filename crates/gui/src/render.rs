@@ -1,9 +1,12 @@
 //! Drawing the scan in the viewport with wgpu, through an `egui_wgpu` paint callback.
 //!
-//! `prepare` draws the lit mesh into the viewport's own colour and depth textures
+//! `prepare` draws the lit meshes into the viewport's own colour and depth textures
 //! (multisampled when the adapter allows), so the 3D scene has a real depth buffer
 //! whatever egui's render pass has; `paint` then copies the resolved colour into egui's
-//! pass with a full-viewport triangle. Shading: per-vertex normals, a light slightly
+//! pass with a full-viewport triangle. Up to [`MAX_LAYERS`] meshes are drawn in order:
+//! opaque ones, then a translucent one blended over them (the simulated scan over the
+//! pre-operative one). A simulated scan shares its triangles with the scan it moves, so
+//! its updates rewrite the vertex buffer only. Shading: per-vertex normals, a light slightly
 //! above and to the left of the eye, Lambert diffuse plus a weak Blinn-Phong highlight;
 //! back faces (the inside of an open scan) are lit from their own side and tinted.
 //! Colours are the scan's vertex colours when it has them, a neutral skin tone otherwise.
@@ -27,12 +30,17 @@ const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Wanted multisampling of the scene (falls back to 1 if the adapter cannot).
 const MSAA_SAMPLES: u32 = 4;
+/// Most meshes drawn at once.
+pub const MAX_LAYERS: usize = 2;
+/// Colour factor and opacity of a translucent layer: a light blue veil.
+const TRANSLUCENT_TINT: [f32; 4] = [0.78, 0.88, 1.0, 0.45];
 
 const SHADER: &str = r#"
 struct Uniforms {
     view_proj: mat4x4<f32>,
     eye: vec4<f32>,
     light: vec4<f32>,
+    tint: vec4<f32>,
 };
 @group(0) @binding(0) var<uniform> u: Uniforms;
 
@@ -71,8 +79,8 @@ fn fs_main(in: VertexOut, @builtin(front_facing) front: bool) -> @location(0) ve
     let diffuse = max(dot(n, to_light), 0.0);
     let half_way = normalize(to_light + to_eye);
     let specular = pow(max(dot(n, half_way), 0.0), 48.0) * 0.18;
-    let lit = base * (0.22 + 0.78 * diffuse) + vec3<f32>(specular);
-    return vec4<f32>(min(lit, vec3<f32>(1.0)), 1.0);
+    let lit = (base * (0.22 + 0.78 * diffuse) + vec3<f32>(specular)) * u.tint.rgb;
+    return vec4<f32>(min(lit, vec3<f32>(1.0)), u.tint.a);
 }
 "#;
 
@@ -119,44 +127,69 @@ struct Vertex {
 
 /// A scan turned into GPU-ready buffers, uploaded once per scan.
 pub struct SceneMesh {
-    /// Tells scans apart so each is uploaded once.
+    /// Tells meshes apart so each is uploaded once.
     generation: u64,
+    /// Tells triangle lists apart: a moved copy of a scan keeps its scan's, and only its
+    /// vertices are uploaded again.
+    topology: u64,
     /// Positions are stored relative to this point (mm, file frame), so f32 keeps
     /// sub-micrometre precision however far the scan is from its file's origin.
     origin: DVec3,
     vertices: Vec<Vertex>,
-    indices: Vec<u32>,
+    indices: Arc<Vec<u32>>,
 }
+
+/// Numbers for [`SceneMesh::generation`] and [`SceneMesh::topology`].
+static NEXT_ID: AtomicU64 = AtomicU64::new(0);
 
 impl SceneMesh {
     /// Vertex normals, colours (or the skin tone) and positions about the bounding box
     /// centre.
     pub fn new(mesh: &TriMesh) -> SceneMesh {
-        static GENERATION: AtomicU64 = AtomicU64::new(0);
         let (low, high) = mesh.bounding_box();
-        let origin = 0.5 * (low + high);
+        let colors = |i: usize| {
+            mesh.vertex_colors
+                .as_ref()
+                .and_then(|colors| colors.get(i))
+                .map_or(SKIN, |c| c.map(|v| f32::from(v) / 255.0))
+        };
+        SceneMesh {
+            generation: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+            topology: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+            origin: 0.5 * (low + high),
+            vertices: Vec::new(),
+            indices: Arc::new(mesh.triangles.iter().flatten().copied().collect()),
+        }
+        .with_vertices(mesh, colors)
+    }
+
+    /// The same scan with its vertices moved to those of `moved` (the scan's triangles
+    /// and vertex order; new normals, the same colours and origin).
+    pub fn moved(&self, moved: &TriMesh) -> SceneMesh {
+        SceneMesh {
+            generation: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+            topology: self.topology,
+            origin: self.origin,
+            vertices: Vec::new(),
+            indices: Arc::clone(&self.indices),
+        }
+        .with_vertices(moved, |i| self.vertices[i].color)
+    }
+
+    fn with_vertices(mut self, mesh: &TriMesh, color: impl Fn(usize) -> [f32; 3]) -> SceneMesh {
         let normals = mesh.vertex_normals();
-        let vertices = mesh
+        self.vertices = mesh
             .positions
             .iter()
             .zip(&normals)
             .enumerate()
             .map(|(i, (p, n))| Vertex {
-                position: (*p - origin).as_vec3().to_array(),
+                position: (*p - self.origin).as_vec3().to_array(),
                 normal: n.as_vec3().to_array(),
-                color: mesh
-                    .vertex_colors
-                    .as_ref()
-                    .and_then(|colors| colors.get(i))
-                    .map_or(SKIN, |c| c.map(|v| f32::from(v) / 255.0)),
+                color: color(i),
             })
             .collect();
-        SceneMesh {
-            generation: GENERATION.fetch_add(1, Ordering::Relaxed),
-            origin,
-            vertices,
-            indices: mesh.triangles.iter().flatten().copied().collect(),
-        }
+        self
     }
 }
 
@@ -166,23 +199,41 @@ struct Uniforms {
     view_proj: [[f32; 4]; 4],
     eye: [f32; 4],
     light: [f32; 4],
+    tint: [f32; 4],
+}
+
+/// How a mesh is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LayerStyle {
+    Opaque,
+    /// Blended over what is drawn before it ([`TRANSLUCENT_TINT`]), hiding nothing.
+    Translucent,
+}
+
+/// One mesh of the viewport.
+#[derive(Clone)]
+pub struct Layer {
+    pub scene: Arc<SceneMesh>,
+    pub style: LayerStyle,
 }
 
 /// The GPU objects of the viewport, kept in egui_wgpu's callback resources.
 struct ViewportResources {
-    scene_pipeline: wgpu::RenderPipeline,
+    opaque_pipeline: wgpu::RenderPipeline,
+    translucent_pipeline: wgpu::RenderPipeline,
     blit_pipeline: wgpu::RenderPipeline,
     blit_layout: wgpu::BindGroupLayout,
     sampler: wgpu::Sampler,
-    uniforms: wgpu::Buffer,
-    uniform_group: wgpu::BindGroup,
+    /// One uniform buffer and group per layer.
+    uniforms: Vec<(wgpu::Buffer, wgpu::BindGroup)>,
     samples: u32,
-    mesh: Option<GpuMesh>,
+    meshes: [Option<GpuMesh>; MAX_LAYERS],
     target: Option<Target>,
 }
 
 struct GpuMesh {
     generation: u64,
+    topology: u64,
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
     index_count: u32,
@@ -232,21 +283,28 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
             count: None,
         }],
     });
-    let uniforms = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("mammaplan uniforms"),
-        contents: bytemuck::bytes_of(&Uniforms::zeroed()),
-        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-    });
-    let uniform_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("mammaplan uniforms"),
-        layout: &uniform_layout,
-        entries: &[wgpu::BindGroupEntry {
-            binding: 0,
-            resource: uniforms.as_entire_binding(),
-        }],
-    });
+    let uniforms = (0..MAX_LAYERS)
+        .map(|_| {
+            let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("mammaplan uniforms"),
+                contents: bytemuck::bytes_of(&Uniforms::zeroed()),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            });
+            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("mammaplan uniforms"),
+                layout: &uniform_layout,
+                entries: &[wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: buffer.as_entire_binding(),
+                }],
+            });
+            (buffer, group)
+        })
+        .collect();
     let scene_layout = pipeline_layout(device, "mammaplan scene layout", &uniform_layout);
-    let scene_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+    let scene_pipeline = |style: LayerStyle| {
+        let translucent = style == LayerStyle::Translucent;
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("mammaplan scene"),
         layout: Some(&scene_layout),
         vertex: wgpu::VertexState {
@@ -265,10 +323,16 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
             cull_mode: None,
             ..wgpu::PrimitiveState::default()
         },
+        // A translucent layer hides nothing behind it, and where it coincides with an
+        // opaque one (the simulated scan where nothing moved) it is still drawn.
         depth_stencil: Some(wgpu::DepthStencilState {
             format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
+            depth_write_enabled: Some(!translucent),
+            depth_compare: Some(if translucent {
+                wgpu::CompareFunction::LessEqual
+            } else {
+                wgpu::CompareFunction::Less
+            }),
             stencil: wgpu::StencilState::default(),
             bias: wgpu::DepthBiasState::default(),
         }),
@@ -282,14 +346,17 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
             entry_point: Some("fs_main"),
             targets: &[Some(wgpu::ColorTargetState {
                 format: COLOR_FORMAT,
-                blend: None,
+                blend: translucent.then_some(wgpu::BlendState::ALPHA_BLENDING),
                 write_mask: wgpu::ColorWrites::ALL,
             })],
             compilation_options: wgpu::PipelineCompilationOptions::default(),
         }),
         multiview_mask: None,
         cache: None,
-    });
+        })
+    };
+    let opaque_pipeline = scene_pipeline(LayerStyle::Opaque);
+    let translucent_pipeline = scene_pipeline(LayerStyle::Translucent);
 
     let blit_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("mammaplan blit shader"),
@@ -359,14 +426,14 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
         .write()
         .callback_resources
         .insert(ViewportResources {
-            scene_pipeline,
+            opaque_pipeline,
+            translucent_pipeline,
             blit_pipeline,
             blit_layout,
             sampler,
             uniforms,
-            uniform_group,
             samples,
-            mesh: None,
+            meshes: [None, None],
             target: None,
         });
 }
@@ -387,14 +454,15 @@ fn pipeline_layout(
 /// One frame of the viewport: what `prepare` needs to draw.
 pub struct ViewportCallback {
     pub camera: Camera,
-    pub scene: Arc<SceneMesh>,
+    /// Drawn in order (at most [`MAX_LAYERS`]).
+    pub layers: Vec<Layer>,
     /// Viewport size in egui points (the paint callback's rectangle).
     pub size_points: DVec2,
 }
 
 impl ViewportCallback {
-    fn uniforms(&self) -> Uniforms {
-        let origin = self.scene.origin;
+    fn uniforms(&self, layer: &Layer) -> Uniforms {
+        let origin = layer.scene.origin;
         let view_proj =
             self.camera.view_projection(self.size_points) * DMat4::from_translation(origin);
         let eye = self.camera.eye() - origin;
@@ -404,6 +472,10 @@ impl ViewportCallback {
             view_proj: view_proj.as_mat4().to_cols_array_2d(),
             eye: eye.as_vec3().extend(1.0).to_array(),
             light: light.normalize().as_vec3().extend(0.0).to_array(),
+            tint: match layer.style {
+                LayerStyle::Opaque => [1.0; 4],
+                LayerStyle::Translucent => TRANSLUCENT_TINT,
+            },
         }
     }
 }
@@ -425,10 +497,14 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
             (pixels.x.round() as u32).max(1),
             (pixels.y.round() as u32).max(1),
         ];
-        viewport.upload_mesh(device, &self.scene);
+        let layers = &self.layers[..self.layers.len().min(MAX_LAYERS)];
+        for (k, layer) in layers.iter().enumerate() {
+            upload_mesh(&mut viewport.meshes[k], device, queue, &layer.scene);
+            let uniforms = self.uniforms(layer);
+            queue.write_buffer(&viewport.uniforms[k].0, 0, bytemuck::bytes_of(&uniforms));
+        }
         viewport.resize(device, size);
-        queue.write_buffer(&viewport.uniforms, 0, bytemuck::bytes_of(&self.uniforms()));
-        let (Some(target), Some(mesh)) = (&viewport.target, &viewport.mesh) else {
+        let Some(target) = &viewport.target else {
             return Vec::new();
         };
         let (view, resolve_target) = match &target.multisampled {
@@ -457,11 +533,19 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
             }),
             ..wgpu::RenderPassDescriptor::default()
         });
-        pass.set_pipeline(&viewport.scene_pipeline);
-        pass.set_bind_group(0, &viewport.uniform_group, &[]);
-        pass.set_vertex_buffer(0, mesh.vertices.slice(..));
-        pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-        pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+        for (k, layer) in layers.iter().enumerate() {
+            let Some(mesh) = &viewport.meshes[k] else {
+                continue;
+            };
+            pass.set_pipeline(match layer.style {
+                LayerStyle::Opaque => &viewport.opaque_pipeline,
+                LayerStyle::Translucent => &viewport.translucent_pipeline,
+            });
+            pass.set_bind_group(0, &viewport.uniforms[k].1, &[]);
+            pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+            pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+        }
         Vec::new()
     }
 
@@ -483,32 +567,41 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
     }
 }
 
-impl ViewportResources {
-    /// Uploads the scene's buffers if they are not the ones on the GPU.
-    fn upload_mesh(&mut self, device: &wgpu::Device, scene: &SceneMesh) {
-        if self
-            .mesh
-            .as_ref()
-            .is_some_and(|m| m.generation == scene.generation)
-        {
-            return;
+/// Puts a scene's buffers into a layer's slot unless they are there: only the vertices
+/// when the slot holds the same triangles, everything otherwise.
+fn upload_mesh(
+    slot: &mut Option<GpuMesh>,
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    scene: &SceneMesh,
+) {
+    match slot {
+        Some(mesh) if mesh.generation == scene.generation => {}
+        Some(mesh) if mesh.topology == scene.topology => {
+            queue.write_buffer(&mesh.vertices, 0, bytemuck::cast_slice(&scene.vertices));
+            mesh.generation = scene.generation;
         }
-        self.mesh = Some(GpuMesh {
-            generation: scene.generation,
-            vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("mammaplan scan vertices"),
-                contents: bytemuck::cast_slice(&scene.vertices),
-                usage: wgpu::BufferUsages::VERTEX,
-            }),
-            indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("mammaplan scan triangles"),
-                contents: bytemuck::cast_slice(&scene.indices),
-                usage: wgpu::BufferUsages::INDEX,
-            }),
-            index_count: scene.indices.len() as u32,
-        });
+        _ => {
+            *slot = Some(GpuMesh {
+                generation: scene.generation,
+                topology: scene.topology,
+                vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("mammaplan scan vertices"),
+                    contents: bytemuck::cast_slice(&scene.vertices),
+                    usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+                }),
+                indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("mammaplan scan triangles"),
+                    contents: bytemuck::cast_slice(scene.indices.as_slice()),
+                    usage: wgpu::BufferUsages::INDEX,
+                }),
+                index_count: scene.indices.len() as u32,
+            });
+        }
     }
+}
 
+impl ViewportResources {
     /// (Re)creates the offscreen textures for a viewport of `size` pixels.
     fn resize(&mut self, device: &wgpu::Device, size: [u32; 2]) {
         if self.target.as_ref().is_some_and(|t| t.size == size) {

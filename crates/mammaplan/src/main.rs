@@ -294,18 +294,26 @@ enum Command {
         #[command(subcommand)]
         command: CatalogCommand,
     },
-    /// The desktop planning window: a lit 3D view of the scan, landmarks placed by
-    /// clicking on the surface, the clinical distances updated live.
+    /// The desktop planning window: landmarks placed on the scan, the breast model built,
+    /// implants chosen and moved with the simulation shown live, measurements, cases.
     Gui {
         /// A scan to open (PLY, OBJ or STL).
-        #[arg(long, value_name = "SCAN", conflicts_with = "phantom")]
+        #[arg(long, value_name = "SCAN", conflicts_with_all = ["phantom", "case"])]
         scan: Option<PathBuf>,
         /// Its landmark file (required landmarks may be missing: place them in the window).
         #[arg(long, value_name = "JSON", requires = "scan")]
         landmarks: Option<PathBuf>,
         /// Open the built-in phantom with its landmarks.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "case")]
         phantom: bool,
+        /// A planning case saved by the window (its scan, landmarks, settings and
+        /// implants; the model is rebuilt).
+        #[arg(long, value_name = "FILE")]
+        case: Option<PathBuf>,
+        /// Run a scripted session in the window (one action per line: phantom, build,
+        /// implant ID, move up, wait, screenshot FILE, ...; see the README).
+        #[arg(long, value_name = "FILE")]
+        script: Option<PathBuf>,
     },
 }
 
@@ -328,21 +336,33 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             scan,
             landmarks,
             phantom,
+            case,
+            script,
         } => {
-            let document = match scan {
-                Some(scan) => {
+            let script = script
+                .map(|path| gui::script::Script::read(&path))
+                .transpose()?;
+            let start = match (scan, case) {
+                (Some(scan), _) => {
                     let mut document = gui::Document::open_scan(&scan)?;
                     if let Some(landmarks) = landmarks {
                         for warning in document.open_landmarks(&landmarks)? {
                             progress.warn(&warning);
                         }
                     }
-                    Some(document)
+                    gui::Start::Document(Box::new(document))
                 }
-                None if phantom => Some(gui::Document::phantom(true)?),
-                None => None,
+                (None, Some(case)) => {
+                    // Read here too, so that a bad case is an error on the terminal.
+                    plan::case::PlanningCase::read(&case)?;
+                    gui::Start::Case(case)
+                }
+                (None, None) if phantom => {
+                    gui::Start::Document(Box::new(gui::Document::phantom(true)?))
+                }
+                (None, None) => gui::Start::Empty,
             };
-            gui::run(document)
+            gui::run(start, script)
         }
         Command::Demo { out, json } => {
             let report = plan::demo::demo(&out, progress)?;

@@ -4,7 +4,10 @@
 //! best").
 
 use anyhow::{Context, Result};
-pub use implant::{Catalog, CatalogEntry, ShapeKind, SuggestTarget, Suggestion};
+pub use implant::{
+    AnatomicImplant, Catalog, CatalogEntry, ImplantShape, ImplantSpec, PROJECTION_RANGE_MM,
+    RoundImplant, ShapeKind, SuggestTarget, Suggestion, WIDTH_RANGE_MM,
+};
 use serde::Serialize;
 use std::path::Path;
 

@@ -1,8 +1,10 @@
 //! The orchestration layer: loading scans and landmarks, measuring, registering, the
-//! breast model, simulation, comparing scans and the demo pipeline. Both front ends (CLI, GUI) call only this crate;
-//! it holds the glue, the algorithms live in the stage crates below it.
+//! breast model, the simulation session, planning cases, comparing scans, the report and the
+//! demo pipeline. Both front ends (CLI, GUI) call only this crate; it holds the glue, the
+//! algorithms live in the stage crates below it.
 
 pub mod bench;
+pub mod case;
 pub mod catalog;
 pub mod compare;
 pub mod demo;
@@ -36,7 +38,8 @@ pub fn one_line(error: &anyhow::Error) -> String {
     line
 }
 
-/// Receives progress of long operations (a terminal bar, a GUI, or nothing).
+/// Receives progress of long operations (a terminal bar, a GUI, or nothing) and may ask
+/// them to stop.
 pub trait Progress: Sync {
     /// A new stage starts, with the number of steps it has.
     fn stage(&self, name: &str, steps: u64);
@@ -44,6 +47,33 @@ pub trait Progress: Sync {
     fn step(&self);
     /// A warning for the user (e.g. a landmark snapped onto the surface).
     fn warn(&self, message: &str);
+    /// Whether the user asked to stop. Long operations ask between their stages and then
+    /// return the error [`Cancelled`] (cooperative: a stage under way runs to its end).
+    fn cancelled(&self) -> bool {
+        false
+    }
+}
+
+/// The error of an operation stopped because [`Progress::cancelled`] said so; find it
+/// in an `anyhow` chain with `error.chain().any(|cause| cause.is::<Cancelled>())`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Cancelled;
+
+impl std::fmt::Display for Cancelled {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("cancelled")
+    }
+}
+
+impl std::error::Error for Cancelled {}
+
+/// `Err(Cancelled)` once `progress` asks to stop.
+pub fn check_cancelled(progress: &dyn Progress) -> Result<(), Cancelled> {
+    if progress.cancelled() {
+        Err(Cancelled)
+    } else {
+        Ok(())
+    }
 }
 
 /// Progress that goes nowhere.

@@ -22,7 +22,7 @@
 //! once the model is built, so a failed build writes nothing.
 
 use crate::measure::HoleSummary;
-use crate::{MarkedScan, Progress};
+use crate::{MarkedScan, Progress, check_cancelled};
 use anatomy::breast::{BreastModel, QuadrantVolumes, Side};
 use anatomy::closed_surface::{ClosedSurface, ClosedSurfaceOptions, build_closed_surface};
 use anatomy::{BreastOptions, ControlPoints, build_breast_model};
@@ -171,7 +171,7 @@ pub struct RefinementReport {
 }
 
 /// Left and right values.
-#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct PerSide<T> {
     pub left: T,
     pub right: T,
@@ -183,6 +183,14 @@ impl<T> PerSide<T> {
         PerSide {
             left: f(Side::Left),
             right: f(Side::Right),
+        }
+    }
+
+    /// The value of one side.
+    pub fn get(&self, side: Side) -> &T {
+        match side {
+            Side::Left => &self.left,
+            Side::Right => &self.right,
         }
     }
 
@@ -276,12 +284,14 @@ pub struct ModelReport {
 }
 
 /// Builds the breast model and the closed surface of a scan with its landmarks.
-/// Errors about one breast start with its name ("left breast: ...").
+/// Errors about one breast start with its name ("left breast: ..."). Stops with
+/// [`crate::Cancelled`] between stages once `progress` asks to.
 pub fn build_model(
     marked: &MarkedScan,
     options: &ModelOptions,
     progress: &dyn Progress,
 ) -> Result<PatientModel> {
+    check_cancelled(progress)?;
     let start = Instant::now();
     let scan = &marked.scan;
     progress.stage("model", 2);
@@ -293,6 +303,7 @@ pub fn build_model(
     )?;
     let breast_model_ms = elapsed_ms(start);
     progress.step();
+    check_cancelled(progress)?;
 
     let closed_start = Instant::now();
     let closed_surface = build_closed_surface(
@@ -305,6 +316,7 @@ pub fn build_model(
     .with_context(|| scan.path.display().to_string())?;
     let closed_surface_ms = elapsed_ms(closed_start);
     progress.step();
+    check_cancelled(progress)?;
 
     progress.stage("tetrahedra", 1);
     let tets_start = Instant::now();
@@ -316,6 +328,7 @@ pub fn build_model(
     .context("tetrahedral meshing")?;
     let tetrahedra_ms = elapsed_ms(tets_start);
     progress.step();
+    check_cancelled(progress)?;
 
     Ok(PatientModel {
         scan_path: scan.path.clone(),

@@ -5,6 +5,7 @@ use anatomy::{AnatomicalFrame, Landmarks};
 use anyhow::{Context, Result, bail};
 use mesh::{SurfaceIndex, Topology, TriMesh};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// Triangles with less area than this are dropped on load (mm²).
 const DEGENERATE_AREA_MM2: f64 = 1e-10;
@@ -35,6 +36,12 @@ impl Scan {
         Scan::from_mesh(mesh, path)
     }
 
+    /// The built-in phantom torso's scan, in memory; its path (for messages) is
+    /// `phantom (cup=... seed=...)`.
+    pub fn phantom(params: &phantom::PhantomParams) -> Result<Scan> {
+        Scan::from_mesh(phantom::generate(params).scan, &phantom_path(params))
+    }
+
     /// Wraps a mesh already in memory (validated here).
     pub fn from_mesh(mesh: TriMesh, path: &Path) -> Result<Scan> {
         mesh.validate().map_err(|e| e.in_file(path))?;
@@ -51,9 +58,10 @@ impl Scan {
     }
 }
 
-/// A scan with its landmarks on the surface and its anatomical frame.
+/// A scan with its landmarks on the surface and its anatomical frame. The scan is shared
+/// (a window keeps showing it while a worker builds the model from it).
 pub struct MarkedScan {
-    pub scan: Scan,
+    pub scan: Arc<Scan>,
     pub landmarks: Landmarks,
     pub landmarks_path: PathBuf,
     pub frame: AnatomicalFrame,
@@ -72,13 +80,14 @@ impl MarkedScan {
         MarkedScan::new(scan, landmark_set, landmarks, progress)
     }
 
-    /// Attaches landmarks (already in memory) to a scan.
+    /// Attaches landmarks (already in memory) to a scan (owned or shared).
     pub fn new(
-        scan: Scan,
+        scan: impl Into<Arc<Scan>>,
         mut landmarks: Landmarks,
         landmarks_path: &Path,
         progress: &dyn crate::Progress,
     ) -> Result<MarkedScan> {
+        let scan = scan.into();
         let warnings = landmarks
             .snap_to_surface(&scan.index)
             .with_context(|| format!("{} on {}", landmarks_path.display(), scan.path.display()))?;
@@ -99,8 +108,13 @@ impl MarkedScan {
     /// messages) is `phantom (cup=... seed=...)`.
     pub fn phantom(params: &phantom::PhantomParams) -> Result<MarkedScan> {
         let phantom = phantom::generate(params);
-        let path = PathBuf::from(format!("phantom ({params})"));
+        let path = phantom_path(params);
         let scan = Scan::from_mesh(phantom.scan, &path)?;
         MarkedScan::new(scan, phantom.landmarks, &path, &crate::Silent)
     }
+}
+
+/// What names the phantom in messages.
+fn phantom_path(params: &phantom::PhantomParams) -> PathBuf {
+    PathBuf::from(format!("phantom ({params})"))
 }

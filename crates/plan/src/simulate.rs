@@ -13,22 +13,24 @@
 //! - `result.json`: the figures ([`SimulateReport`]), written last.
 
 use crate::measure::measure;
-use crate::model::{PatientModel, PerSide, load_model};
-use crate::{MarkedScan, Progress, Scan};
+use crate::model::{ModelOptions, PatientModel, PerSide, build_model, load_model};
+use crate::{Distance, MarkedScan, Progress, Scan, check_cancelled};
 use anatomy::breast::Side;
 use anyhow::{Context, Result};
 use glam::DVec3;
 use implant::{Catalog, ImplantShape, ImplantSpec};
 use serde::{Deserialize, Serialize};
-use simulation::{PatientInput, PlacedImplant, Simulation, SimulationOptions};
+use simulation::{PatientInput, PlacedImplant, Simulation};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetra::vtu::{CONSTRAINED, DISPLACEMENT, Field};
 
-pub use simulation::{CycleInfo, Placement, RunReport};
+pub use fem::Material;
+pub use simulation::{CycleInfo, Placement, RunReport, SimulationOptions, Stage};
 
 /// An implant asked for on one side.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ImplantRequest {
     /// `round:diameter=115,projection=33`, `anatomic:width=..,height=..,projection=..` or
     /// `catalog:ID`.
@@ -39,6 +41,25 @@ pub struct ImplantRequest {
     /// Turn about the bed's normal, counter-clockwise seen from the front (degrees; for
     /// anatomic implants).
     pub rotation_deg: f64,
+}
+
+impl ImplantRequest {
+    /// An implant at its default position.
+    pub fn new(spec: impl Into<String>) -> ImplantRequest {
+        ImplantRequest {
+            spec: spec.into(),
+            move_mm: DVec3::ZERO,
+            rotation_deg: 0.0,
+        }
+    }
+
+    /// Where it asks the implant to go, relative to the default position.
+    pub fn placement(&self) -> Placement {
+        Placement {
+            move_mm: self.move_mm,
+            rotation_deg: self.rotation_deg,
+        }
+    }
 }
 
 /// Settings of [`simulate`].
@@ -58,9 +79,74 @@ pub struct Session {
     pub model: PatientModel,
     pub simulation: Simulation,
     catalog: Catalog,
+    /// The clinical distances on the scan as loaded, once measured.
+    distances_before: Option<Vec<Distance>>,
+}
+
+/// Where an interactive solve stands (see [`Session::advance`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SolveState {
+    /// More cycles will bring it closer.
+    Running,
+    /// The last stage reached the relative tolerance.
+    Converged,
+    /// A stage ran out of cycles ([`SimulationOptions::max_cycles`]) short of the
+    /// tolerance: the prediction is approximate.
+    Stopped,
+}
+
+/// One step of [`Session::advance`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Advance {
+    /// The cycle just run.
+    pub cycle: CycleInfo,
+    /// Cycles run in that cycle's stage so far.
+    pub stage_cycles: usize,
+    pub state: SolveState,
+}
+
+/// The clinical figures before and after a simulation.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SimulatedMeasurements {
+    /// The breast volumes of the model, before (ml).
+    pub breast_volume_before_ml: PerSide<f64>,
+    /// The breast volumes measured on the simulated scan as on a real one (ml).
+    pub breast_volume_ml: PerSide<f64>,
+    /// The implants' volumes (ml; 0 on a side without implant).
+    pub implant_volume_ml: PerSide<f64>,
+    /// The clinical distances on the scan before and on the simulated scan.
+    pub distances: Vec<DistanceChange>,
+}
+
+/// One clinical distance before and after (mm).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DistanceChange {
+    pub name: String,
+    pub before: Distance,
+    pub simulated: Distance,
 }
 
 impl Session {
+    /// The whole per-patient preprocessing: builds the patient model of `marked`
+    /// ([`build_model`]) and prepares its simulation (stages `model`, `tetrahedra`,
+    /// `simulation`). Stops with [`crate::Cancelled`] between stages once `progress`
+    /// asks to.
+    pub fn build(
+        marked: MarkedScan,
+        model_options: &ModelOptions,
+        catalog: Catalog,
+        options: SimulationOptions,
+        progress: &dyn Progress,
+    ) -> Result<Session> {
+        let model = build_model(&marked, model_options, progress)?;
+        progress.stage("simulation", 1);
+        let session = Session::new(marked, model, catalog, options)?;
+        progress.step();
+        check_cancelled(progress)?;
+        Ok(session)
+    }
+
     /// Prepares the simulation of a built model (the finite-element hierarchy, the
     /// implant beds, the maps from the scan into the mesh) with `options`.
     pub fn new(
@@ -86,7 +172,13 @@ impl Session {
             model,
             simulation,
             catalog,
+            distances_before: None,
         })
+    }
+
+    /// The catalog that `catalog:ID` specs are looked up in.
+    pub fn catalog(&self) -> &Catalog {
+        &self.catalog
     }
 
     /// Sets (or replaces) the implant of one side from a spec at `placement` (moved and
@@ -107,15 +199,178 @@ impl Session {
             .with_context(|| format!("{side} implant {spec}"))
     }
 
+    /// Removes the implant of one side.
+    pub fn remove_implant(&mut self, side: Side) {
+        self.simulation.remove_implant(side);
+    }
+
     /// One V-cycle of the current stage, warm-started from the current displacement.
     pub fn cycle(&mut self) -> Result<CycleInfo> {
         Ok(self.simulation.cycle()?)
+    }
+
+    /// One cycle of the interactive solve: the implant stage until it reaches the
+    /// options' relative tolerance, then (unless `no_gravity`, and with an implant) the
+    /// gravity correction until it does too, as [`Simulation::run`] solves them; a live
+    /// view calls it until the state is no longer [`SolveState::Running`], and again
+    /// after every change of the implants (which starts the implant stage afresh). A
+    /// stage that runs out of cycles stops the solve ([`SolveState::Stopped`]; `run`
+    /// would go on to the gravity stage).
+    pub fn advance(&mut self, no_gravity: bool) -> Result<Advance> {
+        let cycle = self.cycle()?;
+        let (stage_cycles, _) = self.simulation.stage_progress();
+        let options = self.simulation.options();
+        let reached = cycle.relative_residual < options.relative_tolerance && !cycle.linear;
+        let out_of_cycles = stage_cycles >= options.max_cycles;
+        let has_implant = Side::BOTH
+            .iter()
+            .any(|&side| self.simulation.implant(side).is_some());
+        let state = match cycle.stage {
+            Stage::Implant if reached && !no_gravity && has_implant => {
+                self.simulation
+                    .start_gravity_correction()
+                    .context("starting the gravity correction")?;
+                SolveState::Running
+            }
+            _ if reached => SolveState::Converged,
+            _ if out_of_cycles => SolveState::Stopped,
+            _ => SolveState::Running,
+        };
+        Ok(Advance {
+            cycle,
+            stage_cycles,
+            state,
+        })
     }
 
     /// The scan's vertices as the simulation currently predicts them (mm, file frame,
     /// the scan's order).
     pub fn scan_positions(&self) -> Vec<DVec3> {
         self.simulation.scan_positions()
+    }
+
+    /// The scan with every vertex where the simulation currently predicts it (same
+    /// order, colours and texture coordinates) and the landmarks moved with the tissue;
+    /// `path` names it in messages.
+    pub fn simulated_scan(&self, path: &Path) -> Result<MarkedScan> {
+        let scan_displacements = self.simulation.scan_displacements();
+        let mut mesh = self.marked.scan.mesh.clone();
+        for (p, d) in mesh.positions.iter_mut().zip(&scan_displacements) {
+            *p += *d;
+        }
+        MarkedScan::new(
+            Scan::from_mesh(mesh, path)?,
+            self.simulation.landmarks_moved_by(&scan_displacements),
+            path,
+            &crate::Silent,
+        )
+        .context("the simulated scan")
+    }
+
+    /// The breast volumes before (the model's) and after (measured on the simulated
+    /// scan as on a real one), ml.
+    pub fn breast_volumes(&mut self) -> Result<(PerSide<f64>, PerSide<f64>)> {
+        let volumes = self.simulation.breast_volumes()?;
+        Ok((
+            PerSide::from_fn(|side| volumes[side as usize].volume_before_ml),
+            PerSide::from_fn(|side| volumes[side as usize].volume_ml),
+        ))
+    }
+
+    /// The implants' volumes (ml; 0 on a side without implant).
+    pub fn implant_volumes_ml(&self) -> PerSide<f64> {
+        PerSide::from_fn(|side| {
+            self.simulation
+                .implant(side)
+                .map_or(0.0, |placed| placed.shape.volume_ml())
+        })
+    }
+
+    /// The clinical figures of the current prediction: breast and implant volumes, and
+    /// the clinical distances on the scan as loaded (measured once) and on the simulated
+    /// scan (both with their holes closed, as `measure` does).
+    pub fn measurements(&mut self, progress: &dyn Progress) -> Result<SimulatedMeasurements> {
+        if self.distances_before.is_none() {
+            self.distances_before = Some(measure(&self.marked, &[], progress)?.distances);
+        }
+        let simulated = self.simulated_scan(Path::new("simulated scan"))?;
+        let after = measure(&simulated, &[], progress)?.distances;
+        let (breast_volume_before_ml, breast_volume_ml) = self.breast_volumes()?;
+        let before = self.distances_before.as_deref().unwrap_or_default();
+        let distances = before
+            .iter()
+            .filter_map(|b| {
+                let a = after.iter().find(|a| a.name == b.name)?;
+                Some(DistanceChange {
+                    name: b.name.clone(),
+                    before: b.clone(),
+                    simulated: a.clone(),
+                })
+            })
+            .collect();
+        Ok(SimulatedMeasurements {
+            breast_volume_before_ml,
+            breast_volume_ml,
+            implant_volume_ml: self.implant_volumes_ml(),
+            distances,
+        })
+    }
+}
+
+impl SimulatedMeasurements {
+    /// Writes the figures as pretty JSON, atomically.
+    pub fn write_json(&self, path: &Path) -> Result<()> {
+        crate::demo::write_json(path, self)
+    }
+
+    /// Writes the figures as CSV, atomically: a header
+    /// `measurement,kind,unit,before,simulated,difference`, one row per distance and
+    /// kind (`euclidean`, `surface`, `geodesic`; empty cells where a surface measure
+    /// could not be traced), then the breast and implant volumes.
+    pub fn write_csv(&self, path: &Path) -> Result<()> {
+        let cell = |value: Option<f64>| value.map_or(String::new(), |v| format!("{v:.2}"));
+        mesh::io::write_atomically(path, |w| {
+            writeln!(w, "measurement,kind,unit,before,simulated,difference")?;
+            for change in &self.distances {
+                let (b, a) = (&change.before, &change.simulated);
+                for (kind, before, after) in [
+                    ("euclidean", Some(b.euclidean_mm), Some(a.euclidean_mm)),
+                    ("surface", b.surface_mm, a.surface_mm),
+                    ("geodesic", b.geodesic_mm, a.geodesic_mm),
+                ] {
+                    let difference = before.zip(after).map(|(b, a)| a - b);
+                    writeln!(
+                        w,
+                        "{},{kind},mm,{},{},{}",
+                        change.name,
+                        cell(before),
+                        cell(after),
+                        cell(difference)
+                    )?;
+                }
+            }
+            for side in Side::BOTH {
+                let before = *self.breast_volume_before_ml.get(side);
+                let after = *self.breast_volume_ml.get(side);
+                writeln!(
+                    w,
+                    "breast volume {side},volume,ml,{},{},{}",
+                    cell(Some(before)),
+                    cell(Some(after)),
+                    cell(Some(after - before))
+                )?;
+            }
+            for side in Side::BOTH {
+                let implant = *self.implant_volume_ml.get(side);
+                writeln!(
+                    w,
+                    "implant volume {side},volume,ml,,{},",
+                    cell(Some(implant))
+                )?;
+            }
+            Ok(())
+        })?;
+        Ok(())
     }
 }
 
@@ -245,10 +500,6 @@ pub fn run_session(
     };
     for (side, request) in [(Side::Left, &options.left), (Side::Right, &options.right)] {
         if let Some(request) = request {
-            let placement = Placement {
-                move_mm: request.move_mm,
-                rotation_deg: request.rotation_deg,
-            };
             let catalog_entry = match ImplantSpec::parse(&request.spec) {
                 Ok(ImplantSpec::Catalog(id)) => session.catalog.get(&id),
                 _ => None,
@@ -256,7 +507,7 @@ pub fn run_session(
             let (catalog_id, family) = catalog_entry
                 .map(|entry| (entry.id().to_string(), entry.family().to_string()))
                 .unzip();
-            let placed = session.set_implant(side, &request.spec, placement)?;
+            let placed = session.set_implant(side, &request.spec, request.placement())?;
             *implants.get_mut(side) = Some(ImplantSummary {
                 spec: request.spec.clone(),
                 catalog_id,
@@ -296,22 +547,8 @@ pub fn run_session(
             solver.vcycles, solver.relative_residual
         ));
     }
-    let volumes = session.simulation.breast_volumes()?;
-    let scan_displacements = session.simulation.scan_displacements();
-    let simulated_mesh = {
-        let mut mesh = session.marked.scan.mesh.clone();
-        for (p, d) in mesh.positions.iter_mut().zip(&scan_displacements) {
-            *p += *d;
-        }
-        mesh
-    };
-    let simulated = MarkedScan::new(
-        Scan::from_mesh(simulated_mesh, &out_dir.join("simulated_scan.ply"))?,
-        session.simulation.landmarks_moved_by(&scan_displacements),
-        &out_dir.join("simulated_landmarks.json"),
-        &crate::Silent,
-    )
-    .context("the simulated scan")?;
+    let (breast_volume_before_ml, breast_volume_ml) = session.breast_volumes()?;
+    let simulated = session.simulated_scan(&out_dir.join("simulated_scan.ply"))?;
     let distances = measure(&simulated, &[], progress)?.distances;
 
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
@@ -333,22 +570,12 @@ pub fn run_session(
     write_fe_result(&out_dir.join("fe_result.vtu"), &session.simulation)?;
     files.push("fe_result.vtu".to_string());
     files.push("result.json".to_string());
-    let volume = |side: Side| volumes[side as usize].volume_ml;
     let report = SimulateReport {
         model: model_dir.to_path_buf(),
-        implant_volume_ml: PerSide {
-            left: implants.left.as_ref().map_or(0.0, |i| i.volume_ml),
-            right: implants.right.as_ref().map_or(0.0, |i| i.volume_ml),
-        },
+        implant_volume_ml: session.implant_volumes_ml(),
         implants,
-        breast_volume_ml: PerSide {
-            left: volume(Side::Left),
-            right: volume(Side::Right),
-        },
-        breast_volume_before_ml: PerSide {
-            left: volumes[Side::Left as usize].volume_before_ml,
-            right: volumes[Side::Right as usize].volume_before_ml,
-        },
+        breast_volume_ml,
+        breast_volume_before_ml,
         distances,
         solver,
         no_gravity: options.no_gravity,

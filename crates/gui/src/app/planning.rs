@@ -1,0 +1,827 @@
+//! The planning half of the window: the breast model (settings, "Build model" with its
+//! progress, volumes, cut curves), the implant panel, the simulation's indicator and
+//! display modes, the measurements and their export, and planning cases.
+
+use super::{ERROR_COLOR, GuiApp, PLACED_COLOR, Status};
+use crate::document::Document;
+use crate::implant_plan::{Editing, ImplantPlan, MoveDirection, Source};
+use crate::live_simulation::{
+    ExportPaths, ImplantSet, LiveSimulation, MeasurementState, SolverStatus,
+};
+use crate::model_build::{BuildOutcome, ModelBuild};
+use anatomy::ControlPoints;
+use anatomy::breast::{QuadrantVolumes, Side};
+use eframe::egui::{self, Color32};
+use glam::DVec3;
+use plan::case::PlanningCase;
+use plan::catalog::ShapeKind;
+use plan::model::{DEFAULT_ELEMENTS, PerSide};
+use plan::simulate::{Material, Session, SolveState, Stage};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// The stages of a model build, in order (the progress bar's thirds).
+const BUILD_STAGES: [&str; 3] = ["model", "tetrahedra", "simulation"];
+/// The element counts the slider offers.
+const ELEMENTS_RANGE: std::ops::RangeInclusive<usize> = 2_000..=200_000;
+const RUNNING_COLOR: Color32 = Color32::from_rgb(240, 190, 60);
+
+/// What the viewport shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DisplayMode {
+    /// The scan as loaded (landmarks and cut curves on it).
+    PreOperative,
+    /// The predicted post-operative scan.
+    Simulated,
+    /// The scan as loaded with the prediction over it, translucent.
+    Overlay,
+}
+
+impl DisplayMode {
+    const ALL: [DisplayMode; 3] = [
+        DisplayMode::PreOperative,
+        DisplayMode::Simulated,
+        DisplayMode::Overlay,
+    ];
+
+    fn label(self) -> &'static str {
+        match self {
+            DisplayMode::PreOperative => "Pre-operative",
+            DisplayMode::Simulated => "Simulated",
+            DisplayMode::Overlay => "Overlay",
+        }
+    }
+}
+
+/// How the model is built and the tissue simulated (saved in planning cases).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelSettings {
+    /// About how many tetrahedra the finest level has.
+    pub elements: usize,
+    pub tissue: Material,
+    /// The cut curves' control points of the built model (or of a reopened case); `None`:
+    /// the defaults from the landmarks.
+    pub control_points: Option<ControlPoints>,
+}
+
+impl Default for ModelSettings {
+    fn default() -> ModelSettings {
+        ModelSettings {
+            elements: DEFAULT_ELEMENTS,
+            tissue: Material::default(),
+            control_points: None,
+        }
+    }
+}
+
+/// The figures of a built model the window shows.
+#[derive(Debug, Clone)]
+pub struct ModelFigures {
+    pub breast_volume_ml: PerSide<f64>,
+    pub quadrant_volume_ml: PerSide<QuadrantVolumes>,
+    /// Each breast's cut curve (closed, mm, file frame).
+    pub cut_curves: PerSide<Vec<DVec3>>,
+    /// Tetrahedra of the finest level and number of levels.
+    pub elements: usize,
+    pub levels: usize,
+    pub build_time: Duration,
+    /// The landmarks changed since it was built.
+    pub stale: bool,
+}
+
+impl ModelFigures {
+    fn of(session: &Session, build_time: Duration) -> ModelFigures {
+        let breasts = &session.model.breasts;
+        ModelFigures {
+            breast_volume_ml: PerSide::from_fn(|side| breasts.breast(side).volume_ml),
+            quadrant_volume_ml: PerSide::from_fn(|side| breasts.breast(side).quadrant_volume_ml),
+            cut_curves: PerSide::from_fn(|side| {
+                breasts
+                    .breast(side)
+                    .curve
+                    .points
+                    .iter()
+                    .map(|p| p.position)
+                    .collect()
+            }),
+            elements: session.model.levels.first().map_or(0, |l| l.elements),
+            levels: session.model.levels.len(),
+            build_time,
+            stale: false,
+        }
+    }
+}
+
+impl GuiApp {
+    /// The built model's figures.
+    pub fn model(&self) -> Option<&ModelFigures> {
+        self.model.as_ref()
+    }
+
+    /// Whether a model build is under way.
+    pub fn is_building(&self) -> bool {
+        self.build.is_some()
+    }
+
+    /// The live simulation, once a model is built.
+    pub fn live(&self) -> Option<&LiveSimulation> {
+        self.live.as_ref()
+    }
+
+    /// The implants as edited.
+    pub fn implants(&self) -> &ImplantPlan {
+        &self.implants
+    }
+
+    /// The model settings.
+    pub fn settings(&self) -> &ModelSettings {
+        &self.settings
+    }
+
+    /// What the viewport shows.
+    pub fn display(&self) -> DisplayMode {
+        self.display
+    }
+
+    /// Starts building the model of the open scan on a worker thread.
+    pub(super) fn start_build(&mut self) {
+        let Some(document) = &self.document else {
+            return;
+        };
+        let (marked, case) = match document.marked() {
+            Ok(marked) => (marked, self.case_of(document)),
+            Err(error) => return self.error_status(&error),
+        };
+        self.cancel_build();
+        let wake = self.waker();
+        self.build = Some(ModelBuild::start(
+            marked,
+            case.model_options(),
+            case.simulation_options(),
+            wake,
+        ));
+        self.info("building the model…");
+    }
+
+    /// Stops a build under way (its worker finishes its stage and is forgotten).
+    pub(super) fn cancel_build(&mut self) {
+        if let Some(build) = self.build.take() {
+            build.cancel();
+        }
+    }
+
+    /// A callback that asks the window for a repaint (a no-op before the first frame).
+    fn waker(&self) -> impl Fn() + Send + Sync + 'static {
+        let ctx = self.ctx.clone();
+        move || {
+            if let Some(ctx) = &ctx {
+                ctx.request_repaint();
+            }
+        }
+    }
+
+    /// Takes a finished build: its figures shown, its session handed to a live
+    /// simulation.
+    pub(super) fn poll_build(&mut self, ctx: &egui::Context) {
+        self.ctx = Some(ctx.clone());
+        let Some(build) = &self.build else {
+            return;
+        };
+        let warnings = build.take_warnings();
+        let outcome = build.poll();
+        for warning in warnings {
+            self.info(format!("warning: {warning}"));
+        }
+        let Some(outcome) = outcome else {
+            // Keep the progress bar moving while the worker has nothing to report.
+            ctx.request_repaint_after(Duration::from_millis(250));
+            return;
+        };
+        self.build = None;
+        match outcome {
+            BuildOutcome::Built(session, build_time) => {
+                let figures = ModelFigures::of(&session, build_time);
+                // The control points the model was built with: those given (a case's,
+                // kept as they are) or else the defaults it derived from the landmarks.
+                if self.settings.control_points.is_none() {
+                    self.settings.control_points = Some(session.model.control_points());
+                }
+                self.info(format!(
+                    "model built in {:.1} s: {} tetrahedra in {} levels",
+                    build_time.as_secs_f64(),
+                    figures.elements,
+                    figures.levels
+                ));
+                self.model = Some(figures);
+                if let Some(scene) = &self.scene {
+                    self.live = Some(LiveSimulation::start(
+                        *session,
+                        Arc::clone(scene),
+                        self.waker(),
+                    ));
+                    self.display = DisplayMode::Simulated;
+                }
+            }
+            BuildOutcome::Cancelled => self.info("model building cancelled"),
+            BuildOutcome::Failed(error) => self.error_status(&error.context("building the model")),
+        }
+    }
+
+    /// Takes the simulation's updates and sends it the implants if they changed.
+    pub(super) fn update_simulation(&mut self) {
+        let Some(live) = &mut self.live else {
+            return;
+        };
+        live.poll();
+        match self.implants.requests(&self.catalog) {
+            Ok(implants) => {
+                self.implant_error = None;
+                live.set_implants(&ImplantSet {
+                    implants,
+                    gravity: self.implants.gravity,
+                });
+            }
+            Err(error) => self.implant_error = Some(error),
+        }
+    }
+
+    /// The planning case of the window's state.
+    fn case_of(&self, document: &Document) -> PlanningCase {
+        let mut case = PlanningCase::new(document.source.clone(), document.landmarks.clone());
+        case.control_points = self.settings.control_points.clone();
+        case.elements = self.settings.elements;
+        case.tissue = self.settings.tissue;
+        case.gravity = self.implants.gravity;
+        case.linked = self.implants.linked();
+        case
+    }
+
+    /// The planning case of the window, implants included; errors when an implant's
+    /// design makes no implant.
+    pub fn case(&self) -> anyhow::Result<PlanningCase> {
+        let Some(document) = &self.document else {
+            anyhow::bail!("no scan open");
+        };
+        let mut case = self.case_of(document);
+        case.implants = self
+            .implants
+            .requests(&self.catalog)
+            .map_err(anyhow::Error::msg)?;
+        Ok(case)
+    }
+
+    /// Writes the planning case to the `.json` path typed in the path field.
+    pub(super) fn save_case(&mut self) {
+        let path = PathBuf::from(self.path_text.trim());
+        if !Document::is_landmark_file(&path) {
+            self.status = Status::Error(
+                "type where to save the case (a path ending in .json) in the path field".into(),
+            );
+            return;
+        }
+        match self.case().and_then(|case| case.write(&path)) {
+            Ok(()) => self.info(format!("saved the case {}", path.display())),
+            Err(error) => self.error_status(&error),
+        }
+    }
+
+    /// Opens a planning case: its scan and landmarks, settings and implants; builds its
+    /// model when all landmarks are placed (the implants follow once it is built).
+    pub(super) fn open_case(&mut self, path: &Path) {
+        let opened = PlanningCase::read(path).and_then(|case| {
+            let (document, warnings) = Document::from_case(&case, path)?;
+            let implants = ImplantPlan::from_requests(
+                &case.implants,
+                case.linked,
+                case.gravity,
+                &self.catalog,
+            )
+            .map_err(anyhow::Error::msg)?;
+            Ok((case, document, warnings, implants))
+        });
+        let (case, document, warnings, implants) = match opened {
+            Ok(opened) => opened,
+            Err(error) => return self.error_status(&error),
+        };
+        self.set_document(document);
+        self.settings = ModelSettings {
+            elements: case.elements,
+            tissue: case.tissue,
+            control_points: case.control_points,
+        };
+        self.implants = implants;
+        let mut message = format!("opened the case {}", path.display());
+        for warning in warnings {
+            message.push_str("; ");
+            message.push_str(&warning);
+        }
+        self.info(message);
+        if self
+            .document
+            .as_ref()
+            .is_some_and(|d| d.landmarks.missing().next().is_none())
+        {
+            self.start_build();
+        }
+    }
+
+    pub(super) fn model_panel(&mut self, ui: &mut egui::Ui) {
+        let Some(document) = &self.document else {
+            ui.label("No scan open.");
+            return;
+        };
+        let missing = document.landmarks.missing().count();
+        let idle = self.build.is_none();
+        ui.add_enabled(
+            idle,
+            egui::Slider::new(&mut self.settings.elements, ELEMENTS_RANGE)
+                .logarithmic(true)
+                .text("Elements"),
+        )
+        .on_hover_text("tetrahedra of the finest level: more is finer and slower");
+        ui.add_enabled(
+            idle,
+            egui::Slider::new(&mut self.settings.tissue.young_kpa, 0.5..=20.0)
+                .logarithmic(true)
+                .text("Young's modulus (kPa)"),
+        );
+        ui.add_enabled(
+            idle,
+            egui::Slider::new(&mut self.settings.tissue.poisson_ratio, 0.3..=0.49)
+                .text("Poisson ratio"),
+        );
+        if let Some(build) = &self.build {
+            let progress = build.progress();
+            let stage = BUILD_STAGES
+                .iter()
+                .position(|s| *s == progress.stage)
+                .unwrap_or(0);
+            let within = progress.step as f32 / progress.steps.max(1) as f32;
+            let fraction = (stage as f32 + within.min(1.0)) / BUILD_STAGES.len() as f32;
+            ui.add(egui::ProgressBar::new(fraction).text(format!(
+                "{} {:.0} s",
+                progress.stage,
+                progress.elapsed.as_secs_f64()
+            )));
+            let label = if progress.cancelling {
+                "Cancelling…"
+            } else {
+                "Cancel"
+            };
+            if ui
+                .add_enabled(!progress.cancelling, egui::Button::new(label))
+                .clicked()
+            {
+                build.cancel();
+            }
+        } else {
+            let label = if self.model.is_some() {
+                "Rebuild model"
+            } else {
+                "Build model"
+            };
+            if ui
+                .add_enabled(missing == 0, egui::Button::new(label))
+                .on_hover_text("cut curves, breast volumes, tetrahedra and the simulation set-up")
+                .clicked()
+            {
+                self.start_build();
+            }
+            if missing > 0 {
+                ui.weak(format!(
+                    "Place the {missing} missing landmarks to build the model."
+                ));
+            }
+        }
+        let Some(model) = &self.model else {
+            return;
+        };
+        if model.stale {
+            ui.colored_label(
+                RUNNING_COLOR,
+                "The landmarks changed since the model was built: rebuild it.",
+            );
+        }
+        egui::Grid::new("breast volumes")
+            .striped(true)
+            .show(ui, |ui| {
+                ui.strong("Volume (ml)");
+                ui.strong("left");
+                ui.strong("right");
+                ui.end_row();
+                ui.label("breast");
+                for side in Side::BOTH {
+                    ui.label(format!("{:.1}", model.breast_volume_ml.get(side)));
+                }
+                ui.end_row();
+                type Quadrant = fn(&QuadrantVolumes) -> f64;
+                let quadrants: [(&str, Quadrant); 4] = [
+                    ("upper outer", |q| q.upper_outer),
+                    ("upper inner", |q| q.upper_inner),
+                    ("lower inner", |q| q.lower_inner),
+                    ("lower outer", |q| q.lower_outer),
+                ];
+                for (name, value) in quadrants {
+                    ui.label(name);
+                    for side in Side::BOTH {
+                        ui.label(format!("{:.1}", value(model.quadrant_volume_ml.get(side))));
+                    }
+                    ui.end_row();
+                }
+            });
+        ui.checkbox(&mut self.show_curves, "Show cut curves");
+        ui.weak(format!(
+            "{} tetrahedra in {} levels, built in {:.1} s",
+            model.elements,
+            model.levels,
+            model.build_time.as_secs_f64()
+        ));
+    }
+
+    pub(super) fn implant_panel(&mut self, ui: &mut egui::Ui) {
+        if self.live.is_none() {
+            ui.weak("Build the model to simulate implants; you can choose them already.");
+        }
+        let mut editing = self.implants.editing;
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut editing, Editing::Side(Side::Right), "Right breast");
+            ui.selectable_value(&mut editing, Editing::Linked, "Both, mirrored");
+            ui.selectable_value(&mut editing, Editing::Side(Side::Left), "Left breast");
+        });
+        if editing != self.implants.editing {
+            self.implants.edit(editing);
+        }
+        let catalog = &self.catalog;
+        let linked = self.implants.linked();
+        let design = self.implants.edited();
+        ui.checkbox(
+            &mut design.enabled,
+            if linked {
+                "Implants on both sides"
+            } else {
+                "Implant on this side"
+            },
+        );
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut design.source, Source::Catalog, "Catalog");
+            let custom = ui.radio_value(&mut design.source, Source::Custom, "Custom size");
+            // Custom sizes start from the catalog entry chosen.
+            if custom.changed()
+                && let Some(entry) = catalog.get(&design.catalog_id)
+            {
+                design.set_dimensions(entry.shape());
+            }
+        });
+        let mut suggested = None;
+        match design.source {
+            Source::Catalog => {
+                let current = catalog.get(&design.catalog_id);
+                let family = current.map_or("", |e| e.family());
+                let mut families: Vec<&str> = Vec::new();
+                for entry in catalog.entries() {
+                    if !families.contains(&entry.family()) {
+                        families.push(entry.family());
+                    }
+                }
+                let mut chosen = None;
+                egui::ComboBox::from_label("Family")
+                    .selected_text(family)
+                    .show_ui(ui, |ui| {
+                        for name in &families {
+                            if ui.selectable_label(*name == family, *name).clicked() {
+                                // The family's entry closest in width to the current one.
+                                chosen = catalog
+                                    .entries()
+                                    .iter()
+                                    .filter(|e| e.family() == *name)
+                                    .min_by(|a, b| {
+                                        let d = |e: &&plan::catalog::CatalogEntry| {
+                                            (e.shape().width_mm() - design.width_mm).abs()
+                                        };
+                                        d(a).total_cmp(&d(b))
+                                    })
+                                    .map(|e| e.id().to_string());
+                            }
+                        }
+                    });
+                egui::ComboBox::from_label("Implant")
+                    .selected_text(design.catalog_id.as_str())
+                    .height(400.0)
+                    .show_ui(ui, |ui| {
+                        for entry in catalog.entries().iter().filter(|e| e.family() == family) {
+                            let shape = entry.shape();
+                            let text = format!(
+                                "{}: {:.0} × {:.0} × {:.1} mm, {:.0} ml",
+                                entry.id(),
+                                shape.width_mm(),
+                                shape.height_mm(),
+                                shape.projection_mm(),
+                                entry.volume_ml()
+                            );
+                            if ui
+                                .selectable_label(entry.id() == design.catalog_id, text)
+                                .clicked()
+                            {
+                                chosen = Some(entry.id().to_string());
+                            }
+                        }
+                    });
+                if let Some(id) = chosen {
+                    design.choose(&id, catalog);
+                }
+            }
+            Source::Custom => {
+                ui.horizontal(|ui| {
+                    ui.radio_value(&mut design.kind, ShapeKind::Round, "Round");
+                    ui.radio_value(&mut design.kind, ShapeKind::Anatomic, "Anatomic");
+                });
+                ui.add(egui::Slider::new(&mut design.width_mm, 80.0..=180.0).text("Width (mm)"));
+                if design.kind == ShapeKind::Anatomic {
+                    ui.add(
+                        egui::Slider::new(&mut design.height_mm, 80.0..=180.0).text("Height (mm)"),
+                    );
+                }
+                ui.add(
+                    egui::Slider::new(&mut design.projection_mm, 10.0..=80.0)
+                        .text("Projection (mm)"),
+                );
+                if ui
+                    .button("Suggest catalog implant")
+                    .on_hover_text("the catalog entry closest to these dimensions")
+                    .clicked()
+                {
+                    suggested = Some(design.suggest(catalog));
+                }
+            }
+        }
+        match design.shape(catalog) {
+            Ok(shape) => {
+                ui.label(format!(
+                    "Volume {:.1} ml ({:.0} × {:.0} × {:.1} mm)",
+                    shape.volume_ml(),
+                    shape.width_mm(),
+                    shape.height_mm(),
+                    shape.projection_mm()
+                ));
+            }
+            Err(error) => {
+                ui.colored_label(ERROR_COLOR, error);
+            }
+        }
+
+        ui.separator();
+        ui.strong("Position");
+        let mut pressed = None;
+        egui::Grid::new("move buttons").show(ui, |ui| {
+            let mut button = |ui: &mut egui::Ui, direction: MoveDirection, hint: &str| {
+                if ui.button(direction.label()).on_hover_text(hint).clicked() {
+                    pressed = Some(direction);
+                }
+            };
+            ui.label("");
+            button(ui, MoveDirection::Up, "key ↑");
+            button(
+                ui,
+                MoveDirection::Front,
+                "shallower (anterior), key Page Up",
+            );
+            ui.end_row();
+            button(
+                ui,
+                MoveDirection::Right,
+                "towards the patient's right (screen left from the front), key ←",
+            );
+            ui.label("");
+            button(
+                ui,
+                MoveDirection::Left,
+                "towards the patient's left (screen right from the front), key →",
+            );
+            ui.end_row();
+            ui.label("");
+            button(ui, MoveDirection::Down, "key ↓");
+            button(ui, MoveDirection::Back, "deeper (posterior), key Page Down");
+            ui.end_row();
+        });
+        let design = self.implants.edited();
+        ui.add(egui::Slider::new(&mut design.rotation_deg, -45.0..=45.0).text("Rotation (°)"))
+            .on_hover_text(
+                "about the chest wall's normal, counter-clockwise seen from the front \
+                 (anatomic implants; a round one looks the same turned)",
+            );
+        let moved = design.move_mm;
+        ui.horizontal(|ui| {
+            ui.label(format!(
+                "Moved {:+.1} left, {:+.1} up, {:+.1} front (mm)",
+                moved.x, moved.y, moved.z
+            ));
+            if ui.small_button("Reset").clicked() {
+                design.move_mm = DVec3::ZERO;
+                design.rotation_deg = 0.0;
+            }
+        });
+        ui.add(egui::Slider::new(&mut self.implants.step_mm, 1.0..=20.0).text("Step (mm)"));
+        if let Some(direction) = pressed {
+            self.implants.step(direction);
+        }
+        ui.checkbox(&mut self.implants.gravity, "Gravity correction")
+            .on_hover_text("the implant's weight lets the breast sag (paper V-B)");
+
+        if let Some(error) = &self.implant_error {
+            ui.colored_label(ERROR_COLOR, error);
+        }
+        if let Some(live) = &self.live {
+            for side in [Side::Right, Side::Left] {
+                let state = live.sides.get(side);
+                if let Some(placed) = &state.placed {
+                    let fit = placed.fit_shift_mm;
+                    let fit_note = if fit.length() > 0.05 {
+                        format!(", moved {:.1} mm further to fit", fit.length())
+                    } else {
+                        String::new()
+                    };
+                    ui.label(format!(
+                        "{side}: {}, {:.0} ml{fit_note}",
+                        placed.request.spec, placed.volume_ml
+                    ));
+                }
+                if let Some(error) = &state.error {
+                    ui.colored_label(ERROR_COLOR, format!("{side}: {error}"));
+                }
+            }
+        }
+        match suggested {
+            Some(Ok(id)) => {
+                self.implants.edited().choose(&id, &self.catalog);
+                self.info(format!("suggested {id} for these dimensions"));
+            }
+            Some(Err(error)) => self.status = Status::Error(error),
+            None => {}
+        }
+    }
+
+    pub(super) fn simulation_panel(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            for mode in DisplayMode::ALL {
+                ui.radio_value(&mut self.display, mode, mode.label());
+            }
+        });
+        let Some(live) = &self.live else {
+            ui.weak("No model built yet.");
+            return;
+        };
+        if let Some(failure) = &live.failure {
+            ui.colored_label(ERROR_COLOR, failure);
+        }
+        match &live.solver {
+            None => {
+                ui.weak("Waiting for the first cycle…");
+            }
+            Some(solver) => {
+                let (color, state) = solver_summary(solver);
+                ui.colored_label(color, state);
+                ui.weak(format!(
+                    "{} cycles since the last change ({} in the {} stage), relative residual {:.1e}, last cycle {:.0} ms",
+                    solver.cycles,
+                    solver.advance.stage_cycles,
+                    stage_name(solver.stage()),
+                    solver.advance.cycle.relative_residual,
+                    solver.advance.cycle.time_ms
+                ));
+            }
+        }
+    }
+
+    pub(super) fn measurement_panel(&mut self, ui: &mut egui::Ui) {
+        let Some(live) = &mut self.live else {
+            ui.weak("Build the model and choose implants to measure the prediction.");
+            return;
+        };
+        let frame = live.frame.as_ref().map_or(0, |f| f.number);
+        ui.horizontal(|ui| {
+            let measuring = live.measurements == MeasurementState::Measuring;
+            if ui
+                .add_enabled(
+                    !measuring && frame > 0,
+                    egui::Button::new("Measure prediction"),
+                )
+                .on_hover_text(
+                    "distances on the simulated scan and breast volumes (a second or two)",
+                )
+                .clicked()
+            {
+                live.measure();
+            }
+            if measuring {
+                ui.spinner();
+            }
+        });
+        match &live.measurements {
+            MeasurementState::NotYet | MeasurementState::Measuring => {}
+            MeasurementState::Failed(message) => {
+                ui.colored_label(ERROR_COLOR, message);
+            }
+            MeasurementState::Measured(measured, at) => {
+                if *at != frame {
+                    ui.weak("measured before the latest change");
+                }
+                egui::Grid::new("measurements")
+                    .striped(true)
+                    .show(ui, |ui| {
+                        ui.strong("surface (mm)");
+                        ui.strong("before");
+                        ui.strong("simulated");
+                        ui.strong("change");
+                        ui.end_row();
+                        for change in &measured.distances {
+                            let before = change.before.surface_mm;
+                            let after = change.simulated.surface_mm;
+                            ui.label(change.name.as_str());
+                            ui.label(super::format_optional(before));
+                            ui.label(super::format_optional(after));
+                            ui.label(super::format_optional(
+                                before.zip(after).map(|(b, a)| a - b),
+                            ));
+                            ui.end_row();
+                        }
+                        for side in Side::BOTH {
+                            let before = *measured.breast_volume_before_ml.get(side);
+                            let after = *measured.breast_volume_ml.get(side);
+                            ui.label(format!("{side} breast (ml)"));
+                            ui.label(format!("{before:.1}"));
+                            ui.label(format!("{after:.1}"));
+                            ui.label(format!("{:+.1}", after - before));
+                            ui.end_row();
+                        }
+                        for side in Side::BOTH {
+                            ui.label(format!("{side} implant (ml)"));
+                            ui.label("");
+                            ui.label(format!("{:.1}", measured.implant_volume_ml.get(side)));
+                            ui.end_row();
+                        }
+                    });
+            }
+        }
+        ui.horizontal(|ui| {
+            ui.add(
+                egui::TextEdit::singleline(&mut self.export_folder)
+                    .hint_text("export folder")
+                    .desired_width(220.0),
+            );
+            if ui
+                .add_enabled(frame > 0, egui::Button::new("Export"))
+                .on_hover_text(
+                    "simulated_scan.ply, measurements.csv and measurements.json into the folder",
+                )
+                .clicked()
+            {
+                let folder = PathBuf::from(self.export_folder.trim());
+                match std::fs::create_dir_all(&folder) {
+                    Ok(()) => live.export(ExportPaths::in_folder(&folder)),
+                    Err(error) => {
+                        live.exported =
+                            Some(Err(format!("creating {}: {error}", folder.display())));
+                    }
+                }
+            }
+        });
+        match &live.exported {
+            Some(Ok(paths)) => {
+                ui.colored_label(
+                    PLACED_COLOR,
+                    format!(
+                        "exported to {}",
+                        paths.scan.parent().unwrap_or(Path::new("")).display()
+                    ),
+                );
+            }
+            Some(Err(message)) => {
+                ui.colored_label(ERROR_COLOR, message);
+            }
+            None => {}
+        }
+    }
+}
+
+/// The indicator's colour and words for the solver's state.
+fn solver_summary(solver: &SolverStatus) -> (Color32, String) {
+    match solver.advance.state {
+        SolveState::Running => (
+            RUNNING_COLOR,
+            format!("Solving ({} stage)…", stage_name(solver.stage())),
+        ),
+        SolveState::Converged => (PLACED_COLOR, "Converged".to_string()),
+        SolveState::Stopped => (
+            ERROR_COLOR,
+            "Stopped at the cycle limit: the prediction is approximate".to_string(),
+        ),
+    }
+}
+
+fn stage_name(stage: Stage) -> &'static str {
+    match stage {
+        Stage::Implant => "implant",
+        Stage::Gravity => "gravity",
+    }
+}

@@ -1,0 +1,272 @@
+//! Running a [`Script`] in the window: one action after the other, each through the same
+//! calls as the buttons, waiting (frame after frame) for builds, solves and screenshots;
+//! and the rate log of the `stats` action.
+
+use super::GuiApp;
+use crate::implant_plan::{Editing, Source};
+use crate::script::{Action, Script};
+use eframe::egui;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// How often a waiting script looks again.
+const POLL: Duration = Duration::from_millis(50);
+/// How often the `stats` action prints.
+const STATS_PERIOD: Duration = Duration::from_secs(1);
+
+/// Where a screenshot's outcome arrives (from the renderer's callback).
+type ScreenshotOutcome = Arc<Mutex<Option<Result<(), String>>>>;
+
+/// A script being run.
+pub(super) struct ScriptRun {
+    script: Script,
+    next: usize,
+    /// When the current action began (drags, builds, screenshots).
+    started: Option<Instant>,
+    /// Where a screenshot's outcome arrives.
+    screenshot: Option<ScreenshotOutcome>,
+    stats: Option<RateLog>,
+}
+
+/// Counts for the `stats` log.
+struct RateLog {
+    since: Instant,
+    frames: u64,
+    simulated_frames: u64,
+}
+
+/// What an action did this frame.
+enum Step {
+    Done,
+    Pending,
+    Failed(String),
+}
+
+impl GuiApp {
+    /// Runs `script`, one action after the other, from the next frame on.
+    pub fn run_script(&mut self, script: Script) {
+        self.script = Some(ScriptRun {
+            script,
+            next: 0,
+            started: None,
+            screenshot: None,
+            stats: None,
+        });
+    }
+
+    /// Does what the script asks this frame; logs the rates if asked to.
+    pub(super) fn advance_script(&mut self, ctx: &egui::Context) {
+        let Some(mut run) = self.script.take() else {
+            return;
+        };
+        if let Some(log) = &mut run.stats {
+            log.frames += 1;
+            // Frames as fast as the window can draw them, to measure it.
+            ctx.request_repaint();
+            let elapsed = log.since.elapsed();
+            if elapsed >= STATS_PERIOD {
+                let received = self.live.as_ref().map_or(0, |l| l.frames_received);
+                let seconds = elapsed.as_secs_f64();
+                let solver = self.live.as_ref().and_then(|l| l.solver);
+                eprintln!(
+                    "stats: {:.1} window frames/s, {:.1} simulated frames/s{}",
+                    log.frames as f64 / seconds,
+                    (received - log.simulated_frames) as f64 / seconds,
+                    solver.map_or(String::new(), |s| format!(
+                        " (last cycle {:.0} ms, {:?}, {} cycles since the last change)",
+                        s.advance.cycle.time_ms, s.advance.state, s.cycles
+                    ))
+                );
+                *log = RateLog {
+                    since: Instant::now(),
+                    frames: 0,
+                    simulated_frames: received,
+                };
+            }
+        }
+        while let Some((line, action)) = run.script.actions.get(run.next).cloned() {
+            match self.script_step(&mut run, &action, ctx) {
+                Step::Done => {
+                    run.next += 1;
+                    run.started = None;
+                    run.screenshot = None;
+                }
+                Step::Pending => {
+                    ctx.request_repaint_after(POLL);
+                    break;
+                }
+                Step::Failed(message) => {
+                    eprintln!(
+                        "error: {} line {line}: {action:?}: {message}",
+                        run.script.path.display()
+                    );
+                    std::process::exit(1);
+                }
+            }
+        }
+        self.script = Some(run);
+    }
+
+    fn script_step(&mut self, run: &mut ScriptRun, action: &Action, ctx: &egui::Context) -> Step {
+        let first = run.started.is_none();
+        let started = *run.started.get_or_insert_with(Instant::now);
+        match action {
+            Action::Phantom => {
+                self.open_phantom(true);
+                self.step_outcome()
+            }
+            Action::Open(path) => {
+                self.open(path);
+                self.step_outcome()
+            }
+            Action::Elements(elements) => {
+                self.settings.elements = *elements;
+                Step::Done
+            }
+            Action::Build => {
+                if first && self.build.is_none() {
+                    self.start_build();
+                }
+                match (&self.build, self.error()) {
+                    (_, Some(error)) => Step::Failed(error.to_string()),
+                    (Some(_), None) => Step::Pending,
+                    (None, None) if self.model.is_some() => Step::Done,
+                    (None, None) => Step::Failed("the model was not built".into()),
+                }
+            }
+            Action::Implant(id) => {
+                if self.catalog.get(id).is_none() {
+                    return Step::Failed(format!("no catalog entry {id}"));
+                }
+                self.implants.edit(Editing::Linked);
+                let design = self.implants.edited();
+                design.enabled = true;
+                design.choose(id, &self.catalog);
+                Step::Done
+            }
+            Action::Custom {
+                kind,
+                width_mm,
+                height_mm,
+                projection_mm,
+            } => {
+                self.implants.edit(Editing::Linked);
+                let design = self.implants.edited();
+                design.enabled = true;
+                design.source = Source::Custom;
+                design.kind = *kind;
+                design.width_mm = *width_mm;
+                design.height_mm = *height_mm;
+                design.projection_mm = *projection_mm;
+                Step::Done
+            }
+            Action::Move(direction, times) => {
+                for _ in 0..*times {
+                    self.implants.step(*direction);
+                }
+                Step::Done
+            }
+            Action::DragProjection {
+                from_mm,
+                to_mm,
+                seconds,
+            } => {
+                let design = self.implants.edited();
+                if design.source == Source::Catalog
+                    && let Some(entry) = self.catalog.get(&design.catalog_id)
+                {
+                    design.set_dimensions(entry.shape());
+                }
+                design.source = Source::Custom;
+                let t = (started.elapsed().as_secs_f64() / seconds).min(1.0);
+                design.projection_mm = from_mm + (to_mm - from_mm) * t;
+                ctx.request_repaint();
+                if t >= 1.0 { Step::Done } else { Step::Pending }
+            }
+            Action::Wait => match &self.live {
+                None => Step::Failed("no model built".into()),
+                Some(_) if self.implant_error.is_some() => {
+                    Step::Failed(self.implant_error.clone().unwrap_or_default())
+                }
+                Some(live) if live.is_settled() => match &live.failure {
+                    Some(failure) => Step::Failed(failure.clone()),
+                    None => Step::Done,
+                },
+                Some(_) => Step::Pending,
+            },
+            Action::Display(mode) => {
+                self.display = *mode;
+                Step::Done
+            }
+            Action::View(view) => {
+                self.set_view(*view);
+                Step::Done
+            }
+            Action::Stats => {
+                run.stats = Some(RateLog {
+                    since: Instant::now(),
+                    frames: 0,
+                    simulated_frames: self.live.as_ref().map_or(0, |l| l.frames_received),
+                });
+                Step::Done
+            }
+            Action::Screenshot(path) => match &run.screenshot {
+                None if first => {
+                    let outcome = Arc::new(Mutex::new(None));
+                    let slot = Arc::clone(&outcome);
+                    let path = path.clone();
+                    let waker = ctx.clone();
+                    ctx.request_screenshot(move |image| {
+                        let saved = save_png(&path, &image);
+                        if let Ok(mut slot) = slot.lock() {
+                            *slot = Some(saved);
+                        }
+                        waker.request_repaint();
+                    });
+                    run.screenshot = Some(outcome);
+                    Step::Pending
+                }
+                None => Step::Failed("the screenshot was lost".into()),
+                Some(outcome) => match outcome.lock().ok().and_then(|mut o| o.take()) {
+                    None => Step::Pending,
+                    Some(Ok(())) => Step::Done,
+                    Some(Err(message)) => Step::Failed(message),
+                },
+            },
+            Action::SaveCase(path) => match self.case().and_then(|case| case.write(path)) {
+                Ok(()) => Step::Done,
+                Err(error) => Step::Failed(format!("{error:#}")),
+            },
+            Action::Quit => {
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                Step::Done
+            }
+        }
+    }
+
+    /// Done, or failed with the status line's error.
+    fn step_outcome(&self) -> Step {
+        match self.error() {
+            Some(error) => Step::Failed(error.to_string()),
+            None => Step::Done,
+        }
+    }
+}
+
+/// Writes an RGBA image as PNG, atomically.
+fn save_png(path: &Path, image: &egui::ColorImage) -> Result<(), String> {
+    use image::ImageEncoder;
+    let [width, height] = image.size;
+    mesh::io::write_atomically(path, |w| {
+        image::codecs::png::PngEncoder::new(w)
+            .write_image(
+                image.as_raw(),
+                width as u32,
+                height as u32,
+                image::ExtendedColorType::Rgba8,
+            )
+            .map_err(std::io::Error::other)
+    })
+    .map_err(|error| format!("writing the screenshot: {error}"))
+}

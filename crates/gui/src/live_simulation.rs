@@ -1,0 +1,413 @@
+//! The live simulation: a worker thread owns `plan`'s simulation [`Session`]; the window
+//! sends it the implants it wants (every frame in which they changed) and never waits.
+//! The worker applies the newest set when several are queued (a slider being dragged),
+//! runs one cycle at a time ([`Session::advance`]: the implant stage, then the gravity
+//! correction) and after each cycle sends back the scan as simulated so far, ready to
+//! draw, with the solver's figures. Measuring and exporting the prediction run on the
+//! worker too, between cycles.
+
+use crate::render::SceneMesh;
+use anatomy::breast::Side;
+use glam::{DVec2, DVec3};
+use plan::Silent;
+use plan::model::PerSide;
+use plan::simulate::{Advance, ImplantRequest, Session, SimulatedMeasurements, SolveState, Stage};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, Sender, channel};
+
+/// The implants wanted on both sides, and whether the gravity correction follows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImplantSet {
+    pub implants: PerSide<Option<ImplantRequest>>,
+    pub gravity: bool,
+}
+
+/// Where [`LiveSimulation::export`] writes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportPaths {
+    /// The simulated scan (PLY, the scan's vertex order).
+    pub scan: PathBuf,
+    pub measurements_csv: PathBuf,
+    pub measurements_json: PathBuf,
+}
+
+impl ExportPaths {
+    /// `simulated_scan.ply`, `measurements.csv` and `measurements.json` in `folder`.
+    pub fn in_folder(folder: &std::path::Path) -> ExportPaths {
+        ExportPaths {
+            scan: folder.join("simulated_scan.ply"),
+            measurements_csv: folder.join("measurements.csv"),
+            measurements_json: folder.join("measurements.json"),
+        }
+    }
+}
+
+enum Command {
+    /// Numbered in the order sent.
+    Implants(u64, ImplantSet),
+    Measure,
+    Export(ExportPaths),
+}
+
+/// An implant as the session placed it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlacedSummary {
+    pub request: ImplantRequest,
+    pub volume_ml: f64,
+    /// The anchor (centre of the implant's back) on the bed (mm, file frame).
+    pub anchor_mm: DVec3,
+    /// How far the anchor was moved beyond the request so that the implant fits on the
+    /// breast's base (mm, implant's left and up).
+    pub fit_shift_mm: DVec2,
+}
+
+/// One side of the session.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SideState {
+    /// The implant in the session (the last one that could be placed).
+    pub placed: Option<PlacedSummary>,
+    /// Why the last request for this side was refused (the session kept `placed`).
+    pub error: Option<String>,
+}
+
+/// The solver's figures after the latest cycle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SolverStatus {
+    /// Cycles since the implants last changed.
+    pub cycles: usize,
+    pub advance: Advance,
+}
+
+impl SolverStatus {
+    /// The stage the latest cycle ran.
+    pub fn stage(&self) -> Stage {
+        self.advance.cycle.stage
+    }
+}
+
+/// The simulated scan after a cycle.
+#[derive(Clone)]
+pub struct SimulatedFrame {
+    /// Every scan vertex (mm, file frame, the scan's order).
+    pub positions: Arc<Vec<DVec3>>,
+    pub scene: Arc<SceneMesh>,
+    /// Counts the frames of this session, from 1.
+    pub number: u64,
+}
+
+/// The measurements of the prediction.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum MeasurementState {
+    #[default]
+    NotYet,
+    Measuring,
+    /// The figures and the frame number they were measured at.
+    Measured(Box<SimulatedMeasurements>, u64),
+    Failed(String),
+}
+
+enum Update {
+    /// The outcome of implant set `number`.
+    Implants(u64, PerSide<SideState>),
+    Cycle(SimulatedFrame, SolverStatus),
+    Measured(Result<(SimulatedMeasurements, u64), String>),
+    Exported(Result<ExportPaths, String>),
+    Failed(String),
+}
+
+/// The window's handle on the worker.
+pub struct LiveSimulation {
+    commands: Sender<Command>,
+    updates: Receiver<Update>,
+    /// The last implant set sent, and its number.
+    sent: Option<ImplantSet>,
+    sent_number: u64,
+    /// The number of the last set the worker has applied.
+    applied_number: u64,
+    /// The latest simulated scan, if a cycle has run.
+    pub frame: Option<SimulatedFrame>,
+    pub solver: Option<SolverStatus>,
+    pub sides: PerSide<SideState>,
+    pub measurements: MeasurementState,
+    /// The outcome of the last export.
+    pub exported: Option<Result<ExportPaths, String>>,
+    /// A solver failure (the worker waits for the next change).
+    pub failure: Option<String>,
+    /// Simulated frames received so far.
+    pub frames_received: u64,
+}
+
+impl LiveSimulation {
+    /// Hands the session to a new worker; `scene` is the scan as drawn (the simulated
+    /// frames reuse its triangles and colours); `wake` is called after every update (the
+    /// window asks for a repaint there).
+    pub fn start(
+        session: Session,
+        scene: Arc<SceneMesh>,
+        wake: impl Fn() + Send + 'static,
+    ) -> LiveSimulation {
+        let (commands, inbox) = channel();
+        let (outbox, updates) = channel();
+        std::thread::spawn(move || Worker::new(session, scene, outbox, wake).run(&inbox));
+        LiveSimulation {
+            commands,
+            updates,
+            sent: None,
+            sent_number: 0,
+            applied_number: 0,
+            frame: None,
+            solver: None,
+            sides: PerSide::default(),
+            measurements: MeasurementState::NotYet,
+            exported: None,
+            failure: None,
+            frames_received: 0,
+        }
+    }
+
+    /// Asks for `set` unless it is the set sent last.
+    pub fn set_implants(&mut self, set: &ImplantSet) {
+        if self.sent.as_ref() == Some(set) {
+            return;
+        }
+        self.sent_number += 1;
+        self.sent = Some(set.clone());
+        // A failed send means the worker is gone; `failure` says why.
+        let _ = self
+            .commands
+            .send(Command::Implants(self.sent_number, set.clone()));
+    }
+
+    /// Asks for the measurements of the current prediction.
+    pub fn measure(&mut self) {
+        self.measurements = MeasurementState::Measuring;
+        let _ = self.commands.send(Command::Measure);
+    }
+
+    /// Asks for the simulated scan and the measurements to be written.
+    pub fn export(&mut self, paths: ExportPaths) {
+        self.exported = None;
+        let _ = self.commands.send(Command::Export(paths));
+    }
+
+    /// Takes the worker's updates.
+    pub fn poll(&mut self) {
+        while let Ok(update) = self.updates.try_recv() {
+            match update {
+                Update::Implants(number, sides) => {
+                    self.applied_number = number;
+                    self.sides = sides;
+                    self.failure = None;
+                }
+                Update::Cycle(frame, solver) => {
+                    self.frame = Some(frame);
+                    self.solver = Some(solver);
+                    self.frames_received += 1;
+                }
+                Update::Measured(Ok((measurements, frame))) => {
+                    self.measurements = MeasurementState::Measured(Box::new(measurements), frame);
+                }
+                Update::Measured(Err(message)) => {
+                    self.measurements = MeasurementState::Failed(message);
+                }
+                Update::Exported(outcome) => self.exported = Some(outcome),
+                Update::Failed(message) => self.failure = Some(message),
+            }
+        }
+    }
+
+    /// Whether the worker has applied the last set sent and stopped cycling (converged,
+    /// out of cycles or failed).
+    pub fn is_settled(&self) -> bool {
+        self.applied_number == self.sent_number
+            && (self.failure.is_some()
+                || self
+                    .solver
+                    .is_some_and(|s| s.advance.state != SolveState::Running))
+    }
+}
+
+/// The worker's state.
+struct Worker<W> {
+    session: Session,
+    scene: Arc<SceneMesh>,
+    /// The scan with the simulated positions (for normals).
+    moved: mesh::TriMesh,
+    outbox: Sender<Update>,
+    wake: W,
+    /// The set last applied (some sides may have been refused).
+    applied: Option<ImplantSet>,
+    sides: PerSide<SideState>,
+    running: bool,
+    cycles: usize,
+    frame: u64,
+}
+
+impl<W: Fn()> Worker<W> {
+    fn new(session: Session, scene: Arc<SceneMesh>, outbox: Sender<Update>, wake: W) -> Self {
+        Worker {
+            moved: session.marked.scan.mesh.clone(),
+            session,
+            scene,
+            outbox,
+            wake,
+            applied: None,
+            sides: PerSide::default(),
+            running: false,
+            cycles: 0,
+            frame: 0,
+        }
+    }
+
+    /// Serves commands until the window drops its handle.
+    fn run(mut self, inbox: &Receiver<Command>) {
+        loop {
+            let mut commands = Vec::new();
+            if !self.running {
+                match inbox.recv() {
+                    Ok(command) => commands.push(command),
+                    Err(_) => return,
+                }
+            }
+            while let Ok(command) = inbox.try_recv() {
+                commands.push(command);
+            }
+            // The newest implant set replaces the older ones still queued; measuring and
+            // exporting then see it.
+            let newest = commands
+                .iter()
+                .rposition(|c| matches!(c, Command::Implants(..)));
+            for (k, command) in commands.into_iter().enumerate() {
+                let sent = match command {
+                    Command::Implants(number, set) if Some(k) == newest => {
+                        self.apply(&set);
+                        self.outbox
+                            .send(Update::Implants(number, self.sides.clone()))
+                    }
+                    Command::Implants(..) => Ok(()),
+                    Command::Measure => {
+                        let measured = self.measure();
+                        self.outbox.send(Update::Measured(measured))
+                    }
+                    Command::Export(paths) => {
+                        let outcome = self.export(&paths).map(|()| paths);
+                        self.outbox.send(Update::Exported(outcome))
+                    }
+                };
+                if sent.is_err() {
+                    return;
+                }
+                (self.wake)();
+            }
+            if self.running && !self.cycle() {
+                return;
+            }
+        }
+    }
+
+    /// Places or removes the implants that changed; restarts the solve if any did.
+    fn apply(&mut self, set: &ImplantSet) {
+        let gravity_changed = self
+            .applied
+            .as_ref()
+            .is_some_and(|a| a.gravity != set.gravity);
+        let mut changed = false;
+        for side in Side::BOTH {
+            let wanted = set.implants.get(side);
+            let before = self.applied.as_ref().map(|a| a.implants.get(side));
+            if before == Some(wanted) && !gravity_changed {
+                continue;
+            }
+            let state = self.sides.get_mut(side);
+            match wanted {
+                Some(request) => {
+                    match self
+                        .session
+                        .set_implant(side, &request.spec, request.placement())
+                    {
+                        Ok(placed) => {
+                            state.placed = Some(PlacedSummary {
+                                request: request.clone(),
+                                volume_ml: placed.shape.volume_ml(),
+                                anchor_mm: placed.anchor.position,
+                                fit_shift_mm: placed.fit_shift_mm,
+                            });
+                            state.error = None;
+                            changed = true;
+                        }
+                        Err(error) => state.error = Some(format!("{error:#}")),
+                    }
+                }
+                None => {
+                    self.session.remove_implant(side);
+                    changed |= state.placed.take().is_some();
+                    state.error = None;
+                }
+            }
+        }
+        self.applied = Some(set.clone());
+        if changed || gravity_changed || self.frame == 0 {
+            self.running = true;
+            self.cycles = 0;
+        }
+    }
+
+    /// One cycle and its frame; `false` once the window is gone.
+    fn cycle(&mut self) -> bool {
+        let gravity = self.applied.as_ref().is_some_and(|a| a.gravity);
+        let update = match self.session.advance(!gravity) {
+            Ok(advance) => {
+                self.cycles += 1;
+                self.frame += 1;
+                self.running = advance.state == SolveState::Running;
+                let positions = self.session.scan_positions();
+                self.moved.positions.clone_from(&positions);
+                let frame = SimulatedFrame {
+                    positions: Arc::new(positions),
+                    scene: Arc::new(self.scene.moved(&self.moved)),
+                    number: self.frame,
+                };
+                let status = SolverStatus {
+                    cycles: self.cycles,
+                    advance,
+                };
+                Update::Cycle(frame, status)
+            }
+            Err(error) => {
+                self.running = false;
+                Update::Failed(format!("the simulation failed: {error:#}"))
+            }
+        };
+        let sent = self.outbox.send(update).is_ok();
+        (self.wake)();
+        sent
+    }
+
+    fn measure(&mut self) -> Result<(SimulatedMeasurements, u64), String> {
+        self.session
+            .measurements(&Silent)
+            .map(|m| (m, self.frame))
+            .map_err(|error| format!("measuring the prediction: {error:#}"))
+    }
+
+    /// Writes the simulated scan and the measurements (each file atomically).
+    fn export(&mut self, paths: &ExportPaths) -> Result<(), String> {
+        let (measurements, _) = self.measure()?;
+        let simulated = self
+            .session
+            .simulated_scan(&paths.scan)
+            .map_err(|error| format!("{error:#}"))?;
+        mesh::io::write_mesh(&paths.scan, &simulated.scan.mesh)
+            .map_err(|error| format!("{error:#}"))?;
+        measurements
+            .write_csv(&paths.measurements_csv)
+            .and_then(|()| measurements.write_json(&paths.measurements_json))
+            .map_err(|error| format!("{error:#}"))?;
+        // The export measured the current prediction: show it too.
+        let _ = self
+            .outbox
+            .send(Update::Measured(Ok((measurements, self.frame))));
+        Ok(())
+    }
+}

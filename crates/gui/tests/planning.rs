@@ -1,0 +1,324 @@
+//! Planning in the window, driven like a user would with egui_kittest (widgets found by
+//! their labels): building the model, an implant slider changing the simulated scan, the
+//! move buttons, and a planning case saved and reopened. The phantom with a small model
+//! (6,000 elements) keeps each build to seconds; the workers run for real, so the tests
+//! step frames until the window shows their answers.
+
+use anatomy::breast::Side;
+use eframe::egui::{self, accesskit::Role};
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use glam::DVec3;
+use gui::GuiApp;
+use plan::simulate::SolveState;
+use plan::{MarkedScan, PhantomParams};
+use std::time::{Duration, Instant};
+
+const ELEMENTS: f64 = 6_000.0;
+/// Longest a build or a solve may take here (2 cores shared with other work).
+const PATIENCE: Duration = Duration::from_secs(600);
+
+fn harness() -> Harness<'static, GuiApp> {
+    // Tall enough that both side panels show all their widgets without scrolling.
+    Harness::builder()
+        .with_size(egui::vec2(1500.0, 1500.0))
+        .build_ui_state(|ui, app: &mut GuiApp| app.show(ui), GuiApp::new(None, None))
+}
+
+/// Steps frames until `done` holds.
+fn wait_until(harness: &mut Harness<'_, GuiApp>, what: &str, done: impl Fn(&GuiApp) -> bool) {
+    let start = Instant::now();
+    loop {
+        harness.step();
+        if done(harness.state()) {
+            break;
+        }
+        if let Some(error) = harness.state().error() {
+            panic!("waiting for {what}: {error}");
+        }
+        assert!(start.elapsed() < PATIENCE, "no {what} after {PATIENCE:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    for _ in 0..3 {
+        harness.step();
+    }
+}
+
+fn click(harness: &mut Harness<'_, GuiApp>, label: &str) {
+    harness.get_by_label(label).click();
+    harness.step();
+    harness.step();
+}
+
+fn set_slider(harness: &mut Harness<'_, GuiApp>, label: &str, value: f64) {
+    harness
+        .get_by_role_and_label(Role::Slider, label)
+        .set_value_accesskit(value);
+    harness.step();
+    harness.step();
+}
+
+/// Whether the simulation has applied the implants asked for and converged.
+fn settled(app: &GuiApp) -> bool {
+    app.live().is_some_and(|live| {
+        live.is_settled()
+            && live
+                .solver
+                .is_some_and(|s| s.advance.state == SolveState::Converged)
+    })
+}
+
+/// The phantom opened from the File menu, its model built with the Elements slider at
+/// [`ELEMENTS`].
+fn with_model() -> Harness<'static, GuiApp> {
+    let mut harness = harness();
+    harness.step();
+    click(&mut harness, "File");
+    click(&mut harness, "Phantom with its landmarks");
+    set_slider(&mut harness, "Elements", ELEMENTS);
+    click(&mut harness, "Build model");
+    assert!(harness.state().is_building());
+    wait_until(&mut harness, "a model", |app| app.model().is_some());
+    harness
+}
+
+/// The phantom with its model and the default implant on both sides, converged.
+fn with_implants() -> Harness<'static, GuiApp> {
+    let mut harness = with_model();
+    click(&mut harness, "Implants on both sides");
+    wait_until(&mut harness, "a converged simulation", settled);
+    harness
+}
+
+fn positions(app: &GuiApp) -> Vec<DVec3> {
+    app.live()
+        .and_then(|live| live.frame.as_ref())
+        .map(|frame| frame.positions.to_vec())
+        .expect("a simulated frame")
+}
+
+fn anchor(app: &GuiApp, side: Side) -> DVec3 {
+    app.live()
+        .unwrap()
+        .sides
+        .get(side)
+        .placed
+        .as_ref()
+        .unwrap()
+        .anchor_mm
+}
+
+#[test]
+fn building_the_model_shows_its_volumes_and_can_be_cancelled() {
+    let mut harness = with_model();
+    let app = harness.state();
+    assert!(!app.is_building());
+    let model = app.model().unwrap();
+    // About the requested size (isosurface stuffing: within about 20%).
+    assert!(
+        (model.elements as f64 - ELEMENTS).abs() < 0.25 * ELEMENTS,
+        "{} elements",
+        model.elements
+    );
+    // Independent answer: the phantom's true breast volumes (integrated from its
+    // analytic shape); the model's cut curves enclose them within 10%.
+    let truth = phantom::generate(&PhantomParams::default()).breast_volume_ml;
+    for (side, expected) in [(Side::Left, truth.left), (Side::Right, truth.right)] {
+        let built = *model.breast_volume_ml.get(side);
+        assert!(
+            (built - expected).abs() < 0.1 * expected,
+            "{side}: {built} ml vs {expected} ml"
+        );
+        let quadrants = model.quadrant_volume_ml.get(side);
+        assert!((quadrants.total() - built).abs() < 1e-6 * built);
+        assert!(model.cut_curves.get(side).len() > 20);
+    }
+    harness.get_by_label("Rebuild model");
+    harness.get_by_label_contains("levels, built in");
+    assert_eq!(app.display(), gui::app::DisplayMode::Simulated);
+
+    // A rebuild cancelled at once stops after its first stage; the old model stays.
+    click(&mut harness, "Rebuild model");
+    click(&mut harness, "Cancel");
+    wait_until(&mut harness, "the end of the build", |app| {
+        !app.is_building()
+    });
+    harness.get_by_label("model building cancelled");
+    assert!(harness.state().model().is_some());
+}
+
+#[test]
+fn an_implant_slider_changes_the_simulated_scan() {
+    let mut harness = with_implants();
+    let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
+    let frame = marked.frame;
+    let nipple = marked.landmarks.get(anatomy::LandmarkName::Pnl);
+    let notch = marked.landmarks.get(anatomy::LandmarkName::Pj);
+    let nearest = |p: DVec3| {
+        (0..marked.scan.mesh.vertex_count())
+            .min_by(|&a, &b| {
+                let d = |v: usize| marked.scan.mesh.positions[v].distance(p);
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap()
+    };
+    let (nipple, notch) = (nearest(nipple), nearest(notch));
+    let before = positions(harness.state());
+
+    // The same implant as custom dimensions, then a larger projection.
+    click(&mut harness, "Custom size");
+    set_slider(&mut harness, "Projection (mm)", 45.0);
+    // Eq. 2's half ellipsoid: π 120² 45 / 6 mm³.
+    harness.get_by_label_contains("Volume 339.3 ml");
+    wait_until(&mut harness, "a converged simulation", settled);
+    let placed = harness
+        .state()
+        .live()
+        .unwrap()
+        .sides
+        .left
+        .placed
+        .clone()
+        .unwrap();
+    assert_eq!(placed.request.spec, "round:diameter=120,projection=45");
+    let after = positions(harness.state());
+
+    // 11.5 mm more projection (33.5 -> 45): the implant's apex pushes the tissue in front
+    // of it forward by about half of that (the nipple rode forward 0.51 x projection at
+    // 60,000 elements); at least 3 mm here, well beyond the solver's tolerance (a
+    // relative residual of 1e-3 leaves differences of a few hundredths of a mm).
+    let forward = (after[nipple] - before[nipple]).dot(frame.anterior());
+    assert!(forward > 3.0, "the nipple moved {forward} mm forward");
+    // Far from the breasts, nothing moves (the sternal notch is outside the model).
+    let notch_moved = after[notch].distance(before[notch]);
+    assert!(notch_moved < 0.05, "the notch moved {notch_moved} mm");
+}
+
+#[test]
+fn the_move_buttons_move_the_implants_by_the_step_in_the_anatomical_frame() {
+    let mut harness = with_implants();
+    let frame = MarkedScan::phantom(&PhantomParams::default())
+        .unwrap()
+        .frame;
+    let start = [
+        anchor(harness.state(), Side::Left),
+        anchor(harness.state(), Side::Right),
+    ];
+
+    click(&mut harness, "Move up");
+    wait_until(&mut harness, "the moved implants", settled);
+    let app = harness.state();
+    let live = app.live().unwrap();
+    for (k, side) in Side::BOTH.into_iter().enumerate() {
+        let placed = live.sides.get(side).placed.as_ref().unwrap();
+        // Known answer: one step of 5 mm up, on both sides (linked).
+        assert_eq!(placed.request.move_mm, DVec3::new(0.0, 5.0, 0.0));
+        assert!(
+            placed.fit_shift_mm.length() < 1e-9,
+            "{:?}",
+            placed.fit_shift_mm
+        );
+        // The anchor walks 5 mm along the curved bed (a chord of at most 5 mm), mostly
+        // upwards: within 0.3 mm of a straight 5 mm step up.
+        let moved = placed.anchor_mm - start[k];
+        assert!(moved.length() <= 5.0 + 1e-6, "{side}: {moved}");
+        assert!(
+            (moved - 5.0 * frame.up()).length() < 0.3 * 5.0,
+            "{side}: moved {moved}, up is {}",
+            frame.up()
+        );
+        assert!(moved.dot(frame.up()) > 4.5, "{side}: {moved}");
+    }
+
+    // The patient's left: the left implant goes laterally, the right one (mirrored)
+    // too, to the patient's right; the arrow key towards screen right does the same.
+    let start = [anchor(app, Side::Left), anchor(app, Side::Right)];
+    click(&mut harness, "Move left");
+    harness.key_press(egui::Key::ArrowRight);
+    wait_until(&mut harness, "the moved implants", settled);
+    let app = harness.state();
+    let left = anchor(app, Side::Left) - start[0];
+    let right = anchor(app, Side::Right) - start[1];
+    let live = app.live().unwrap();
+    assert_eq!(
+        live.sides.left.placed.as_ref().unwrap().request.move_mm,
+        DVec3::new(10.0, 5.0, 0.0)
+    );
+    assert_eq!(
+        live.sides.right.placed.as_ref().unwrap().request.move_mm,
+        DVec3::new(-10.0, 5.0, 0.0)
+    );
+    assert!(left.dot(frame.left()) > 8.0, "{left}");
+    assert!(right.dot(frame.left()) < -8.0, "{right}");
+}
+
+#[test]
+fn a_saved_case_reopens_with_the_same_state() {
+    let mut harness = with_implants();
+    click(&mut harness, "Left breast");
+    click(&mut harness, "Move down");
+    set_slider(&mut harness, "Rotation (°)", 10.0);
+    wait_until(&mut harness, "a converged simulation", settled);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("plan.json");
+    type_path(&mut harness, &path.display().to_string());
+    click(&mut harness, "Save case");
+    assert!(harness.state().error().is_none());
+    let saved = harness.state().case().unwrap();
+    assert!(!saved.linked);
+    assert_eq!(
+        saved.implants.left.as_ref().unwrap().move_mm,
+        DVec3::new(0.0, -5.0, 0.0)
+    );
+    assert!(saved.control_points.is_some());
+    let before = positions(harness.state());
+
+    let mut reopened = harness_with_case(&path);
+    wait_until(&mut reopened, "a converged simulation", settled);
+    let app = reopened.state();
+    // The same case: scan, landmarks, control points, settings and implants, bit for bit.
+    assert_eq!(app.case().unwrap(), saved);
+    assert_eq!(app.implants(), harness.state().implants());
+    let after = positions(app);
+    // Rebuilt from the same control points and settings, solved from scratch instead of
+    // from the previous positions: both within the solver's tolerance (relative residual
+    // 1e-3) of the same equilibrium, a few hundredths of a millimetre apart.
+    let largest_mm = before
+        .iter()
+        .zip(&after)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0.0, f64::max);
+    assert!(largest_mm < 0.3, "{largest_mm} mm");
+}
+
+/// Types `text` into the toolbar's path field.
+fn type_path(harness: &mut Harness<'_, GuiApp>, text: &str) {
+    // The path field is the first text field (the toolbar is drawn first).
+    harness
+        .get_all_by_role(Role::TextInput)
+        .next()
+        .unwrap()
+        .focus();
+    harness.step();
+    harness
+        .get_all_by_role(Role::TextInput)
+        .next()
+        .unwrap()
+        .type_text(text);
+    harness.step();
+}
+
+/// A new window in which the case at `path` was opened with the path field.
+fn harness_with_case(path: &std::path::Path) -> Harness<'static, GuiApp> {
+    let mut harness = harness();
+    harness.step();
+    type_path(&mut harness, &path.display().to_string());
+    click(&mut harness, "Open");
+    assert!(
+        harness.state().error().is_none(),
+        "{:?}",
+        harness.state().error()
+    );
+    assert!(harness.state().is_building());
+    harness
+}
