@@ -14,14 +14,21 @@
 //! simulation has no quadrant volumes. The clinical distances are measured on the pre-
 //! and post-operative scans and read from `result.json` for the simulation.
 
+use crate::compare::{CompareOptions, compare};
 use crate::measure::measure;
 use crate::model::{PerSide, build_breasts, read_folder_json, read_model_record};
 use crate::simulate::MaterialsReport;
+use crate::views::{RenderedView, ViewContent, standard_views};
 use crate::{Distance, MarkedScan, Progress};
 use anatomy::breast::{BreastModel, QuadrantVolumes};
 use anatomy::{AnatomicalFrame, BreastOptions, LandmarkName, Landmarks};
 use anyhow::{Context, Result};
+use assess::{
+    DEFAULT_MAX_DISTANCE_MM, DEVIATION_COLOR_MAX_MM, DeviationStatistics, DistanceSurface,
+    deviation_color,
+};
 use glam::DVec3;
+use render::{StandardView, Visibility};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -114,21 +121,142 @@ pub struct ReportScans {
     pub postoperative: Option<ShownScan>,
 }
 
-/// The rendered views of the report: the scans from the front, the sides and obliquely,
-/// with landmarks and cut curves, and the deviation map of the simulated against the
-/// post-operative scan. Until the `render` crate is wired in, returns no views.
-pub fn report_views(_scans: &ReportScans) -> Result<Vec<report::View>> {
-    Ok(Vec::new())
+/// The rendered views of the report: the pre-operative, the simulated and (when given)
+/// the post-operative scan from the front, the obliques and the sides, with landmarks
+/// (labelled) and cut curves, then the simulated scan coloured by its distance from the
+/// pre-operative surface (where the implants changed the shape), front and obliques.
+pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
+    let mut views = Vec::new();
+    let mut shown = vec![
+        ("Pre-operative", &scans.preoperative),
+        ("Simulated", &scans.simulated),
+    ];
+    if let Some(postoperative) = &scans.postoperative {
+        shown.push(("Post-operative", postoperative));
+    }
+    for (title, scan) in shown {
+        let curves = scan.breasts.as_ref().map(cut_curves).unwrap_or_default();
+        let content = ViewContent {
+            curves: &curves,
+            ..Default::default()
+        };
+        for view in standard_views(&scan.marked.scan.mesh, &scan.marked.landmarks, &content)? {
+            views.push(report_view(format!("{title}, {}", view.name), view, None)?);
+        }
+    }
+    let pre = &scans.preoperative.marked.scan;
+    let reference = DistanceSurface::new(&pre.mesh, &pre.index, &pre.topology);
+    let colours: Vec<[u8; 3]> = reference
+        .deviations(
+            &scans.simulated.marked.scan.mesh.positions,
+            DEFAULT_MAX_DISTANCE_MM,
+        )
+        .iter()
+        .map(|d| deviation_color(d.map_or(f64::NAN, |d| d.distance_mm)))
+        .collect();
+    let content = ViewContent {
+        colours: Some(&colours),
+        ..Default::default()
+    };
+    let simulated = &scans.simulated.marked;
+    for view in standard_views(&simulated.scan.mesh, &simulated.landmarks, &content)? {
+        if matches!(
+            view.view,
+            StandardView::Front | StandardView::LeftOblique | StandardView::RightOblique
+        ) {
+            let title = format!("Change from the pre-operative surface, {}", view.name);
+            views.push(report_view(
+                title,
+                view,
+                Some(deviation_scale(
+                    "Distance from the pre-operative surface (mm)",
+                )),
+            )?);
+        }
+    }
+    Ok(views)
+}
+
+/// The cut curves of both breasts as points on the surface (mm).
+fn cut_curves(breasts: &BreastModel) -> Vec<Vec<DVec3>> {
+    [&breasts.left, &breasts.right]
+        .map(|breast| breast.curve.points.iter().map(|p| p.position).collect())
+        .to_vec()
+}
+
+/// A rendered view for the report, its visible landmarks labelled.
+fn report_view(
+    title: String,
+    view: RenderedView,
+    colour_scale: Option<report::ColourScale>,
+) -> Result<report::View> {
+    let mut shown = report::View::new(title, view.png).context("a rendered view")?;
+    shown.labels = view
+        .markers
+        .into_iter()
+        .filter(|m| m.visibility == Visibility::Visible)
+        .map(|m| report::ImageLabel {
+            text: m.label,
+            x_px: m.pixel.x,
+            y_px: m.pixel.y,
+        })
+        .collect();
+    shown.colour_scale = colour_scale;
+    Ok(shown)
+}
+
+/// The legend of [`assess::deviation_color`], sampled at its ramp's corners.
+fn deviation_scale(label: &str) -> report::ColourScale {
+    report::ColourScale {
+        label: label.into(),
+        min: 0.0,
+        max: DEVIATION_COLOR_MAX_MM,
+        saturates_above_max: true,
+        stops: [0.0, 0.5, 1.0]
+            .map(|fraction| report::ColourStop {
+                fraction,
+                rgb: deviation_color(fraction * DEVIATION_COLOR_MAX_MM),
+            })
+            .to_vec(),
+    }
 }
 
 /// The surface deviation of the simulated scan from the post-operative scan (RMS, mean
-/// and Hausdorff distance over the whole overlap and over each breast). Until the
-/// `assess` crate is wired in, returns no comparison.
+/// and symmetric Hausdorff distance over the whole overlap and over the breasts), the
+/// post-operative scan registered onto the simulated one first ([`crate::compare`]).
 pub fn compare_with_postoperative(
-    _simulated: &ShownScan,
-    _postoperative: &ShownScan,
+    simulated: &ShownScan,
+    postoperative: &ShownScan,
+    progress: &dyn Progress,
 ) -> Result<Option<report::Comparison>> {
-    Ok(None)
+    let options = CompareOptions {
+        register: true,
+        ..Default::default()
+    };
+    let compared = compare(&postoperative.marked, &simulated.marked, &options, progress)
+        .context("comparing the simulated with the post-operative scan")?;
+    let figures = |region: &str, stats: &DeviationStatistics| report::DeviationFigures {
+        region: region.into(),
+        rms_mm: stats.rms_mm,
+        mean_mm: stats.mean_mm,
+        hausdorff_mm: stats.hausdorff_mm,
+    };
+    let breasts = &compared.breast_regions;
+    let mut regions = vec![figures("Whole overlap", &compared.overall)];
+    for (region, stats) in [
+        ("Left breast", &breasts.left),
+        ("Right breast", &breasts.right),
+        ("Both breasts", &breasts.both),
+    ] {
+        if let Some(stats) = stats {
+            regions.push(figures(region, stats));
+        }
+    }
+    Ok(Some(report::Comparison {
+        reference: "Post-operative scan (registered)".into(),
+        test: "Simulated scan".into(),
+        regions,
+    }))
 }
 
 /// Builds the report of `inputs` and writes it to `out` (atomically).
@@ -211,7 +339,9 @@ pub fn report_content(
         postoperative,
     };
     let comparison = match &scans.postoperative {
-        Some(postoperative) => compare_with_postoperative(&scans.simulated, postoperative)?,
+        Some(postoperative) => {
+            compare_with_postoperative(&scans.simulated, postoperative, progress)?
+        }
         None => None,
     };
     let views = report_views(&scans)?;

@@ -204,9 +204,8 @@ pub struct ColourStop {
 pub const DEVIATION_SCALE_MAX_MM: f64 = 20.0;
 
 impl ColourScale {
-    /// The surface deviation map: green at 0 mm to red at [`DEVIATION_SCALE_MAX_MM`] and
-    /// beyond, as in the paper's Fig. 3, linear in RGB. A colour map with other stops
-    /// (e.g. sampled from the renderer's map) replaces `stops`.
+    /// The surface deviation map: green at 0 mm, yellow halfway, red at
+    /// [`DEVIATION_SCALE_MAX_MM`] and beyond, as in the paper's Fig. 3.
     pub fn deviation_mm() -> ColourScale {
         ColourScale {
             label: "Distance to the reference surface (mm)".into(),
@@ -217,6 +216,10 @@ impl ColourScale {
                 ColourStop {
                     fraction: 0.0,
                     rgb: [0, 255, 0],
+                },
+                ColourStop {
+                    fraction: 0.5,
+                    rgb: [255, 255, 0],
                 },
                 ColourStop {
                     fraction: 1.0,
