@@ -15,6 +15,7 @@ use plan::simulate::{Advance, ImplantRequest, Session, SimulatedMeasurements, So
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
+use std::time::Instant;
 
 /// The implants wanted on both sides, and whether the gravity correction follows.
 #[derive(Debug, Clone, PartialEq)]
@@ -77,6 +78,9 @@ pub struct SolverStatus {
     /// Cycles since the implants last changed.
     pub cycles: usize,
     pub advance: Advance,
+    /// Time to carry the cycle's displacement to the scan and build the frame's vertices
+    /// and normals (ms), after the cycle's own time.
+    pub frame_ms: f64,
 }
 
 impl SolverStatus {
@@ -361,6 +365,7 @@ impl<W: Fn()> Worker<W> {
                 self.cycles += 1;
                 self.frame += 1;
                 self.running = advance.state == SolveState::Running;
+                let start = Instant::now();
                 let positions = self.session.scan_positions();
                 self.moved.positions.clone_from(&positions);
                 let frame = SimulatedFrame {
@@ -371,6 +376,7 @@ impl<W: Fn()> Worker<W> {
                 let status = SolverStatus {
                     cycles: self.cycles,
                     advance,
+                    frame_ms: start.elapsed().as_secs_f64() * 1e3,
                 };
                 Update::Cycle(frame, status)
             }

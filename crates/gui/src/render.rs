@@ -28,7 +28,7 @@ const BACKGROUND: [f64; 3] = [0.16, 0.17, 0.19];
 /// Offscreen colour format; shading happens in display (gamma) space.
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Wanted multisampling of the scene (falls back to 1 if the adapter cannot).
+/// Wanted multisampling of the scene (1 if the adapter cannot, or renders on the CPU).
 const MSAA_SAMPLES: u32 = 4;
 /// Most meshes drawn at once.
 pub const MAX_LAYERS: usize = 2;
@@ -258,7 +258,11 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
     let depth_features = render_state
         .adapter
         .get_texture_format_features(DEPTH_FORMAT);
-    let samples = if features.flags.sample_count_supported(MSAA_SAMPLES)
+    // A software renderer (Mesa's llvmpipe) pays for multisampling with every sample:
+    // there, one sample keeps the live view fluid.
+    let software = render_state.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
+    let samples = if !software
+        && features.flags.sample_count_supported(MSAA_SAMPLES)
         && depth_features.flags.sample_count_supported(MSAA_SAMPLES)
     {
         MSAA_SAMPLES
@@ -334,7 +338,19 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
                 wgpu::CompareFunction::Less
             }),
             stencil: wgpu::StencilState::default(),
-            bias: wgpu::DepthBiasState::default(),
+            // Pulled a little towards the eye, so that where the simulated scan lies within
+            // rounding of the pre-operative one (far from the breasts, where the
+            // displacement has faded out) it wins the depth test everywhere, not in
+            // speckles.
+            bias: if translucent {
+                wgpu::DepthBiasState {
+                    constant: -8,
+                    slope_scale: -1.0,
+                    clamp: 0.0,
+                }
+            } else {
+                wgpu::DepthBiasState::default()
+            },
         }),
         multisample: wgpu::MultisampleState {
             count: samples,

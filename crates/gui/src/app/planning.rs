@@ -682,12 +682,14 @@ impl GuiApp {
                 let (color, state) = solver_summary(solver);
                 ui.colored_label(color, state);
                 ui.weak(format!(
-                    "{} cycles since the last change ({} in the {} stage), relative residual {:.1e}, last cycle {:.0} ms",
+                    "{} cycles since the last change ({} in the {} stage), relative residual \
+                     {:.1e}, last cycle {:.0} ms + {:.0} ms to the scan",
                     solver.cycles,
                     solver.advance.stage_cycles,
                     stage_name(solver.stage()),
                     solver.advance.cycle.relative_residual,
-                    solver.advance.cycle.time_ms
+                    solver.advance.cycle.time_ms,
+                    solver.frame_ms
                 ));
             }
         }

@@ -74,8 +74,9 @@ impl GuiApp {
                     log.frames as f64 / seconds,
                     (received - log.simulated_frames) as f64 / seconds,
                     solver.map_or(String::new(), |s| format!(
-                        " (last cycle {:.0} ms, {:?}, {} cycles since the last change)",
-                        s.advance.cycle.time_ms, s.advance.state, s.cycles
+                        " (last cycle {:.0} ms + {:.0} ms to the scan, {:?}, {} cycles since the \
+                         last change)",
+                        s.advance.cycle.time_ms, s.frame_ms, s.advance.state, s.cycles
                     ))
                 );
                 *log = RateLog {
