@@ -8,10 +8,12 @@
 
 use crate::render::SceneMesh;
 use anatomy::breast::Side;
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use plan::Silent;
 use plan::model::PerSide;
-use plan::simulate::{Advance, ImplantRequest, Session, SimulatedMeasurements, SolveState, Stage};
+use plan::simulate::{
+    Advance, ImplantRequest, ImplantSummary, Session, SimulatedMeasurements, SolveState, Stage,
+};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
@@ -51,23 +53,11 @@ enum Command {
     Export(ExportPaths),
 }
 
-/// An implant as the session placed it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PlacedSummary {
-    pub request: ImplantRequest,
-    pub volume_ml: f64,
-    /// The anchor (centre of the implant's back) on the bed (mm, file frame).
-    pub anchor_mm: DVec3,
-    /// How far the anchor was moved beyond the request so that the implant fits on the
-    /// breast's base (mm, implant's left and up).
-    pub fit_shift_mm: DVec2,
-}
-
 /// One side of the session.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SideState {
     /// The implant in the session (the last one that could be placed).
-    pub placed: Option<PlacedSummary>,
+    pub placed: Option<ImplantSummary>,
     /// Why the last request for this side was refused (the session kept `placed`).
     pub error: Option<String>,
 }
@@ -113,7 +103,7 @@ pub enum MeasurementState {
 
 enum Update {
     /// The outcome of implant set `number`.
-    Implants(u64, PerSide<SideState>),
+    Implants(u64, Box<PerSide<SideState>>),
     Cycle(SimulatedFrame, SolverStatus),
     Measured(Result<(SimulatedMeasurements, u64), String>),
     Exported(Result<ExportPaths, String>),
@@ -201,7 +191,7 @@ impl LiveSimulation {
             match update {
                 Update::Implants(number, sides) => {
                     self.applied_number = number;
-                    self.sides = sides;
+                    self.sides = *sides;
                     self.failure = None;
                 }
                 Update::Cycle(frame, solver) => {
@@ -287,7 +277,7 @@ impl<W: Fn()> Worker<W> {
                     Command::Implants(number, set) if Some(k) == newest => {
                         self.apply(&set);
                         self.outbox
-                            .send(Update::Implants(number, self.sides.clone()))
+                            .send(Update::Implants(number, Box::new(self.sides.clone())))
                     }
                     Command::Implants(..) => Ok(()),
                     Command::Measure => {
@@ -325,24 +315,14 @@ impl<W: Fn()> Worker<W> {
             }
             let state = self.sides.get_mut(side);
             match wanted {
-                Some(request) => {
-                    match self
-                        .session
-                        .set_implant(side, &request.spec, request.placement())
-                    {
-                        Ok(placed) => {
-                            state.placed = Some(PlacedSummary {
-                                request: request.clone(),
-                                volume_ml: placed.shape.volume_ml(),
-                                anchor_mm: placed.anchor.position,
-                                fit_shift_mm: placed.fit_shift_mm,
-                            });
-                            state.error = None;
-                            changed = true;
-                        }
-                        Err(error) => state.error = Some(format!("{error:#}")),
+                Some(request) => match self.session.place(side, request) {
+                    Ok(placed) => {
+                        state.placed = Some(placed);
+                        state.error = None;
+                        changed = true;
                     }
-                }
+                    Err(error) => state.error = Some(format!("{error:#}")),
+                },
                 None => {
                     self.session.remove_implant(side);
                     changed |= state.placed.take().is_some();

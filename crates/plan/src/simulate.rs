@@ -199,6 +199,13 @@ impl Session {
             .with_context(|| format!("{side} implant {spec}"))
     }
 
+    /// Sets (or replaces) the implant of one side as `request` asks; its summary. On
+    /// error nothing changes.
+    pub fn place(&mut self, side: Side, request: &ImplantRequest) -> Result<ImplantSummary> {
+        let placed = self.set_implant(side, &request.spec, request.placement())?;
+        Ok(ImplantSummary::new(request, placed))
+    }
+
     /// Removes the implant of one side.
     pub fn remove_implant(&mut self, side: Side) {
         self.simulation.remove_implant(side);
@@ -388,8 +395,8 @@ pub struct SolverReport {
     pub inverted_elements: usize,
 }
 
-/// One side's implant.
-#[derive(Debug, Clone, Serialize)]
+/// One side's implant as placed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ImplantSummary {
     pub spec: String,
     pub shape: ImplantShape,
@@ -402,6 +409,24 @@ pub struct ImplantSummary {
     /// The further move of the anchor along the bed that made the footprint fit (mm,
     /// implant's `x'` to the patient's left and `y'` up; zero when it fitted as asked).
     pub fit_shift_mm: [f64; 2],
+    /// Where the implant's anchor (the centre of its back) ended up on the bed (mm, the
+    /// scan's frame).
+    pub anchor_mm: [f64; 3],
+}
+
+impl ImplantSummary {
+    /// The summary of an implant placed as `request` asked.
+    pub fn new(request: &ImplantRequest, placed: &PlacedImplant) -> ImplantSummary {
+        ImplantSummary {
+            spec: request.spec.clone(),
+            shape: placed.shape,
+            volume_ml: placed.shape.volume_ml(),
+            move_mm: request.move_mm.to_array(),
+            rotation_deg: request.rotation_deg,
+            fit_shift_mm: placed.fit_shift_mm.to_array(),
+            anchor_mm: placed.anchor.position.to_array(),
+        }
+    }
 }
 
 /// The JSON of `simulate` and `result.json` (GUIDE section 5).
@@ -456,15 +481,7 @@ pub fn run_session(
     };
     for (side, request) in [(Side::Left, &options.left), (Side::Right, &options.right)] {
         if let Some(request) = request {
-            let placed = session.set_implant(side, &request.spec, request.placement())?;
-            *implants.get_mut(side) = Some(ImplantSummary {
-                spec: request.spec.clone(),
-                shape: placed.shape,
-                volume_ml: placed.shape.volume_ml(),
-                move_mm: request.move_mm.to_array(),
-                rotation_deg: request.rotation_deg,
-                fit_shift_mm: placed.fit_shift_mm.to_array(),
-            });
+            *implants.get_mut(side) = Some(session.place(side, request)?);
         }
     }
     let start = Instant::now();
