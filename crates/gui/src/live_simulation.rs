@@ -65,6 +65,8 @@ pub struct SideState {
 /// The solver's figures after the latest cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SolverStatus {
+    /// The number of the implant set being solved (see [`LiveSimulation::set_implants`]).
+    pub set_number: u64,
     /// Cycles since the implants last changed.
     pub cycles: usize,
     pub advance: Advance,
@@ -102,8 +104,9 @@ pub enum MeasurementState {
 }
 
 enum Update {
-    /// The outcome of implant set `number`.
-    Implants(u64, Box<PerSide<SideState>>),
+    /// The outcome of implant set `number`, and whether it restarted the solve (a set
+    /// that changes nothing leaves the solve as it is).
+    Implants(u64, Box<PerSide<SideState>>, bool),
     Cycle(SimulatedFrame, SolverStatus),
     Measured(Result<(SimulatedMeasurements, u64), String>),
     Exported(Result<ExportPaths, String>),
@@ -189,9 +192,12 @@ impl LiveSimulation {
     pub fn poll(&mut self) {
         while let Ok(update) = self.updates.try_recv() {
             match update {
-                Update::Implants(number, sides) => {
+                Update::Implants(number, sides, restarted) => {
                     self.applied_number = number;
                     self.sides = *sides;
+                    if let (false, Some(solver)) = (restarted, &mut self.solver) {
+                        solver.set_number = number;
+                    }
                     self.failure = None;
                 }
                 Update::Cycle(frame, solver) => {
@@ -211,14 +217,14 @@ impl LiveSimulation {
         }
     }
 
-    /// Whether the worker has applied the last set sent and stopped cycling (converged,
-    /// out of cycles or failed).
+    /// Whether the worker has applied the last set sent and stopped cycling on it
+    /// (converged, out of cycles or failed).
     pub fn is_settled(&self) -> bool {
         self.applied_number == self.sent_number
             && (self.failure.is_some()
-                || self
-                    .solver
-                    .is_some_and(|s| s.advance.state != SolveState::Running))
+                || self.solver.is_some_and(|s| {
+                    s.set_number == self.sent_number && s.advance.state != SolveState::Running
+                }))
     }
 }
 
@@ -236,6 +242,8 @@ struct Worker<W> {
     running: bool,
     cycles: usize,
     frame: u64,
+    /// The number of the implant set last applied.
+    set_number: u64,
 }
 
 impl<W: Fn()> Worker<W> {
@@ -251,6 +259,7 @@ impl<W: Fn()> Worker<W> {
             running: false,
             cycles: 0,
             frame: 0,
+            set_number: 0,
         }
     }
 
@@ -275,9 +284,10 @@ impl<W: Fn()> Worker<W> {
             for (k, command) in commands.into_iter().enumerate() {
                 let sent = match command {
                     Command::Implants(number, set) if Some(k) == newest => {
-                        self.apply(&set);
-                        self.outbox
-                            .send(Update::Implants(number, Box::new(self.sides.clone())))
+                        let restarted = self.apply(&set);
+                        self.set_number = number;
+                        let sides = Box::new(self.sides.clone());
+                        self.outbox.send(Update::Implants(number, sides, restarted))
                     }
                     Command::Implants(..) => Ok(()),
                     Command::Measure => {
@@ -300,8 +310,9 @@ impl<W: Fn()> Worker<W> {
         }
     }
 
-    /// Places or removes the implants that changed; restarts the solve if any did.
-    fn apply(&mut self, set: &ImplantSet) {
+    /// Places or removes the implants that changed; restarts the solve if any did (and
+    /// says so).
+    fn apply(&mut self, set: &ImplantSet) -> bool {
         let gravity_changed = self
             .applied
             .as_ref()
@@ -331,10 +342,12 @@ impl<W: Fn()> Worker<W> {
             }
         }
         self.applied = Some(set.clone());
-        if changed || gravity_changed || self.frame == 0 {
+        let restart = changed || gravity_changed || self.frame == 0;
+        if restart {
             self.running = true;
             self.cycles = 0;
         }
+        restart
     }
 
     /// One cycle and its frame; `false` once the window is gone.
@@ -354,6 +367,7 @@ impl<W: Fn()> Worker<W> {
                     number: self.frame,
                 };
                 let status = SolverStatus {
+                    set_number: self.set_number,
                     cycles: self.cycles,
                     advance,
                     frame_ms: start.elapsed().as_secs_f64() * 1e3,

@@ -186,6 +186,29 @@ fn an_implant_slider_changes_the_simulated_scan() {
     // Far from the breasts, nothing moves (the sternal notch is outside the model).
     let notch_moved = after[notch].distance(before[notch]);
     assert!(notch_moved < 0.05, "the notch moved {notch_moved} mm");
+
+    // The measurements of the prediction: the breasts grew, by less than the implants.
+    click(&mut harness, "Measure prediction");
+    wait_until(&mut harness, "the measurements", |app| {
+        matches!(
+            app.live().unwrap().measurements,
+            gui::live_simulation::MeasurementState::Measured(..)
+        )
+    });
+    let live = harness.state().live().unwrap();
+    let gui::live_simulation::MeasurementState::Measured(measured, _) = &live.measurements else {
+        unreachable!()
+    };
+    assert_eq!(measured.distances.len(), 11);
+    for side in Side::BOTH {
+        let added =
+            measured.breast_volume_ml.get(side) - measured.breast_volume_before_ml.get(side);
+        let implant = *measured.implant_volume_ml.get(side);
+        assert!(
+            added > 0.3 * implant && added < implant,
+            "{side}: +{added} ml, implant {implant} ml"
+        );
+    }
 }
 
 #[test]
