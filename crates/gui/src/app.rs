@@ -183,30 +183,18 @@ impl GuiApp {
             .default_size(300.0)
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| {
-                    egui::CollapsingHeader::new("Landmarks")
-                        .default_open(true)
-                        .show(ui, |ui| self.landmark_panel(ui));
-                    egui::CollapsingHeader::new("Breast model")
-                        .default_open(true)
-                        .show(ui, |ui| self.model_panel(ui));
+                    section(ui, "Landmarks", |ui| self.landmark_panel(ui));
+                    section(ui, "Breast model", |ui| self.model_panel(ui));
                 });
             });
         egui::Panel::right("planning")
             .default_size(400.0)
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| {
-                    egui::CollapsingHeader::new("Implants")
-                        .default_open(true)
-                        .show(ui, |ui| self.implant_panel(ui));
-                    egui::CollapsingHeader::new("Simulation")
-                        .default_open(true)
-                        .show(ui, |ui| self.simulation_panel(ui));
-                    egui::CollapsingHeader::new("Distances (mm)")
-                        .default_open(true)
-                        .show(ui, |ui| self.distance_panel(ui));
-                    egui::CollapsingHeader::new("Measurements")
-                        .default_open(true)
-                        .show(ui, |ui| self.measurement_panel(ui));
+                    section(ui, "Implants", |ui| self.implant_panel(ui));
+                    section(ui, "Simulation", |ui| self.simulation_panel(ui));
+                    section(ui, "Distances (mm)", |ui| self.distance_panel(ui));
+                    section(ui, "Measurements", |ui| self.measurement_panel(ui));
                 });
             });
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
@@ -810,6 +798,13 @@ impl eframe::App for GuiApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         self.show(ui);
     }
+}
+
+/// A panel section under a header that folds it away (open at first).
+fn section(ui: &mut egui::Ui, title: &str, add: impl FnOnce(&mut egui::Ui)) {
+    egui::CollapsingHeader::new(title)
+        .default_open(true)
+        .show(ui, add);
 }
 
 /// The key of a standard view: 1 to 5 in the toolbar's order.

@@ -11,6 +11,9 @@ use plan::{MarkedScan, PhantomParams, Scan, Silent};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+/// A saved point this close to the surface counts as on it (mm).
+const ON_SURFACE_MM: f64 = 1e-6;
+
 /// A scan with the landmarks placed on it so far.
 pub struct Document {
     pub scan: Arc<Scan>,
@@ -87,10 +90,21 @@ impl Document {
     /// the snapping warnings too.
     pub fn from_case(case: &PlanningCase, case_path: &Path) -> Result<(Document, Vec<String>)> {
         let scan = case.scan.load(&Silent)?;
-        let mut landmarks = case.landmarks.clone();
-        let warnings = landmarks
+        let mut snapped = case.landmarks.clone();
+        let warnings = snapped
             .snap_to_surface(&scan.index)
             .with_context(|| format!("the landmarks of {}", case_path.display()))?;
+        // Points saved from the window lie on the surface already (to rounding) and keep
+        // their saved coordinates: the reopened case is the saved one, bit for bit.
+        let mut landmarks = case.landmarks.clone();
+        for (name, point) in snapped.iter() {
+            if landmarks
+                .lookup(name)
+                .is_some_and(|saved| saved.distance(point) > ON_SURFACE_MM)
+            {
+                landmarks.move_point(name, point);
+            }
+        }
         let document = Document {
             landmarks,
             ..Document::new(scan, case.scan.clone())

@@ -171,11 +171,12 @@ impl ImplantDesign {
     }
 
     /// The design mirrored across the midline: the move to the patient's left becomes
-    /// one to the right, the turn goes the other way.
+    /// one to the right, the turn goes the other way (`0 - x`, so that no `-0` turns up
+    /// in saved cases).
     pub fn mirrored(&self) -> ImplantDesign {
         ImplantDesign {
-            move_mm: DVec3::new(-self.move_mm.x, self.move_mm.y, self.move_mm.z),
-            rotation_deg: -self.rotation_deg,
+            move_mm: DVec3::new(0.0 - self.move_mm.x, self.move_mm.y, self.move_mm.z),
+            rotation_deg: 0.0 - self.rotation_deg,
             ..self.clone()
         }
     }

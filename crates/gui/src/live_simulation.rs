@@ -8,10 +8,12 @@
 
 use crate::render::SceneMesh;
 use anatomy::breast::Side;
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use plan::Silent;
 use plan::model::PerSide;
-use plan::simulate::{Advance, ImplantRequest, Session, SimulatedMeasurements, SolveState, Stage};
+use plan::simulate::{
+    Advance, ImplantRequest, ImplantSummary, Session, SimulatedMeasurements, SolveState, Stage,
+};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
@@ -51,23 +53,11 @@ enum Command {
     Export(ExportPaths),
 }
 
-/// An implant as the session placed it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PlacedSummary {
-    pub request: ImplantRequest,
-    pub volume_ml: f64,
-    /// The anchor (centre of the implant's back) on the bed (mm, file frame).
-    pub anchor_mm: DVec3,
-    /// How far the anchor was moved beyond the request so that the implant fits on the
-    /// breast's base (mm, implant's left and up).
-    pub fit_shift_mm: DVec2,
-}
-
 /// One side of the session.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SideState {
     /// The implant in the session (the last one that could be placed).
-    pub placed: Option<PlacedSummary>,
+    pub placed: Option<ImplantSummary>,
     /// Why the last request for this side was refused (the session kept `placed`).
     pub error: Option<String>,
 }
@@ -75,6 +65,8 @@ pub struct SideState {
 /// The solver's figures after the latest cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SolverStatus {
+    /// The number of the implant set being solved (see [`LiveSimulation::set_implants`]).
+    pub set_number: u64,
     /// Cycles since the implants last changed.
     pub cycles: usize,
     pub advance: Advance,
@@ -112,8 +104,9 @@ pub enum MeasurementState {
 }
 
 enum Update {
-    /// The outcome of implant set `number`.
-    Implants(u64, PerSide<SideState>),
+    /// The outcome of implant set `number`, and whether it restarted the solve (a set
+    /// that changes nothing leaves the solve as it is).
+    Implants(u64, Box<PerSide<SideState>>, bool),
     Cycle(SimulatedFrame, SolverStatus),
     Measured(Result<(SimulatedMeasurements, u64), String>),
     Exported(Result<ExportPaths, String>),
@@ -199,9 +192,12 @@ impl LiveSimulation {
     pub fn poll(&mut self) {
         while let Ok(update) = self.updates.try_recv() {
             match update {
-                Update::Implants(number, sides) => {
+                Update::Implants(number, sides, restarted) => {
                     self.applied_number = number;
-                    self.sides = sides;
+                    self.sides = *sides;
+                    if let (false, Some(solver)) = (restarted, &mut self.solver) {
+                        solver.set_number = number;
+                    }
                     self.failure = None;
                 }
                 Update::Cycle(frame, solver) => {
@@ -221,14 +217,14 @@ impl LiveSimulation {
         }
     }
 
-    /// Whether the worker has applied the last set sent and stopped cycling (converged,
-    /// out of cycles or failed).
+    /// Whether the worker has applied the last set sent and stopped cycling on it
+    /// (converged, out of cycles or failed).
     pub fn is_settled(&self) -> bool {
         self.applied_number == self.sent_number
             && (self.failure.is_some()
-                || self
-                    .solver
-                    .is_some_and(|s| s.advance.state != SolveState::Running))
+                || self.solver.is_some_and(|s| {
+                    s.set_number == self.sent_number && s.advance.state != SolveState::Running
+                }))
     }
 }
 
@@ -246,6 +242,8 @@ struct Worker<W> {
     running: bool,
     cycles: usize,
     frame: u64,
+    /// The number of the implant set last applied.
+    set_number: u64,
 }
 
 impl<W: Fn()> Worker<W> {
@@ -261,6 +259,7 @@ impl<W: Fn()> Worker<W> {
             running: false,
             cycles: 0,
             frame: 0,
+            set_number: 0,
         }
     }
 
@@ -285,9 +284,10 @@ impl<W: Fn()> Worker<W> {
             for (k, command) in commands.into_iter().enumerate() {
                 let sent = match command {
                     Command::Implants(number, set) if Some(k) == newest => {
-                        self.apply(&set);
-                        self.outbox
-                            .send(Update::Implants(number, self.sides.clone()))
+                        let restarted = self.apply(&set);
+                        self.set_number = number;
+                        let sides = Box::new(self.sides.clone());
+                        self.outbox.send(Update::Implants(number, sides, restarted))
                     }
                     Command::Implants(..) => Ok(()),
                     Command::Measure => {
@@ -310,8 +310,9 @@ impl<W: Fn()> Worker<W> {
         }
     }
 
-    /// Places or removes the implants that changed; restarts the solve if any did.
-    fn apply(&mut self, set: &ImplantSet) {
+    /// Places or removes the implants that changed; restarts the solve if any did (and
+    /// says so).
+    fn apply(&mut self, set: &ImplantSet) -> bool {
         let gravity_changed = self
             .applied
             .as_ref()
@@ -325,24 +326,14 @@ impl<W: Fn()> Worker<W> {
             }
             let state = self.sides.get_mut(side);
             match wanted {
-                Some(request) => {
-                    match self
-                        .session
-                        .set_implant(side, &request.spec, request.placement())
-                    {
-                        Ok(placed) => {
-                            state.placed = Some(PlacedSummary {
-                                request: request.clone(),
-                                volume_ml: placed.shape.volume_ml(),
-                                anchor_mm: placed.anchor.position,
-                                fit_shift_mm: placed.fit_shift_mm,
-                            });
-                            state.error = None;
-                            changed = true;
-                        }
-                        Err(error) => state.error = Some(format!("{error:#}")),
+                Some(request) => match self.session.place(side, request) {
+                    Ok(placed) => {
+                        state.placed = Some(placed);
+                        state.error = None;
+                        changed = true;
                     }
-                }
+                    Err(error) => state.error = Some(format!("{error:#}")),
+                },
                 None => {
                     self.session.remove_implant(side);
                     changed |= state.placed.take().is_some();
@@ -351,10 +342,12 @@ impl<W: Fn()> Worker<W> {
             }
         }
         self.applied = Some(set.clone());
-        if changed || gravity_changed || self.frame == 0 {
+        let restart = changed || gravity_changed || self.frame == 0;
+        if restart {
             self.running = true;
             self.cycles = 0;
         }
+        restart
     }
 
     /// One cycle and its frame; `false` once the window is gone.
@@ -374,6 +367,7 @@ impl<W: Fn()> Worker<W> {
                     number: self.frame,
                 };
                 let status = SolverStatus {
+                    set_number: self.set_number,
                     cycles: self.cycles,
                     advance,
                     frame_ms: start.elapsed().as_secs_f64() * 1e3,

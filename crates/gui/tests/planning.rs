@@ -98,14 +98,8 @@ fn positions(app: &GuiApp) -> Vec<DVec3> {
 }
 
 fn anchor(app: &GuiApp, side: Side) -> DVec3 {
-    app.live()
-        .unwrap()
-        .sides
-        .get(side)
-        .placed
-        .as_ref()
-        .unwrap()
-        .anchor_mm
+    let placed = app.live().unwrap().sides.get(side).placed.as_ref().unwrap();
+    DVec3::from_array(placed.anchor_mm)
 }
 
 #[test]
@@ -180,7 +174,7 @@ fn an_implant_slider_changes_the_simulated_scan() {
         .placed
         .clone()
         .unwrap();
-    assert_eq!(placed.request.spec, "round:diameter=120,projection=45");
+    assert_eq!(placed.spec, "round:diameter=120,projection=45");
     let after = positions(harness.state());
 
     // 11.5 mm more projection (33.5 -> 45): the implant's apex pushes the tissue in front
@@ -192,6 +186,29 @@ fn an_implant_slider_changes_the_simulated_scan() {
     // Far from the breasts, nothing moves (the sternal notch is outside the model).
     let notch_moved = after[notch].distance(before[notch]);
     assert!(notch_moved < 0.05, "the notch moved {notch_moved} mm");
+
+    // The measurements of the prediction: the breasts grew, by less than the implants.
+    click(&mut harness, "Measure prediction");
+    wait_until(&mut harness, "the measurements", |app| {
+        matches!(
+            app.live().unwrap().measurements,
+            gui::live_simulation::MeasurementState::Measured(..)
+        )
+    });
+    let live = harness.state().live().unwrap();
+    let gui::live_simulation::MeasurementState::Measured(measured, _) = &live.measurements else {
+        unreachable!()
+    };
+    assert_eq!(measured.distances.len(), 11);
+    for side in Side::BOTH {
+        let added =
+            measured.breast_volume_ml.get(side) - measured.breast_volume_before_ml.get(side);
+        let implant = *measured.implant_volume_ml.get(side);
+        assert!(
+            added > 0.3 * implant && added < implant,
+            "{side}: +{added} ml, implant {implant} ml"
+        );
+    }
 }
 
 #[test]
@@ -212,15 +229,13 @@ fn the_move_buttons_move_the_implants_by_the_step_in_the_anatomical_frame() {
     for (k, side) in Side::BOTH.into_iter().enumerate() {
         let placed = live.sides.get(side).placed.as_ref().unwrap();
         // Known answer: one step of 5 mm up, on both sides (linked).
-        assert_eq!(placed.request.move_mm, DVec3::new(0.0, 5.0, 0.0));
-        assert!(
-            placed.fit_shift_mm.length() < 1e-9,
-            "{:?}",
-            placed.fit_shift_mm
-        );
-        // The anchor walks 5 mm along the curved bed (a chord of at most 5 mm), mostly
-        // upwards: within 0.3 mm of a straight 5 mm step up.
-        let moved = placed.anchor_mm - start[k];
+        assert_eq!(placed.move_mm, [0.0, 5.0, 0.0]);
+        assert_eq!(placed.fit_shift_mm, [0.0, 0.0]);
+        // The anchor walks 5 mm along the curved bed (a chord of at most 5 mm) in the
+        // direction of "up" projected onto the bed, which leans back with the chest
+        // wall: within 30% of the step of a straight 5 mm step up (a lean of up to 17°),
+        // and at least 4.5 mm of it upwards.
+        let moved = DVec3::from_array(placed.anchor_mm) - start[k];
         assert!(moved.length() <= 5.0 + 1e-6, "{side}: {moved}");
         assert!(
             (moved - 5.0 * frame.up()).length() < 0.3 * 5.0,
@@ -241,12 +256,12 @@ fn the_move_buttons_move_the_implants_by_the_step_in_the_anatomical_frame() {
     let right = anchor(app, Side::Right) - start[1];
     let live = app.live().unwrap();
     assert_eq!(
-        live.sides.left.placed.as_ref().unwrap().request.move_mm,
-        DVec3::new(10.0, 5.0, 0.0)
+        live.sides.left.placed.as_ref().unwrap().move_mm,
+        [10.0, 5.0, 0.0]
     );
     assert_eq!(
-        live.sides.right.placed.as_ref().unwrap().request.move_mm,
-        DVec3::new(-10.0, 5.0, 0.0)
+        live.sides.right.placed.as_ref().unwrap().move_mm,
+        [-10.0, 5.0, 0.0]
     );
     assert!(left.dot(frame.left()) > 8.0, "{left}");
     assert!(right.dot(frame.left()) < -8.0, "{right}");

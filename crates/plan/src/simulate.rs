@@ -199,6 +199,17 @@ impl Session {
             .with_context(|| format!("{side} implant {spec}"))
     }
 
+    /// Sets (or replaces) the implant of one side as `request` asks; its summary. On
+    /// error nothing changes.
+    pub fn place(&mut self, side: Side, request: &ImplantRequest) -> Result<ImplantSummary> {
+        let catalog_entry = match ImplantSpec::parse(&request.spec) {
+            Ok(ImplantSpec::Catalog(id)) => self.catalog.get(&id).cloned(),
+            _ => None,
+        };
+        let placed = self.set_implant(side, &request.spec, request.placement())?;
+        Ok(ImplantSummary::new(request, placed, catalog_entry.as_ref()))
+    }
+
     /// Removes the implant of one side.
     pub fn remove_implant(&mut self, side: Side) {
         self.simulation.remove_implant(side);
@@ -391,8 +402,8 @@ pub struct SolverReport {
     pub inverted_elements: usize,
 }
 
-/// One side's implant.
-#[derive(Debug, Clone, Serialize)]
+/// One side's implant as placed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ImplantSummary {
     pub spec: String,
     /// The catalog entry's id and family, for a `catalog:ID` spec.
@@ -412,6 +423,34 @@ pub struct ImplantSummary {
     /// The further move of the anchor along the bed that made the footprint fit (mm,
     /// implant's `x'` to the patient's left and `y'` up; zero when it fitted as asked).
     pub fit_shift_mm: [f64; 2],
+    /// Where the implant's anchor (the centre of its back) ended up on the bed (mm, the
+    /// scan's frame).
+    pub anchor_mm: [f64; 3],
+}
+
+impl ImplantSummary {
+    /// The summary of an implant placed as `request` asked, `catalog_entry` the entry
+    /// its spec names, if any.
+    pub fn new(
+        request: &ImplantRequest,
+        placed: &PlacedImplant,
+        catalog_entry: Option<&implant::CatalogEntry>,
+    ) -> ImplantSummary {
+        ImplantSummary {
+            spec: request.spec.clone(),
+            catalog_id: catalog_entry.map(|entry| entry.id().to_string()),
+            family: catalog_entry.map(|entry| entry.family().to_string()),
+            shape: placed.shape,
+            width_mm: placed.shape.width_mm(),
+            height_mm: placed.shape.height_mm(),
+            projection_mm: placed.shape.projection_mm(),
+            volume_ml: placed.shape.volume_ml(),
+            move_mm: request.move_mm.to_array(),
+            rotation_deg: request.rotation_deg,
+            fit_shift_mm: placed.fit_shift_mm.to_array(),
+            anchor_mm: placed.anchor.position.to_array(),
+        }
+    }
 }
 
 /// An isotropic elastic material of the simulation.
@@ -500,27 +539,7 @@ pub fn run_session(
     };
     for (side, request) in [(Side::Left, &options.left), (Side::Right, &options.right)] {
         if let Some(request) = request {
-            let catalog_entry = match ImplantSpec::parse(&request.spec) {
-                Ok(ImplantSpec::Catalog(id)) => session.catalog.get(&id),
-                _ => None,
-            };
-            let (catalog_id, family) = catalog_entry
-                .map(|entry| (entry.id().to_string(), entry.family().to_string()))
-                .unzip();
-            let placed = session.set_implant(side, &request.spec, request.placement())?;
-            *implants.get_mut(side) = Some(ImplantSummary {
-                spec: request.spec.clone(),
-                catalog_id,
-                family,
-                shape: placed.shape,
-                width_mm: placed.shape.width_mm(),
-                height_mm: placed.shape.height_mm(),
-                projection_mm: placed.shape.projection_mm(),
-                volume_ml: placed.shape.volume_ml(),
-                move_mm: request.move_mm.to_array(),
-                rotation_deg: request.rotation_deg,
-                fit_shift_mm: placed.fit_shift_mm.to_array(),
-            });
+            *implants.get_mut(side) = Some(session.place(side, request)?);
         }
     }
     let start = Instant::now();

@@ -635,15 +635,15 @@ impl GuiApp {
             for side in [Side::Right, Side::Left] {
                 let state = live.sides.get(side);
                 if let Some(placed) = &state.placed {
-                    let fit = placed.fit_shift_mm;
-                    let fit_note = if fit.length() > 0.05 {
-                        format!(", moved {:.1} mm further to fit", fit.length())
+                    let fit_mm = glam::DVec2::from_array(placed.fit_shift_mm).length();
+                    let fit_note = if fit_mm > 0.05 {
+                        format!(", moved {fit_mm:.1} mm further to fit")
                     } else {
                         String::new()
                     };
                     ui.label(format!(
                         "{side}: {}, {:.0} ml{fit_note}",
-                        placed.request.spec, placed.volume_ml
+                        placed.spec, placed.volume_ml
                     ));
                 }
                 if let Some(error) = &state.error {

@@ -186,6 +186,8 @@ impl GuiApp {
                 if t >= 1.0 { Step::Done } else { Step::Pending }
             }
             Action::Wait => match &self.live {
+                // A case being opened builds its model first.
+                None if self.build.is_some() => Step::Pending,
                 None => Step::Failed("no model built".into()),
                 Some(_) if self.implant_error.is_some() => {
                     Step::Failed(self.implant_error.clone().unwrap_or_default())
