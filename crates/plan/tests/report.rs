@@ -183,9 +183,24 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         after.nipple_height_difference_mm
     );
 
-    // Not wired yet: no views, no comparison.
-    assert!(content.views.is_empty());
-    assert!(content.comparison.is_none());
+    // The views: five of each scan (pre-operative, simulated, post-operative) and the
+    // change from the pre-operative surface from the front and the obliques.
+    assert_eq!(content.views.len(), 18);
+    assert!(content.views.iter().all(|v| !v.labels.is_empty()));
+    assert_eq!(
+        content
+            .views
+            .iter()
+            .filter(|v| v.colour_scale.is_some())
+            .count(),
+        3
+    );
+    // The comparison with the post-operative scan, which differs from the simulation.
+    let comparison = content.comparison.as_ref().expect("a comparison");
+    let whole = &comparison.regions[0];
+    assert_eq!(whole.region, "Whole overlap");
+    assert!(whole.rms_mm > 0.0 && whole.rms_mm.is_finite(), "{whole:?}");
+    assert!(whole.mean_mm <= whole.rms_mm && whole.rms_mm <= whole.hausdorff_mm);
     assert!(content.notes.is_empty(), "{:?}", content.notes);
 
     // The page as written: the implant volume and the simulated distances as printed.
