@@ -270,11 +270,13 @@ fn gravity_correction_moves_the_nipple_down() {
     let report = sim.run(false).unwrap();
     println!("{report:?}");
     let gravity = report.gravity.unwrap();
-    let after = common::nipple(&sim.landmarks(), Side::Left);
     let before_gravity = sim.displacement_before_gravity().unwrap().to_vec();
     let at = sim.displacements_at(&[common::nipple(p.landmarks(), Side::Left)]);
     let frame = p.frame();
     let nipple = common::nipple(p.landmarks(), Side::Left);
+    // the nipple after the correction by the finite-element field (the landmarks follow
+    // the scan's smoothed displacement, tested in `landmarks_stay_on_the_simulated_scan`)
+    let after = nipple + at[0];
     // the nipple before the correction, from the stage-1 displacement
     let locator =
         simulation::field::FieldLocator::new(sim.finest_mesh(), sim.spacing_mm()).unwrap();
@@ -290,7 +292,6 @@ fn gravity_correction_moves_the_nipple_down() {
         gravity.relative_residual,
         sim.inverted_elements().len()
     );
-    assert!((at[0] + nipple - after).length() < 1e-9);
     assert!(drop < -0.5, "the nipple moved {drop} mm vertically");
 }
 
