@@ -98,6 +98,8 @@ pub enum RenderError {
     ShortPolyline { polyline: usize, count: usize },
     #[error("polyline {polyline}: width {width_px} px is not a positive number")]
     PolylineWidth { polyline: usize, width_px: f64 },
+    #[error("{count} triangles in the scene: at most {} can be drawn at once", u32::MAX - 1)]
+    TooManyTriangles { count: usize },
     #[error("camera: {0}")]
     Camera(&'static str),
     #[error("nothing to frame: {0}")]

@@ -52,7 +52,7 @@ struct Occlusion<'a> {
 impl Occlusion<'_> {
     /// The point's position in image pixels and whether it is hidden; `None` outside the
     /// image or behind a perspective eye.
-    fn locate(&self, point: DVec3) -> Option<(DVec2, bool)> {
+    fn place(&self, point: DVec3) -> Option<(DVec2, bool)> {
         let (width, height) = (self.depth.width as f64, self.depth.height as f64);
         let projected = self.camera.project(point, width, height)?;
         let sample = projected.pixel;
@@ -95,7 +95,7 @@ pub(crate) fn draw(
         .markers
         .iter()
         .map(|marker| {
-            let (pixel, visibility) = match occlusion.locate(marker.position) {
+            let (pixel, visibility) = match occlusion.place(marker.position) {
                 Some((pixel, false)) => (pixel, Visibility::Visible),
                 Some((pixel, true)) => (pixel, Visibility::Hidden),
                 None => {
@@ -177,7 +177,11 @@ fn visible_runs(polyline: &Polyline, occlusion: &Occlusion) -> Vec<Vec<DVec2>> {
             (Some(a), Some(b)) => a.pixel.distance(b.pixel),
             _ => 0.0,
         };
-        let steps = (length_samples / CURVE_STEP_SAMPLES).ceil().max(1.0) as usize;
+        // A segment longer than the image is wide and high together (far outside it)
+        // is tested more coarsely, so no curve takes long.
+        let steps = (length_samples / CURVE_STEP_SAMPLES)
+            .ceil()
+            .clamp(1.0, (width + height) / CURVE_STEP_SAMPLES) as usize;
         // The segment's end is the next segment's start: each point is tested once, the
         // polyline's last point only when it is open.
         let last_step = if segment + 1 == segment_count && !polyline.closed {
@@ -187,7 +191,7 @@ fn visible_runs(polyline: &Polyline, occlusion: &Occlusion) -> Vec<Vec<DVec2>> {
         };
         for step in 0..=last_step {
             let point = start.lerp(end, step as f64 / steps as f64);
-            match occlusion.locate(point) {
+            match occlusion.place(point) {
                 Some((pixel, false)) => {
                     starts_visible |= segment == 0 && step == 0;
                     run.push(pixel);

@@ -68,7 +68,7 @@ pub enum Visibility {
 pub struct MarkerPlacement {
     pub label: String,
     /// Pixels from the image's top-left corner, y down (pixel `(i, j)` has its centre at
-    /// `(i + 0.5, j + 0.5)`).
+    /// `(i + 0.5, j + 0.5)`); NaN for a point behind a perspective camera.
     pub pixel: DVec2,
     pub visibility: Visibility,
 }
@@ -94,11 +94,10 @@ pub fn render(
     check_size(width, height, options.supersampling)?;
     camera.validate()?;
     scene.validate()?;
-    let total_triangles: usize = scene.layers.iter().map(|l| l.mesh.triangle_count()).sum();
-    if total_triangles >= NO_TRIANGLE as usize {
-        return Err(RenderError::Framing(
-            "more triangles than a picture can hold",
-        ));
+    let drawn = || scene.layers.iter().filter(|layer| layer.opacity > 0.0);
+    let count: usize = drawn().map(|layer| layer.mesh.triangle_count()).sum();
+    if count >= NO_TRIANGLE as usize {
+        return Err(RenderError::TooManyTriangles { count });
     }
     let supersampling = options.supersampling as usize;
     let (sample_width, sample_height) = (
@@ -107,9 +106,7 @@ pub fn render(
     );
 
     let mut first_id = 0;
-    let layers: Vec<PreparedLayer> = scene
-        .layers
-        .iter()
+    let layers: Vec<PreparedLayer> = drawn()
         .map(|layer| {
             let prepared = PreparedLayer::new(
                 layer,
@@ -128,7 +125,7 @@ pub fn render(
     }
     let translucent: Vec<SampleBuffer> = layers
         .iter()
-        .filter(|l| l.opacity > 0.0 && l.opacity < 1.0)
+        .filter(|l| l.opacity < 1.0)
         .map(|layer| {
             let mut buffer = SampleBuffer::in_front_of(&opaque, |key| {
                 if key == f32::INFINITY {
