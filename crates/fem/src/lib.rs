@@ -40,6 +40,7 @@
 //! forces in mN; density in kg/m³; gravity in m/s² (converted with
 //! [`model::KG_M3_TIMES_M_S2_TO_MN_MM3`]).
 
+mod blocks;
 pub mod boxmesh;
 pub mod direct;
 pub mod error;

@@ -159,6 +159,7 @@
 //! V-cycle (flexible, Polak-Ribière form, because a V(2,1) cycle is not a symmetric
 //! operator).
 
+use crate::blocks::{self, BlockKernels};
 use crate::direct::DirectSolver;
 use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
@@ -970,56 +971,20 @@ impl FusedProduct {
     fn values(&mut self, a: &BlockCsr, t: &Transfer, active: &[bool], c: &mut BlockCsr) {
         let mut buf = std::mem::take(&mut self.buf);
         let this = &*self;
-        let (q_ptr, term_ptr, term_skip, term_slot) = (
-            &this.q_ptr,
-            &this.term_ptr,
-            &this.term_skip,
-            &this.term_slot,
-        );
-        let (q_from, dest_ptr, dest) = (&this.q_from, &this.dest_ptr, &this.dest);
-        let (part_rows, buf_ptr, src_ptr, src) =
-            (&this.part_rows, &this.buf_ptr, &this.src_ptr, &this.src);
-        split_rows(&mut buf, buf_ptr)
+        let simd = blocks::simd_available();
+        split_rows(&mut buf, &self.buf_ptr)
             .into_par_iter()
             .enumerate()
             .for_each_init(Vec::new, |q_row, (p, part)| {
-                part.fill([0.0; 9]);
-                let base = buf_ptr[p];
-                for f in part_rows[p]..part_rows[p + 1] {
-                    let weights = &t.p_w[t.p_ptr[f]..t.p_ptr[f + 1]];
-                    if weights.iter().all(|&w| w == 0.0) {
-                        continue;
-                    }
-                    q_row.clear();
-                    q_row.resize(q_ptr[f + 1] - q_ptr[f], [0.0; 9]);
-                    let mut slots = term_slot[term_ptr[f]..term_ptr[f + 1]].iter();
-                    let row = a.row_ptr[f]..a.row_ptr[f + 1];
-                    for ((blk, &g), &skip) in a.values[row.clone()]
-                        .iter()
-                        .zip(&a.cols[row.clone()])
-                        .zip(&term_skip[row])
-                    {
-                        // a copy, kept in registers over the row of `P`
-                        let blk = *blk;
-                        let g = g as usize;
-                        let ws = &t.p_w[t.p_ptr[g] + skip as usize..t.p_ptr[g + 1]];
-                        for (&w, &slot) in ws.iter().zip(&mut slots) {
-                            add_scaled(&mut q_row[slot as usize], w, &blk);
-                        }
-                    }
-                    let mut dests = &dest[dest_ptr[f]..dest_ptr[f + 1]];
-                    for (k, &w) in (t.p_ptr[f]..).zip(weights) {
-                        let q_part = &q_row[q_from[k] as usize..];
-                        let (here, rest) = dests.split_at(q_part.len());
-                        dests = rest;
-                        if w != 0.0 {
-                            for (qb, &d) in q_part.iter().zip(here) {
-                                add_scaled(&mut part[d as usize - base], w, qb);
-                            }
-                        }
-                    }
+                #[cfg(target_arch = "x86_64")]
+                if simd {
+                    // SAFETY: the processor has AVX2 and FMA (`simd_available`)
+                    return unsafe { this.fill_part_avx2(a, t, p, q_row, part) };
                 }
+                let _ = simd;
+                this.fill_part::<blocks::Scalar>(a, t, p, q_row, part);
             });
+        let (src_ptr, src) = (&self.src_ptr, &self.src);
         let BlockCsr {
             row_ptr,
             cols,
@@ -1039,7 +1004,7 @@ impl FusedProduct {
                     let sum = match &src[src_ptr[start + b]..src_ptr[start + b + 1]] {
                         [k] => buf[*k as usize],
                         parts => parts.iter().fold([0.0; 9], |mut sum, &k| {
-                            add_scaled(&mut sum, 1.0, &buf[k as usize]);
+                            blocks::Scalar::add_scaled(&mut sum, 1.0, &buf[k as usize]);
                             sum
                         }),
                     };
@@ -1052,6 +1017,73 @@ impl FusedProduct {
             });
         self.buf = buf;
     }
+
+    /// Part `p`'s contributions to the upper blocks of `C` (its buffer blocks `part`):
+    /// each fine row of the part in turn (rows whose entries of `P` are all zero are
+    /// skipped), `q_row` a scratch row.
+    #[inline(always)]
+    fn fill_part<K: BlockKernels>(
+        &self,
+        a: &BlockCsr,
+        t: &Transfer,
+        p: usize,
+        q_row: &mut Vec<[f64; 9]>,
+        part: &mut [[f64; 9]],
+    ) {
+        part.fill([0.0; 9]);
+        let base = self.buf_ptr[p];
+        for f in self.part_rows[p]..self.part_rows[p + 1] {
+            let weights = &t.p_w[t.p_ptr[f]..t.p_ptr[f + 1]];
+            if weights.iter().all(|&w| w == 0.0) {
+                continue;
+            }
+            q_row.clear();
+            q_row.resize(self.q_ptr[f + 1] - self.q_ptr[f], [0.0; 9]);
+            let mut slots = self.term_slot[self.term_ptr[f]..self.term_ptr[f + 1]].iter();
+            let row = a.row_ptr[f]..a.row_ptr[f + 1];
+            for ((blk, &g), &skip) in a.values[row.clone()]
+                .iter()
+                .zip(&a.cols[row.clone()])
+                .zip(&self.term_skip[row])
+            {
+                // a copy, kept in registers over the row of `P`
+                let blk = *blk;
+                let g = g as usize;
+                let ws = &t.p_w[t.p_ptr[g] + skip as usize..t.p_ptr[g + 1]];
+                for (&w, &slot) in ws.iter().zip(&mut slots) {
+                    K::add_scaled(&mut q_row[slot as usize], w, &blk);
+                }
+            }
+            let mut dests = &self.dest[self.dest_ptr[f]..self.dest_ptr[f + 1]];
+            for (k, &w) in (t.p_ptr[f]..).zip(weights) {
+                let q_part = &q_row[self.q_from[k] as usize..];
+                let (here, rest) = dests.split_at(q_part.len());
+                dests = rest;
+                if w != 0.0 {
+                    for (qb, &d) in q_part.iter().zip(here) {
+                        K::add_scaled(&mut part[d as usize - base], w, qb);
+                    }
+                }
+            }
+        }
+    }
+
+    /// [`FusedProduct::fill_part`] with the AVX2/FMA block kernels.
+    ///
+    /// # Safety
+    /// The processor must have AVX2 and FMA ([`blocks::simd_available`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn fill_part_avx2(
+        &self,
+        a: &BlockCsr,
+        t: &Transfer,
+        p: usize,
+        q_row: &mut Vec<[f64; 9]>,
+        part: &mut [[f64; 9]],
+    ) {
+        self.fill_part::<blocks::Avx2Fma>(a, t, p, q_row, part);
+    }
 }
 
 /// A diagonal block made exactly symmetric: each off-diagonal pair replaced by its mean.
@@ -1062,18 +1094,6 @@ fn symmetrised(mut d: [f64; 9]) -> [f64; 9] {
         d[b] = m;
     }
     d
-}
-
-/// `out += w b` for row-major 3x3 blocks. Both blocks are read before `out` is written,
-/// so that the compiler may use packed instructions (it cannot prove that `out` and `b`
-/// are distinct once inlined).
-#[inline]
-fn add_scaled(out: &mut [f64; 9], w: f64, b: &[f64; 9]) {
-    let (b, mut o) = (*b, *out);
-    for (o, x) in o.iter_mut().zip(b) {
-        *o += w * x;
-    }
-    *out = o;
 }
 
 /// Slots of the product `C = Bᵀ Q` restricted to the upper block triangle of `C`, where

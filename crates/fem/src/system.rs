@@ -21,6 +21,7 @@
 //! contains it. The free rows are therefore exactly those of a system built with all the
 //! constraints permanent.
 
+use crate::blocks::{self, BlockKernels};
 use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
 use crate::polar::POLAR_LANES;
@@ -124,8 +125,7 @@ impl BlockCsr {
         let r = self.row_ptr[i]..self.row_ptr[i + 1];
         let (values, cols) = (&self.values[r.clone()], &self.cols[r]);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
+        if blocks::simd_available() {
             // SAFETY: the processor has AVX2 and FMA (checked just above); the caller
             // vouches for `x` and `len`
             return unsafe { row_mul_avx2(values, cols, x, len) };
@@ -577,18 +577,27 @@ impl ReducedSystem {
                     });
                 });
         }
-        let cores = &self.cores;
-        let twists = &self.twists;
         let BlockCsr {
             row_ptr,
             cols,
             values,
         } = &mut self.matrix;
-        let eliminated = &self.eliminated;
-        let incident_ptr = &self.incident_ptr;
-        let incident = &self.incident;
-        let incident_slots = &self.incident_slots;
-        let free = &self.free;
+        let gather = RowGather {
+            model,
+            u,
+            f_ext,
+            full,
+            cores: &self.cores,
+            twists: &self.twists,
+            row_ptr,
+            cols,
+            eliminated: &self.eliminated,
+            incident_ptr: &self.incident_ptr,
+            incident: &self.incident,
+            incident_slots: &self.incident_slots,
+            free: &self.free,
+        };
+        let simd = blocks::simd_available();
         // the upper block triangle and the right-hand side, row by row: each block sums
         // its elements' contributions in element order (deterministic)
         self.upper
@@ -597,49 +606,97 @@ impl ReducedSystem {
             .zip(self.rhs.par_iter_mut())
             .enumerate()
             .for_each(|(i, (vals, r))| {
-                vals.fill([0.0; 9]);
-                if eliminated[i] {
-                    // a held unknown: identity diagonal block, zero row and right-hand side
-                    vals[0] = IDENTITY_BLOCK;
-                    *r = DVec3::ZERO;
-                    return;
+                #[cfg(target_arch = "x86_64")]
+                if simd {
+                    // SAFETY: the processor has AVX2 and FMA (`simd_available`)
+                    return unsafe { gather.row_avx2(i, vals, r) };
                 }
-                let ucols = &cols[row_ptr[i + 1] - vals.len()..row_ptr[i + 1]];
-                let mut f = if f_ext.is_empty() {
-                    DVec3::ZERO
-                } else {
-                    f_ext[free[i] as usize]
-                };
-                for k in incident_ptr[i]..incident_ptr[i + 1] {
-                    let e = (incident[k] >> 2) as usize;
-                    let a = (incident[k] & 3) as usize;
-                    let c = &cores[e];
-                    f -= c.force[a];
-                    let lambda_ha = (c.rotated_grad[a] * c.vol_lambda).to_array();
-                    let mu_ha = (c.rotated_grad[a] * c.vol_mu).to_array();
-                    // the inversion barrier acts on few elements: its directions are
-                    // recomputed here rather than stored for all
-                    let barrier = (c.barrier_stiffness != 0.0)
-                        .then(|| model.volume_gradients(e, u).map(|g| g.to_array()));
-                    for (b, &s) in incident_slots[k].iter().enumerate() {
-                        // a held unknown's column stays zero (eliminated)
-                        if s == NOT_FREE || eliminated[ucols[s as usize] as usize] {
-                            continue;
-                        }
-                        let out = &mut vals[s as usize];
-                        add_element_block(out, c, a, b, lambda_ha, mu_ha);
-                        if full {
-                            add_twist_block(out, &twists[e], a, b);
-                        }
-                        if let Some(g) = &barrier {
-                            add_rank_one(out, c.barrier_stiffness, g[a], g[b]);
-                        }
-                    }
-                }
-                *r = f;
+                let _ = simd;
+                gather.row::<blocks::Scalar>(i, vals, r);
             });
         self.upper.mirror(&mut self.matrix);
         Ok(())
+    }
+}
+
+/// What [`ReducedSystem::assemble`]'s row gather reads: the element pass's results and
+/// the pattern's element-to-slot maps.
+struct RowGather<'a> {
+    model: &'a FemModel,
+    u: &'a [DVec3],
+    f_ext: &'a [DVec3],
+    full: bool,
+    cores: &'a [ElementCore],
+    twists: &'a [ElementTwist],
+    row_ptr: &'a [usize],
+    cols: &'a [u32],
+    eliminated: &'a [bool],
+    incident_ptr: &'a [usize],
+    incident: &'a [u32],
+    incident_slots: &'a [[u32; 4]],
+    free: &'a [u32],
+}
+
+impl RowGather<'_> {
+    /// Fills block row `i`'s upper part `vals` (its diagonal block, then the blocks right
+    /// of it) and its right-hand side `r`.
+    #[inline(always)]
+    fn row<K: BlockKernels>(&self, i: usize, vals: &mut [[f64; 9]], r: &mut DVec3) {
+        vals.fill([0.0; 9]);
+        if self.eliminated[i] {
+            // a held unknown: identity diagonal block, zero row and right-hand side
+            vals[0] = IDENTITY_BLOCK;
+            *r = DVec3::ZERO;
+            return;
+        }
+        let ucols = &self.cols[self.row_ptr[i + 1] - vals.len()..self.row_ptr[i + 1]];
+        let mut f = if self.f_ext.is_empty() {
+            DVec3::ZERO
+        } else {
+            self.f_ext[self.free[i] as usize]
+        };
+        for k in self.incident_ptr[i]..self.incident_ptr[i + 1] {
+            let e = (self.incident[k] >> 2) as usize;
+            let a = (self.incident[k] & 3) as usize;
+            let c = &self.cores[e];
+            f -= c.force[a];
+            let ha = c.rotated_grad[a].to_array();
+            let lambda_ha = (c.rotated_grad[a] * c.vol_lambda).to_array();
+            let mu_ha = (c.rotated_grad[a] * c.vol_mu).to_array();
+            // the inversion barrier acts on few elements: its directions are
+            // recomputed here rather than stored for all
+            let barrier = (c.barrier_stiffness != 0.0)
+                .then(|| self.model.volume_gradients(e, self.u).map(|g| g.to_array()));
+            for (b, &s) in self.incident_slots[k].iter().enumerate() {
+                // a held unknown's column stays zero (eliminated)
+                if s == NOT_FREE || self.eliminated[ucols[s as usize] as usize] {
+                    continue;
+                }
+                let out = &mut vals[s as usize];
+                if a == b {
+                    K::add_element_diagonal(out, c.vol_lambda + c.vol_mu, mu_ha, ha);
+                } else {
+                    K::add_element_block(out, lambda_ha, mu_ha, c.rotated_grad[b].to_array());
+                }
+                if self.full {
+                    add_twist_block(out, &self.twists[e], a, b);
+                }
+                if let Some(g) = &barrier {
+                    add_rank_one(out, c.barrier_stiffness, g[a], g[b]);
+                }
+            }
+        }
+        *r = f;
+    }
+
+    /// [`RowGather::row`] with the AVX2/FMA block kernels.
+    ///
+    /// # Safety
+    /// The processor must have AVX2 and FMA ([`blocks::simd_available`]).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn row_avx2(&self, i: usize, vals: &mut [[f64; 9]], r: &mut DVec3) {
+        self.row::<blocks::Avx2Fma>(i, vals, r);
     }
 }
 
@@ -792,41 +849,6 @@ pub(crate) fn split_rows<'a, T>(mut values: &'a mut [T], ptr: &[usize]) -> Vec<&
         values = tail;
     }
     rows
-}
-
-/// Adds the element's block `(a, b)` of `R K Rᵀ`, `V λ hₐ h_bᵀ + V μ h_b hₐᵀ +
-/// V μ (hₐ·h_b) I`, to `out`, given `lambda_ha = V λ hₐ` and `mu_ha = V μ hₐ` (computed
-/// once per incidence). A diagonal block (`a = b`) is formed from the products
-/// `hₐ[p] hₐ[q]`, which round alike in both orders, so it is exactly symmetric.
-#[inline]
-fn add_element_block(
-    out: &mut [f64; 9],
-    c: &ElementCore,
-    a: usize,
-    b: usize,
-    lambda_ha: [f64; 3],
-    mu_ha: [f64; 3],
-) {
-    let ha = c.rotated_grad[a].to_array();
-    let hb = c.rotated_grad[b].to_array();
-    let d = mu_ha[0] * hb[0] + mu_ha[1] * hb[1] + mu_ha[2] * hb[2];
-    if a == b {
-        let w = c.vol_lambda + c.vol_mu;
-        for p in 0..3 {
-            for q in 0..3 {
-                out[3 * p + q] += w * (ha[p] * ha[q]);
-            }
-        }
-    } else {
-        for p in 0..3 {
-            for q in 0..3 {
-                out[3 * p + q] += lambda_ha[p] * hb[q] + hb[p] * mu_ha[q];
-            }
-        }
-    }
-    out[0] += d;
-    out[4] += d;
-    out[8] += d;
 }
 
 /// Adds the twist term `Σ coef · t_a t_bᵀ` of [`Tangent::Full`] to block `(a, b)`.
