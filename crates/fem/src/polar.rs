@@ -198,80 +198,88 @@ pub fn rotation_variant_svd(f: DMat3) -> (DMat3, DMat3, [f64; 3]) {
 /// Matrices whose rotations [`polar_rotations`] computes together.
 pub const POLAR_LANES: usize = 4;
 
-/// One scalar per lane.
-type Lanes = [f64; POLAR_LANES];
+/// One scalar per lane, with lane-wise arithmetic written so that the compiler packs it
+/// into one vector instruction per operation (in [`polar_rotations_avx2`], one AVX2
+/// register); each lane rounds exactly as the scalar operation does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Lanes([f64; POLAR_LANES]);
+
+impl Lanes {
+    #[inline(always)]
+    fn splat(v: f64) -> Lanes {
+        Lanes([v; POLAR_LANES])
+    }
+
+    #[inline(always)]
+    fn map(self, f: impl Fn(f64) -> f64) -> Lanes {
+        Lanes(self.0.map(f))
+    }
+}
+
+macro_rules! lane_op {
+    ($trait:ident, $method:ident, $op:tt) => {
+        impl std::ops::$trait for Lanes {
+            type Output = Lanes;
+            #[inline(always)]
+            fn $method(self, other: Lanes) -> Lanes {
+                Lanes(std::array::from_fn(|l| self.0[l] $op other.0[l]))
+            }
+        }
+    };
+}
+lane_op!(Add, add, +);
+lane_op!(Sub, sub, -);
+lane_op!(Mul, mul, *);
+lane_op!(Div, div, /);
 
 /// [`POLAR_LANES`] 3x3 matrices, entry by entry: entry `3 c + r` (column `c`, row `r`)
-/// of lane `l` is `m[3 c + r][l]`.
+/// of lane `l` is `m[3 c + r].0[l]`.
 type Mat3Lanes = [Lanes; 9];
 
 #[inline(always)]
 fn to_lanes(m: &[DMat3; POLAR_LANES]) -> Mat3Lanes {
-    let mut out = [[0.0; POLAR_LANES]; 9];
-    for (l, m) in m.iter().enumerate() {
-        for (k, v) in m.to_cols_array().into_iter().enumerate() {
-            out[k][l] = v;
-        }
-    }
-    out
+    let cols = m.map(|m| m.to_cols_array());
+    std::array::from_fn(|k| Lanes(std::array::from_fn(|l| cols[l][k])))
 }
 
 #[inline(always)]
 fn lane_mat(m: &Mat3Lanes, l: usize) -> DMat3 {
-    DMat3::from_cols_array(&std::array::from_fn(|k| m[k][l]))
+    DMat3::from_cols_array(&std::array::from_fn(|k| m[k].0[l]))
 }
 
 /// `‖X‖²_F` per lane, summed as [`frobenius2`] does.
 #[inline(always)]
 fn frobenius2_lanes(x: &Mat3Lanes) -> Lanes {
-    let mut out = [0.0; POLAR_LANES];
-    for l in 0..POLAR_LANES {
-        let col = |c: usize| {
-            x[3 * c][l] * x[3 * c][l]
-                + x[3 * c + 1][l] * x[3 * c + 1][l]
-                + x[3 * c + 2][l] * x[3 * c + 2][l]
-        };
-        out[l] = col(0) + col(1) + col(2);
-    }
-    out
+    let col =
+        |c: usize| x[3 * c] * x[3 * c] + x[3 * c + 1] * x[3 * c + 1] + x[3 * c + 2] * x[3 * c + 2];
+    col(0) + col(1) + col(2)
 }
 
-/// `(a + k b) / 2` entry by entry (`k` per lane), as the Newton step computes it.
+/// `(a k_a + b k_b) / 2` entry by entry (`k` per lane), as the Newton step computes it.
 #[inline(always)]
-fn newton_mix(a: &Mat3Lanes, ka: &Lanes, b: &Mat3Lanes, kb: &Lanes) -> Mat3Lanes {
-    let mut out = [[0.0; POLAR_LANES]; 9];
-    for k in 0..9 {
-        for l in 0..POLAR_LANES {
-            out[k][l] = (a[k][l] * ka[l] + b[k][l] * kb[l]) * 0.5;
-        }
-    }
-    out
+fn newton_mix(a: &Mat3Lanes, ka: Lanes, b: &Mat3Lanes, kb: Lanes) -> Mat3Lanes {
+    std::array::from_fn(|k| (a[k] * ka + b[k] * kb) * Lanes::splat(0.5))
 }
 
 /// The cofactor matrix and determinant per lane, as [`cofactor`] computes them.
 #[inline(always)]
 fn cofactor_lanes(x: &Mat3Lanes) -> (Mat3Lanes, Lanes) {
-    let mut c = [[0.0; POLAR_LANES]; 9];
-    let mut det = [0.0; POLAR_LANES];
-    for l in 0..POLAR_LANES {
-        let e = |k: usize| x[k][l];
-        // columns: x = (e0, e1, e2), y = (e3, e4, e5), z = (e6, e7, e8)
-        let cross = |a: usize, b: usize| {
-            [
-                e(a + 1) * e(b + 2) - e(b + 1) * e(a + 2),
-                e(a + 2) * e(b) - e(b + 2) * e(a),
-                e(a) * e(b + 1) - e(b) * e(a + 1),
-            ]
-        };
-        let (c0, c1, c2) = (cross(3, 6), cross(6, 0), cross(0, 3));
-        for r in 0..3 {
-            c[r][l] = c0[r];
-            c[3 + r][l] = c1[r];
-            c[6 + r][l] = c2[r];
-        }
-        det[l] = e(0) * c0[0] + e(1) * c0[1] + e(2) * c0[2];
-    }
-    (c, det)
+    // columns: x = (e0, e1, e2), y = (e3, e4, e5), z = (e6, e7, e8)
+    let cross = |a: usize, b: usize| {
+        [
+            x[a + 1] * x[b + 2] - x[b + 1] * x[a + 2],
+            x[a + 2] * x[b] - x[b + 2] * x[a],
+            x[a] * x[b + 1] - x[b] * x[a + 1],
+        ]
+    };
+    let (c0, c1, c2) = (cross(3, 6), cross(6, 0), cross(0, 3));
+    let det = x[0] * c0[0] + x[1] * c0[1] + x[2] * c0[2];
+    (
+        [
+            c0[0], c0[1], c0[2], c1[0], c1[1], c1[2], c2[0], c2[1], c2[2],
+        ],
+        det,
+    )
 }
 
 /// [`polar_rotation`] of each matrix of `f`, the Newton path run on all of them at once
@@ -298,54 +306,33 @@ fn polar_rotations_lanes(f: &[DMat3; POLAR_LANES]) -> [DMat3; POLAR_LANES] {
     let fl = to_lanes(f);
     let n2 = frobenius2_lanes(&fl);
     let (c, det) = cofactor_lanes(&fl);
-    let mut newton = [false; POLAR_LANES];
-    let mut inv_det = [0.0; POLAR_LANES];
-    for l in 0..POLAR_LANES {
-        newton[l] = det[l].is_finite()
-            && det[l] > NEWTON_MIN_CONDITION * n2[l] * n2[l].sqrt() / 5.196_152_422_706_632;
-        inv_det[l] = 1.0 / det[l];
-    }
-    let mut inv_t = c;
-    for k in 0..9 {
-        for l in 0..POLAR_LANES {
-            inv_t[k][l] = c[k][l] * inv_det[l];
-        }
-    }
-    let inv_n2 = frobenius2_lanes(&inv_t);
-    let mut gamma = [0.0; POLAR_LANES];
-    let mut inv_gamma = [0.0; POLAR_LANES];
-    for l in 0..POLAR_LANES {
-        gamma[l] = (inv_n2[l] / n2[l]).sqrt().sqrt();
-        inv_gamma[l] = 1.0 / gamma[l];
-    }
-    let mut x = newton_mix(&fl, &gamma, &inv_t, &inv_gamma);
+    let newton: [bool; POLAR_LANES] = std::array::from_fn(|l| {
+        det.0[l].is_finite()
+            && det.0[l] > NEWTON_MIN_CONDITION * n2.0[l] * n2.0[l].sqrt() / 5.196_152_422_706_632
+    });
+    let inv_det = Lanes::splat(1.0) / det;
+    let inv_t: Mat3Lanes = c.map(|c| c * inv_det);
+    let gamma = (frobenius2_lanes(&inv_t) / n2).map(|q| q.sqrt().sqrt());
+    let mut x = newton_mix(&fl, gamma, &inv_t, Lanes::splat(1.0) / gamma);
     let mut done = newton.map(|n| !n);
     let mut converged = [false; POLAR_LANES];
     for _ in 0..NEWTON_MAX_ITERATIONS {
         let (c, det) = cofactor_lanes(&x);
-        let inv_det = det.map(|d| 1.0 / d);
-        let next = newton_mix(&x, &[1.0; POLAR_LANES], &c, &inv_det);
-        let mut diff = next;
-        for k in 0..9 {
-            for l in 0..POLAR_LANES {
-                diff[k][l] = next[k][l] - x[k][l];
-            }
-        }
+        let next = newton_mix(&x, Lanes::splat(1.0), &c, Lanes::splat(1.0) / det);
+        let diff: Mat3Lanes = std::array::from_fn(|k| next[k] - x[k]);
         let delta2 = frobenius2_lanes(&diff);
         for k in 0..9 {
-            for l in 0..POLAR_LANES {
-                // lanes already done keep their matrix
-                if !done[l] {
-                    x[k][l] = next[k][l];
-                }
-            }
+            // lanes already done keep their matrix
+            x[k] = Lanes(std::array::from_fn(|l| {
+                if done[l] { x[k].0[l] } else { next[k].0[l] }
+            }));
         }
         for l in 0..POLAR_LANES {
             if !done[l] {
-                if delta2[l] < 1e-14 {
+                if delta2.0[l] < 1e-14 {
                     converged[l] = true;
                     done[l] = true;
-                } else if !delta2[l].is_finite() {
+                } else if !delta2.0[l].is_finite() {
                     done[l] = true;
                 }
             }
