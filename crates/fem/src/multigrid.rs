@@ -137,7 +137,13 @@
 //! that no two of a colour share a vertex, each adding its ten blocks in place) needed
 //! about as many instructions but took 2.5 times the wall time of the row gather
 //! (scattered writes into the 11.5 MB matrix), and four-lane element forces lost more
-//! to the transposition into lanes than they gained: neither was kept.
+//! to the transposition into lanes than they gained: neither was kept. A hybrid smoother
+//! (contiguous parts of the rows swept in parallel in row order, other parts' columns
+//! from the iterate at the start of the sweep: one fork-join per sweep instead of one
+//! per colour) diverged with ω = 1.5 for 2, 4 and 8 parts (the Jacobi coupling between
+//! parts does not take over-relaxation), and one part (plain row order) converged
+//! slower than the colours (box: 2.06 against 2.24 per cycle from cycle 10 on; the
+//! shared scan's hierarchy 2.25 against 2.92 in cycle 8).
 //!
 //! The barycentric Galerkin products are fused per fine row (`FusedProduct`): the row
 //! `Q_f` of `A P`, from the lowest coarse column of `P`'s row `f` on, is formed in a
