@@ -358,6 +358,20 @@ pub fn bench(report: &plan::bench::BenchReport) -> String {
             row.direct_solve_ms
         );
     }
+    out.push_str("where a cycle's time goes (medians, ms):\n");
+    for row in &report.rows {
+        let p = &row.phases_ms;
+        let _ = writeln!(
+            out,
+            "{:>9}  finest assembly {:.1}, coarse operators {:.1}, smoother set-up {:.2}, coarsest Cholesky {:.1}, V-cycle {:.1}",
+            row.elements,
+            p.finest_assembly,
+            p.coarse_operators,
+            p.smoother_setup,
+            p.coarsest_factorisation,
+            p.vcycle
+        );
+    }
     if let Some(dir) = &report.exported_system {
         let _ = writeln!(
             out,

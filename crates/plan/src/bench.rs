@@ -53,6 +53,25 @@ pub struct BenchRow {
     pub residual_reduction_per_cycle: f64,
     /// Sparse Cholesky factorisation and solve of the finest system (ms).
     pub direct_solve_ms: f64,
+    /// Where a timed cycle's time goes: the median of each phase over the timed cycles
+    /// (ms; the medians need not add up to the median cycle).
+    pub phases_ms: BenchPhases,
+}
+
+/// Medians of the multigrid's phase times over the timed cycles (ms), see
+/// `fem::multigrid::PhaseTimes`.
+#[derive(Debug, Clone, Serialize)]
+pub struct BenchPhases {
+    /// Finest level: element rotations, `R K Rᵀ` blocks, internal forces.
+    pub finest_assembly: f64,
+    /// Galerkin products (or rediscretised assemblies) of the coarse levels.
+    pub coarse_operators: f64,
+    /// Inverse diagonal blocks of every level.
+    pub smoother_setup: f64,
+    /// Numeric Cholesky factorisation of the coarsest level.
+    pub coarsest_factorisation: f64,
+    /// The V(2,1)-cycle.
+    pub vcycle: f64,
 }
 
 /// The JSON of `bench`.
@@ -123,16 +142,26 @@ pub fn bench(
             write_matrix_market(dir, &system.matrix, &system.rhs)?;
         }
         let mut cycle_ms = Vec::with_capacity(TIMED_CYCLES);
-        let mut vcycle_ms = Vec::with_capacity(TIMED_CYCLES);
+        let mut phases = Vec::with_capacity(TIMED_CYCLES);
         let mut residuals = vec![first.residual_mn];
         for _ in 0..TIMED_CYCLES {
             let info = session.cycle()?;
             cycle_ms.push(info.time_ms);
             residuals.push(info.residual_mn);
             if let Some(mg) = session.simulation.multigrid() {
-                vcycle_ms.push(mg.phase_times().vcycle_ms);
+                phases.push(mg.phase_times());
             }
         }
+        let phase_median = |of: fn(&fem::multigrid::PhaseTimes) -> f64| {
+            median(&mut phases.iter().map(of).collect::<Vec<_>>())
+        };
+        let phases_ms = BenchPhases {
+            finest_assembly: phase_median(|p| p.finest_assembly_ms),
+            coarse_operators: phase_median(|p| p.coarse_operators_ms),
+            smoother_setup: phase_median(|p| p.smoother_setup_ms),
+            coarsest_factorisation: phase_median(|p| p.coarsest_factorisation_ms),
+            vcycle: phase_median(|p| p.vcycle_ms),
+        };
         let mg = session
             .simulation
             .multigrid()
@@ -151,10 +180,11 @@ pub fn bench(
             multigrid_build_ms: built.time_ms,
             implant_change_cycle_ms: first.time_ms,
             solve_ms: cycle_ms.iter().sum(),
-            vcycle_ms: median(&mut vcycle_ms),
+            vcycle_ms: phases_ms.vcycle,
             update_hz: 1000.0 / median(&mut cycle_ms),
             residual_reduction_per_cycle: reduction,
             direct_solve_ms,
+            phases_ms,
         });
         progress.step();
     }
