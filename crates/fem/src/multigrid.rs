@@ -143,7 +143,13 @@
 //! per colour) diverged with ω = 1.5 for 2, 4 and 8 parts (the Jacobi coupling between
 //! parts does not take over-relaxation), and one part (plain row order) converged
 //! slower than the colours (box: 2.06 against 2.24 per cycle from cycle 10 on; the
-//! shared scan's hierarchy 2.25 against 2.92 in cycle 8).
+//! shared scan's hierarchy 2.25 against 2.92 in cycle 8). On the phantom's 60k hierarchy
+//! (`mammaplan bench`: 10,656 / 2,254 / 208 / 30 unknowns, 12.5 / 37.2 / 42.0 / 20.9
+//! blocks per row, 8 / 25 / 28 / 15 colours) the first coarse level holds 63% as many
+//! blocks as the finest and its colours (about 90 rows each) are relaxed serially, so
+//! the V-cycle hardly gains from a second thread (8.1 ms on one, 8.7 on two, load 5).
+//! One sweep per smoothing step on the coarse levels instead of two cut the residual
+//! reduction per cycle from 4.05 to 3.15; three gave 4.20.
 //!
 //! The barycentric Galerkin products are fused per fine row (`FusedProduct`): the row
 //! `Q_f` of `A P`, from the lowest coarse column of `P`'s row `f` on, is formed in a
