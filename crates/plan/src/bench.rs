@@ -53,6 +53,10 @@ pub struct BenchRow {
     pub residual_reduction_per_cycle: f64,
     /// Sparse Cholesky factorisation and solve of the finest system (ms).
     pub direct_solve_ms: f64,
+    /// Carrying the displacement to the scan, as the live view does after every cycle
+    /// (`Session::scan_positions`: the finest field at every scan vertex, smoothed;
+    /// median, ms).
+    pub scan_update_ms: f64,
 }
 
 /// The JSON of `bench`.
@@ -133,6 +137,14 @@ pub fn bench(
                 vcycle_ms.push(mg.phase_times().vcycle_ms);
             }
         }
+        let mut scan_update_ms: Vec<f64> = (0..TIMED_CYCLES)
+            .map(|_| {
+                let start = Instant::now();
+                let moved = session.scan_positions();
+                std::hint::black_box(moved);
+                start.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
         let mg = session
             .simulation
             .multigrid()
@@ -155,6 +167,7 @@ pub fn bench(
             update_hz: 1000.0 / median(&mut cycle_ms),
             residual_reduction_per_cycle: reduction,
             direct_solve_ms,
+            scan_update_ms: median(&mut scan_update_ms),
         });
         progress.step();
     }

@@ -675,9 +675,10 @@ impl Simulation {
         })?;
         let scan_rest = input.scan.positions.clone();
         let scan_map = PointMap::new(&locator, &scan_rest, options.falloff_mm);
-        let scan_smoother = SurfaceSmoother::new(
+        let scan_smoother = SurfaceSmoother::with_support(
             input.scan,
             options.scan_smoothing_mm.unwrap_or(0.5 * spacing_mm),
+            &scan_map.support(),
         );
         let scan_index = mesh::SurfaceIndex::new(input.scan)
             .ok_or_else(|| SimulationError::BadModel("the scan has no triangles".into()))?;
