@@ -2,9 +2,18 @@
 //! straight (`euclidean_mm`), along the section of the surface with the plane through
 //! both points orthogonal to the coronal plane (`surface_mm`, the paper's on-surface
 //! distance) and along the shortest path on the surface (`geodesic_mm`).
+//!
+//! Where the paper's plane gives no curve from one point to the other (the two points on
+//! one anterior line; or, on a simulated breast whose nipple ends up at the fold's
+//! height, a nearly horizontal plane that cuts the breast in a closed loop missing the
+//! fold), the surface distance is measured in the plane through both points that
+//! contains the mean of their surface normals: the normal section, which follows the
+//! great circle on a sphere, as the paper's plane is meant to approximate the geodesic.
+//! `surface_plane` and the note say which plane was used.
 
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::NamedPoints;
+use glam::DVec3;
 use mesh::geodesic::GeodesicSolver;
 use mesh::section::plane_section_path;
 use mesh::{SurfaceIndex, SurfacePoint, Topology, TriMesh};
@@ -46,8 +55,30 @@ pub fn clinical_distances() -> Vec<DistanceSpec> {
     specs
 }
 
+/// Radius (mm) over which the surface normal at a point is averaged for the fallback
+/// section plane: several triangles of a scan (1-2 mm edges), so that the scanner's
+/// noise (0.2 mm along the normals) does not tilt it, and small against a breast.
+pub const SECTION_NORMAL_RADIUS_MM: f64 = 5.0;
+
+/// A plane through two points is taken as undefined when the direction it must contain
+/// lies within this angle (rad) of the line through them.
+const MIN_PLANE_ANGLE_RAD: f64 = 1e-9;
+
+/// The plane a surface distance was measured in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SectionPlane {
+    /// The paper's: through both points, orthogonal to the coronal plane.
+    CoronalOrthogonal,
+    /// The fallback where the paper's plane gives no curve from one point to the other:
+    /// through both points, containing the mean of the unit surface normals around
+    /// them (within [`SECTION_NORMAL_RADIUS_MM`]).
+    MeanNormal,
+}
+
 /// One measured distance (mm). A surface measure that cannot be traced (e.g. the section
-/// leaves the scan through a hole) is `None`, with the reason in `note`.
+/// leaves the scan through a hole) is `None`, with the reason in `note`; one measured in
+/// the fallback plane says so in `note` too.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Distance {
     pub name: String,
@@ -55,6 +86,9 @@ pub struct Distance {
     pub to: String,
     pub euclidean_mm: f64,
     pub surface_mm: Option<f64>,
+    /// The plane `surface_mm` was measured in (absent without `surface_mm`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface_plane: Option<SectionPlane>,
     pub geodesic_mm: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
@@ -96,16 +130,12 @@ pub fn measure_distances(
         .zip(located)
         .map(|(spec, (from, to))| {
             let mut notes = Vec::new();
-            let normal = (to.point - from.point).cross(frame.anterior());
-            let surface_mm = if normal.length() < 1e-9 {
-                notes.push("surface: the two points lie on one anterior line".to_string());
-                None
-            } else {
-                plane_section_path(surface.mesh, surface.topology, from, to, normal.normalize())
-                    .map(|path| path.length_mm)
-                    .map_err(|e| notes.push(format!("surface: {e}")))
-                    .ok()
-            };
+            let section = surface_section(surface, frame, from, to)
+                .map_err(|why| notes.push(format!("surface: {why}")))
+                .ok();
+            if let Some(note) = section.as_ref().and_then(|s| s.note.as_ref()) {
+                notes.push(format!("surface: {note}"));
+            }
             let geodesic_mm = match &geodesics {
                 Ok(solver) => solver
                     .shortest_path(from, to)
@@ -122,12 +152,126 @@ pub fn measure_distances(
                 from: spec.from.clone(),
                 to: spec.to.clone(),
                 euclidean_mm: from.point.distance(to.point),
-                surface_mm,
+                surface_mm: section.as_ref().map(|s| s.length_mm),
+                surface_plane: section.as_ref().map(|s| s.plane),
                 geodesic_mm,
                 note: (!notes.is_empty()).then(|| notes.join("; ")),
             }
         })
         .collect())
+}
+
+/// A surface distance and the plane it was measured in.
+struct SurfaceSection {
+    plane: SectionPlane,
+    length_mm: f64,
+    /// Why the paper's plane was not used, when it was not.
+    note: Option<String>,
+}
+
+/// The surface distance from `from` to `to`: along the section with the paper's plane
+/// (through both points, orthogonal to the coronal plane), or where that gives no curve
+/// from one point to the other, with the plane through both points containing their
+/// mean surface normal. Errors: why neither gave one.
+fn surface_section(
+    surface: &MeasuredSurface<'_>,
+    frame: &AnatomicalFrame,
+    from: SurfacePoint,
+    to: SurfacePoint,
+) -> Result<SurfaceSection, String> {
+    let length_in_plane_containing = |direction: DVec3, degenerate: &str| {
+        if from.point == to.point {
+            return Ok(0.0);
+        }
+        let normal = plane_containing(from.point, to.point, direction)
+            .ok_or_else(|| format!("the two points lie on one line along {degenerate}"))?;
+        plane_section_path(surface.mesh, surface.topology, from, to, normal)
+            .map(|path| path.length_mm)
+            .map_err(|e| e.to_string())
+    };
+    let why = match length_in_plane_containing(frame.anterior(), "the anterior direction") {
+        Ok(length_mm) => {
+            return Ok(SurfaceSection {
+                plane: SectionPlane::CoronalOrthogonal,
+                length_mm,
+                note: None,
+            });
+        }
+        Err(why) => why,
+    };
+    let mean_normal = [from, to]
+        .map(|p| {
+            let normal = mean_normal_near(
+                surface.mesh,
+                surface.topology,
+                p.triangle,
+                p.point,
+                SECTION_NORMAL_RADIUS_MM,
+            );
+            normal.normalize_or_zero()
+        })
+        .into_iter()
+        .sum::<DVec3>();
+    match length_in_plane_containing(mean_normal, "their mean surface normal") {
+        Ok(length_mm) => Ok(SurfaceSection {
+            plane: SectionPlane::MeanNormal,
+            length_mm,
+            note: Some(format!(
+                "in the plane through both points containing their mean surface normal (the \
+                 plane orthogonal to the coronal plane: {why})"
+            )),
+        }),
+        Err(fallback_why) => Err(format!(
+            "{why}; in the plane containing their mean surface normal: {fallback_why}"
+        )),
+    }
+}
+
+/// The unit normal of the plane through `a` and `b` that contains `direction`; `None`
+/// when the direction lies along the line through them (or either is zero).
+fn plane_containing(a: DVec3, b: DVec3, direction: DVec3) -> Option<DVec3> {
+    let chord = b - a;
+    let normal = chord.cross(direction);
+    (normal.length() > MIN_PLANE_ANGLE_RAD * chord.length() * direction.length())
+        .then(|| normal.normalize())
+}
+
+/// Area-weighted mean normal (not normalised) of `start` and the triangles connected to
+/// it through vertices whose centroids lie within `radius_mm` of `centre`.
+pub(crate) fn mean_normal_near(
+    mesh: &TriMesh,
+    topology: &Topology,
+    start: usize,
+    centre: DVec3,
+    radius_mm: f64,
+) -> DVec3 {
+    let weighted_normal = |t: usize| {
+        let [a, b, c] = mesh.triangles[t].map(|v| mesh.positions[v as usize]);
+        (b - a).cross(c - a)
+    };
+    let centroid = |t: usize| {
+        mesh.triangles[t]
+            .iter()
+            .map(|&v| mesh.positions[v as usize])
+            .sum::<DVec3>()
+            / 3.0
+    };
+    let mut visited = vec![start];
+    let mut queue = vec![start];
+    let mut sum = weighted_normal(start);
+    while let Some(t) = queue.pop() {
+        for &v in &mesh.triangles[t] {
+            for &next in topology.vertex_triangles(v as usize) {
+                let next = next as usize;
+                if !visited.contains(&next) && centroid(next).distance(centre) <= radius_mm {
+                    visited.push(next);
+                    queue.push(next);
+                    sum += weighted_normal(next);
+                }
+            }
+        }
+    }
+    sum
 }
 
 #[cfg(test)]
@@ -225,6 +369,80 @@ mod tests {
             ac.surface_mm.unwrap() > geodesic && geodesic > ac.euclidean_mm,
             "{ac:?}"
         );
+    }
+
+    /// A torus about the anterior axis `z` (a ring facing the viewer): tube centre
+    /// radius `major`, tube radius `minor`, `around` x `across` quads split in two,
+    /// outward; vertex `(i, j)` at `i` steps around the axis from `+x` and `j` steps
+    /// around the tube from its outer equator (index `i * across + j`).
+    fn torus(major: f64, minor: f64, around: usize, across: usize) -> TriMesh {
+        let index = |i: usize, j: usize| ((i % around) * across + j % across) as u32;
+        let mut positions = Vec::with_capacity(around * across);
+        for i in 0..around {
+            let phi = std::f64::consts::TAU * i as f64 / around as f64;
+            for j in 0..across {
+                let theta = std::f64::consts::TAU * j as f64 / across as f64;
+                let radius = major + minor * theta.cos();
+                positions.push(DVec3::new(
+                    radius * phi.cos(),
+                    radius * phi.sin(),
+                    minor * theta.sin(),
+                ));
+            }
+        }
+        let mut triangles = Vec::with_capacity(2 * around * across);
+        for i in 0..around {
+            for j in 0..across {
+                let [a, b, c, d] = [
+                    index(i, j),
+                    index(i + 1, j),
+                    index(i + 1, j + 1),
+                    index(i, j + 1),
+                ];
+                triangles.push([a, b, c]);
+                triangles.push([a, c, d]);
+            }
+        }
+        TriMesh::new(positions, triangles)
+    }
+
+    #[test]
+    fn where_the_papers_plane_misses_the_end_the_normal_section_measures() {
+        // Two points a quarter turn apart on the outer equator of a ring about the
+        // anterior axis: the paper's plane (through both, containing the anterior axis)
+        // cuts the tube in two separate loops, one through each point. The plane through
+        // both containing their mean surface normal is the ring's equatorial plane, whose
+        // section from one to the other is a quarter of the outer equator.
+        let (major, minor, around) = (100.0, 10.0, 256);
+        let mesh = torus(major, minor, around, 32);
+        let (_, mut landmarks) = vertical_cylinder();
+        let outer = |i: usize| mesh.positions[i * 32];
+        landmarks.extra.insert("a".into(), outer(0));
+        landmarks.extra.insert("b".into(), outer(around / 4));
+        let measured = measure_on(&mesh, &landmarks, &[DistanceSpec::between("a", "b")]).unwrap();
+        let d = &measured[0];
+        println!("{d:?}");
+        assert_eq!(d.surface_plane, Some(SectionPlane::MeanNormal), "{d:?}");
+        let note = d.note.as_deref().unwrap_or_default();
+        assert!(
+            note.contains("mean surface normal") && note.contains("closes on itself"),
+            "{note}"
+        );
+        // The inscribed polygon's quarter: 64 chords of the 256-gon of radius 110 mm. The
+        // mesh is symmetric under the half-turn about each outer-equator vertex's radius
+        // (it maps every quad's diagonal onto a diagonal), so the mean normals there are
+        // radial, the plane is the equatorial one, and its section runs through the
+        // equator's vertices: equal to round-off (measured to 1e-14; bound 1e-9).
+        let radius = major + minor;
+        let step = std::f64::consts::TAU / around as f64;
+        let quarter = (around / 4) as f64 * 2.0 * radius * (step / 2.0).sin();
+        let surface = d.surface_mm.unwrap();
+        assert!(
+            (surface - quarter).abs() < 1e-9 * quarter,
+            "{surface} vs {quarter}"
+        );
+        // still one path on the surface among those the geodesic minimises over
+        assert!(surface >= d.geodesic_mm.unwrap() && d.geodesic_mm.unwrap() >= d.euclidean_mm);
     }
 
     #[test]

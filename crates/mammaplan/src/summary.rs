@@ -363,13 +363,14 @@ pub fn bench(report: &plan::bench::BenchReport) -> String {
         let p = &row.phases_ms;
         let _ = writeln!(
             out,
-            "{:>9}  finest assembly {:.1}, coarse operators {:.1}, smoother set-up {:.2}, coarsest Cholesky {:.1}, V-cycle {:.1}",
+            "{:>9}  finest assembly {:.1}, coarse operators {:.1}, smoother set-up {:.2}, coarsest Cholesky {:.1}, V-cycle {:.1}; then to the scan {:.1}",
             row.elements,
             p.finest_assembly,
             p.coarse_operators,
             p.smoother_setup,
             p.coarsest_factorisation,
-            p.vcycle
+            p.vcycle,
+            row.scan_update_ms
         );
     }
     if let Some(dir) = &report.exported_system {

@@ -24,6 +24,9 @@ pub const DEFAULT_ELEMENTS: [usize; 3] = [15_000, 40_000, 60_000];
 /// Cycles timed per row (the paper's five V(2,1) cycles).
 pub const TIMED_CYCLES: usize = 5;
 
+/// Cycles of the gravity correction run before the implants move again.
+const GRAVITY_CYCLES: usize = 3;
+
 /// Placements timed for the implant set-up (the median is reported).
 const SETUP_REPEATS: usize = 7;
 
@@ -53,6 +56,16 @@ pub struct BenchRow {
     pub residual_reduction_per_cycle: f64,
     /// Sparse Cholesky factorisation and solve of the finest system (ms).
     pub direct_solve_ms: f64,
+    /// Carrying the displacement to the scan, as the live view does after every cycle
+    /// (`Session::scan_positions`: the finest field at every scan vertex, smoothed;
+    /// median, ms).
+    pub scan_update_ms: f64,
+    /// Switching to the gravity correction the first time: its forces, and building its
+    /// own hierarchy (ms; later switches only swap constraints).
+    pub gravity_start_ms: f64,
+    /// The first cycle after moving both implants during the gravity correction: back to
+    /// the implant stage on its kept hierarchy, and one cycle (ms).
+    pub change_after_gravity_cycle_ms: f64,
     /// Where a timed cycle's time goes: the median of each phase over the timed cycles
     /// (ms; the medians need not add up to the median cycle).
     pub phases_ms: BenchPhases,
@@ -162,6 +175,14 @@ pub fn bench(
             coarsest_factorisation: phase_median(|p| p.coarsest_factorisation_ms),
             vcycle: phase_median(|p| p.vcycle_ms),
         };
+        let mut scan_update_ms: Vec<f64> = (0..TIMED_CYCLES)
+            .map(|_| {
+                let start = Instant::now();
+                let moved = session.scan_positions();
+                std::hint::black_box(moved);
+                start.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
         let mg = session
             .simulation
             .multigrid()
@@ -170,12 +191,23 @@ pub fn bench(
         let direct_start = Instant::now();
         DirectSolver::new(&system.matrix)?.solve(&system.matrix, &system.rhs)?;
         let direct_solve_ms = direct_start.elapsed().as_secs_f64() * 1e3;
+        let levels = mg.level_count();
+        let start = Instant::now();
+        session.simulation.start_gravity_correction()?;
+        let gravity_start_ms = start.elapsed().as_secs_f64() * 1e3;
+        for _ in 0..GRAVITY_CYCLES {
+            session.cycle()?;
+        }
+        for side in Side::BOTH {
+            session.set_implant(side, DEMO_IMPLANT, Placement::moved(0.0, 2.0, 0.0))?;
+        }
+        let change_after_gravity = session.cycle()?;
         let reductions = residuals.len() - 2;
         let reduction =
             (residuals[1] / residuals[residuals.len() - 1]).powf(1.0 / reductions as f64);
         rows.push(BenchRow {
             elements: session.model.levels[0].elements,
-            levels: mg.level_count(),
+            levels,
             implant_setup_ms: median(&mut setups),
             multigrid_build_ms: built.time_ms,
             implant_change_cycle_ms: first.time_ms,
@@ -184,6 +216,9 @@ pub fn bench(
             update_hz: 1000.0 / median(&mut cycle_ms),
             residual_reduction_per_cycle: reduction,
             direct_solve_ms,
+            scan_update_ms: median(&mut scan_update_ms),
+            gravity_start_ms,
+            change_after_gravity_cycle_ms: change_after_gravity.time_ms,
             phases_ms,
         });
         progress.step();

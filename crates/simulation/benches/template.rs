@@ -1,5 +1,6 @@
 //! Implant setup (placement, footprint check, displacement template) on the phantom's
-//! 60,000-element model, and one interactive cycle.
+//! 60,000-element model, one interactive cycle, and carrying the displacement to the
+//! scan (the live view's per-frame update).
 //! `cargo bench -p simulation --bench template`
 
 use anatomy::breast::Side;
@@ -48,6 +49,10 @@ fn bench(c: &mut Criterion) {
     sim.run(true).unwrap();
     c.bench_function(&format!("cycle_{elements}_elements"), |b| {
         b.iter(|| sim.cycle().unwrap().residual_mn)
+    });
+    let vertices = marked.scan.mesh.vertex_count();
+    c.bench_function(&format!("scan_displacements_{vertices}_vertices"), |b| {
+        b.iter(|| sim.scan_displacements().len())
     });
 }
 

@@ -49,8 +49,13 @@
 //! and drops back to stage 1. The next cycle swaps the new constraints into the existing
 //! multigrid ([`Multigrid::set_constraints`]: a fixed pattern over all vertices,
 //! symmetric elimination, about 0.2 ms at 60,000 elements) and softens the new implant
-//! elements in place; only the first cycle of a session, and the first after the gravity
-//! stage, build the hierarchy (0.3-0.5 s). The displacement is kept as the warm start.
+//! elements in place. Each stage keeps its own hierarchy for the whole session (they
+//! assemble different tangents, see [`SimulationOptions::gravity_tangent`]): stage 1's is
+//! built at the session's first cycle, stage 2's when the gravity correction first
+//! starts (0.3-0.5 s each at 60,000 elements); every later change of implant and every
+//! later switch between the stages only swaps constraints and materials, so a change
+//! after the gravity correction costs one ordinary cycle. The displacement is kept as
+//! the warm start.
 
 use crate::bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 use crate::error::SimulationError;
@@ -292,7 +297,9 @@ pub struct CycleInfo {
     /// That over the load scale (the reaction forces at the held vertices plus the
     /// external loads).
     pub relative_residual: f64,
-    /// Whether the multigrid was rebuilt for this cycle (new constraint set).
+    /// Whether stage 1's multigrid hierarchy was built for this cycle (the session's
+    /// first cycle, or after a switch of coarse operator); a new constraint set alone
+    /// does not rebuild it.
     pub rebuilt: bool,
     /// The fraction of the cycle's step taken (1 unless the line search cut it).
     pub step: f64,
@@ -352,6 +359,13 @@ struct SideData {
     default_uv: DVec2,
 }
 
+/// A multigrid hierarchy kept for one stage, and the elements its finest model
+/// currently treats as implant (soft).
+struct StageMultigrid {
+    multigrid: Multigrid,
+    soft_elements: Vec<u32>,
+}
+
 /// Maps of the breast meshes, computed on first use.
 #[derive(Debug, Clone)]
 struct MeshMaps {
@@ -389,11 +403,13 @@ pub struct Simulation {
     neighbours: Vec<u32>,
     implants: [Option<PlacedImplant>; 2],
     stage: Stage,
-    multigrid: Option<Multigrid>,
-    /// Sorted constrained vertices of the current stage-1 multigrid.
-    /// Elements the multigrid's finest model currently treats as implant (soft).
-    soft_elements: Vec<u32>,
-    /// The constraints changed since the multigrid was built.
+    /// The hierarchy of stage 1, once its first cycle built it.
+    implant_multigrid: Option<StageMultigrid>,
+    /// The hierarchy of stage 2, once the gravity correction first started.
+    gravity_multigrid: Option<StageMultigrid>,
+    /// Hierarchies built so far.
+    multigrid_builds: usize,
+    /// The constraints changed since stage 1's multigrid last received them.
     dirty: bool,
     u: Vec<DVec3>,
     f_ext: Vec<DVec3>,
@@ -675,9 +691,10 @@ impl Simulation {
         })?;
         let scan_rest = input.scan.positions.clone();
         let scan_map = PointMap::new(&locator, &scan_rest, options.falloff_mm);
-        let scan_smoother = SurfaceSmoother::new(
+        let scan_smoother = SurfaceSmoother::with_support(
             input.scan,
             options.scan_smoothing_mm.unwrap_or(0.5 * spacing_mm),
+            &scan_map.support(),
         );
         let scan_index = mesh::SurfaceIndex::new(input.scan)
             .ok_or_else(|| SimulationError::BadModel("the scan has no triangles".into()))?;
@@ -710,8 +727,9 @@ impl Simulation {
             on_wall,
             implants: [None, None],
             stage: Stage::Implant,
-            multigrid: None,
-            soft_elements: Vec::new(),
+            implant_multigrid: None,
+            gravity_multigrid: None,
+            multigrid_builds: 0,
             dirty: true,
             u: vec![DVec3::ZERO; n],
             f_ext: Vec::new(),
@@ -885,9 +903,6 @@ impl Simulation {
     }
 
     fn constraints_changed(&mut self) {
-        if self.stage == Stage::Gravity {
-            self.multigrid = None;
-        }
         self.stage = Stage::Implant;
         self.f_ext.clear();
         self.u_before_gravity = None;
@@ -1013,9 +1028,9 @@ impl Simulation {
         Ok(mg)
     }
 
-    /// Gives the multigrid's finest model the current implants' soft elements (and the
+    /// Gives a stage's finest model the current implants' soft elements (and the
     /// tissue back to the elements of earlier implants).
-    fn update_implant_materials(&mut self) -> Result<(), SimulationError> {
+    fn update_implant_materials(&self, stage: &mut StageMultigrid) -> Result<(), SimulationError> {
         let t = self.options.tissue;
         let soft = Material {
             young_kpa: t.young_kpa * self.options.implant_young_ratio,
@@ -1028,15 +1043,21 @@ impl Simulation {
             .flatten()
             .flat_map(|i| i.template.implant_elements.iter().copied())
             .collect();
-        let mg = self.multigrid.as_mut().expect("a multigrid");
-        for &e in &self.soft_elements {
-            mg.set_material(e as usize, t)?;
+        for &e in &stage.soft_elements {
+            stage.multigrid.set_material(e as usize, t)?;
         }
         for &e in &current {
-            mg.set_material(e as usize, soft)?;
+            stage.multigrid.set_material(e as usize, soft)?;
         }
-        self.soft_elements = current;
+        stage.soft_elements = current;
         Ok(())
+    }
+
+    /// How many multigrid hierarchies the session has built: one per stage used (stage
+    /// 1 at its first cycle, stage 2 at the first start of the gravity correction), and
+    /// again after a switch of coarse operator ([`Simulation::coarse_fallbacks`]).
+    pub fn multigrid_builds(&self) -> usize {
+        self.multigrid_builds
     }
 
     /// How often a Galerkin coarse operator turned out singular and the session switched
@@ -1046,39 +1067,62 @@ impl Simulation {
         (self.coarse_fallbacks, self.coarse_operator)
     }
 
-    /// Brings the stage-1 multigrid up to date: rebuilt when the constrained set changed,
-    /// else only the prescribed values. Returns whether it was rebuilt.
+    /// Brings the stage-1 multigrid up to date with the current constraints. Returns
+    /// whether it had to be built.
     fn ensure_multigrid(&mut self) -> Result<bool, SimulationError> {
-        if !self.dirty && self.multigrid.is_some() {
+        if !self.dirty && self.implant_multigrid.is_some() {
             return Ok(false);
         }
-        let constraints = self.constraints(true);
-        // A new implant or position changes the constrained set: the hierarchy keeps its
-        // patterns and only swaps the changeable constraints (fem's symmetric
-        // elimination over a fixed pattern) and the implant elements' material.
-        let reusable = match self.multigrid.as_mut() {
-            Some(mg) if self.stage == Stage::Implant => Some(mg),
-            _ => None,
-        };
-        let rebuilt = if let Some(mg) = reusable {
-            mg.set_constraints(&constraints)?;
-            false
-        } else {
-            self.multigrid = None;
-            self.multigrid =
-                Some(self.build_multigrid(constraints, self.options.multigrid.tangent)?);
-            self.soft_elements.clear();
-            true
-        };
-        self.update_implant_materials()?;
+        let kept = self.implant_multigrid.take();
+        let (stage, built) =
+            self.prepared_multigrid(kept, self.constraints(true), self.options.multigrid.tangent)?;
+        self.implant_multigrid = Some(stage);
         self.dirty = false;
-        Ok(rebuilt)
+        Ok(built)
+    }
+
+    /// `kept` (a stage's hierarchy) with `constraints` and the current implant elements'
+    /// material, or, without one, a new hierarchy assembling `tangent`; and whether it
+    /// was built. A new implant or position changes the constrained set: a kept
+    /// hierarchy keeps its patterns and only swaps the changeable constraints (fem's
+    /// symmetric elimination over a fixed pattern).
+    fn prepared_multigrid(
+        &mut self,
+        kept: Option<StageMultigrid>,
+        constraints: Constraints,
+        tangent: Tangent,
+    ) -> Result<(StageMultigrid, bool), SimulationError> {
+        let (mut stage, built) = match kept {
+            Some(mut stage) => {
+                stage.multigrid.set_constraints(&constraints)?;
+                (stage, false)
+            }
+            None => {
+                let stage = StageMultigrid {
+                    multigrid: self.build_multigrid(constraints, tangent)?,
+                    soft_elements: Vec::new(),
+                };
+                self.multigrid_builds += 1;
+                (stage, true)
+            }
+        };
+        self.update_implant_materials(&mut stage)?;
+        Ok((stage, built))
+    }
+
+    /// The multigrid of the current stage, once built.
+    fn stage_multigrid(&self) -> Option<&Multigrid> {
+        match self.stage {
+            Stage::Implant => self.implant_multigrid.as_ref(),
+            Stage::Gravity => self.gravity_multigrid.as_ref(),
+        }
+        .map(|stage| &stage.multigrid)
     }
 
     /// The load scale of the relative residual: the reaction forces at the held
     /// vertices (from the latest assembly) plus the external loads (mN).
     fn load_scale(&self) -> f64 {
-        let mg = self.multigrid.as_ref().expect("assembled");
+        let mg = self.stage_multigrid().expect("assembled");
         let sys = mg.system();
         let f = sys.nodal_forces(mg.model());
         let reaction: f64 = f
@@ -1092,8 +1136,9 @@ impl Simulation {
     }
 
     /// One interactive step: rotation update, reassembly and one V(2,1)-cycle of the
-    /// current stage, warm-started from the current displacement (rebuilding the
-    /// multigrid first if the constraints changed).
+    /// current stage, warm-started from the current displacement (giving stage 1's
+    /// multigrid the new constraints first if they changed, building it at the session's
+    /// first cycle).
     pub fn cycle(&mut self) -> Result<CycleInfo, SimulationError> {
         if self.stage == Stage::Implant && self.fresh && self.u.iter().all(|d| *d == DVec3::ZERO) {
             self.warmup_left = self.options.linear_warmup_cycles;
@@ -1129,17 +1174,20 @@ impl Simulation {
         }
     }
 
-    /// Rebuilds the multigrid of the current stage (after a change of coarse operator).
+    /// Rebuilds the multigrid of the current stage after a change of coarse operator
+    /// (the other stage's is dropped too, and built again when next needed).
     fn rebuild_current_stage(&mut self) -> Result<(), SimulationError> {
+        self.implant_multigrid = None;
+        self.gravity_multigrid = None;
         match self.stage {
-            Stage::Implant => {
-                self.multigrid = None;
-                self.dirty = true;
-            }
+            Stage::Implant => self.dirty = true,
             Stage::Gravity => {
-                self.multigrid = Some(
-                    self.build_multigrid(self.constraints(false), self.options.gravity_tangent)?,
-                );
+                let (stage, _) = self.prepared_multigrid(
+                    None,
+                    self.constraints(false),
+                    self.options.gravity_tangent,
+                )?;
+                self.gravity_multigrid = Some(stage);
                 self.gravity = None;
             }
         }
@@ -1148,17 +1196,17 @@ impl Simulation {
 
     fn cycle_once(&mut self, formulation: Formulation) -> Result<CycleInfo, SimulationError> {
         let start = Instant::now();
-        let rebuilt = self.ensure_multigrid()?;
         if self.stage == Stage::Gravity {
-            return self.gravity_cycle(start, rebuilt);
+            return self.gravity_cycle(start);
         }
+        let rebuilt = self.ensure_multigrid()?;
         let fresh = std::mem::take(&mut self.fresh) || rebuilt;
         let search = self.options.line_search
             && self.stage_one_search
             && !fresh
             && formulation == Formulation::Corotated;
         let u_old = search.then(|| self.u.clone());
-        let mg = self.multigrid.as_mut().expect("ensured");
+        let mg = &mut self.implant_multigrid.as_mut().expect("ensured").multigrid;
         let report = mg.cycle(&mut self.u, &self.f_ext, formulation)?;
         if let Some(u_old) = u_old {
             // backtracking on the potential energy (the corotated forces are conservative)
@@ -1211,16 +1259,16 @@ impl Simulation {
     /// One cycle of stage 2: one iteration of conjugate gradients preconditioned by a
     /// V-cycle on the tangent system of the stage-1 state (assembled at the stage's first
     /// cycle); the displacement is stage 1's plus the correction so far.
-    fn gravity_cycle(
-        &mut self,
-        start: Instant,
-        rebuilt: bool,
-    ) -> Result<CycleInfo, SimulationError> {
+    fn gravity_cycle(&mut self, start: Instant) -> Result<CycleInfo, SimulationError> {
         let u1 = self
             .u_before_gravity
             .as_deref()
             .expect("stage 2 starts from stage 1's displacement");
-        let mg = self.multigrid.as_mut().expect("ensured");
+        let mg = &mut self
+            .gravity_multigrid
+            .as_mut()
+            .expect("prepared when the stage started")
+            .multigrid;
         if self.gravity.is_none() {
             mg.assemble(u1, &self.f_ext, Formulation::Corotated)?;
             let rhs = mg.system().rhs.clone();
@@ -1247,7 +1295,7 @@ impl Simulation {
             stage: self.stage,
             residual_mn: residual,
             relative_residual: relative,
-            rebuilt,
+            rebuilt: false,
             step: 1.0,
             linear: false,
             time_ms: elapsed_ms(start),
@@ -1284,13 +1332,20 @@ impl Simulation {
     /// Switches to stage 2 (paper V-B) from the current (stage-1) displacement: the
     /// implant vertices' holding forces and the added implant weight become loads, the
     /// implant vertices are released. Does nothing without implants or when already
-    /// there. Run [`Simulation::cycle`] or [`Simulation::solve`] afterwards.
+    /// there. The stage's multigrid is built the first time (0.3-0.5 s at 60,000
+    /// elements) and kept for the session: later starts only swap its constraints. Run
+    /// [`Simulation::cycle`] or [`Simulation::solve`] afterwards.
     pub fn start_gravity_correction(&mut self) -> Result<(), SimulationError> {
         if self.stage == Stage::Gravity || self.implants.iter().all(Option::is_none) {
             return Ok(());
         }
         self.ensure_multigrid()?;
-        let model = self.multigrid.as_ref().expect("ensured").model();
+        let model = self
+            .implant_multigrid
+            .as_ref()
+            .expect("ensured")
+            .multigrid
+            .model();
         let f_int = model.internal_forces(&self.u, Formulation::Corotated)?;
         let mut f_ext = vec![DVec3::ZERO; self.u.len()];
         let g = -self.frame.up()
@@ -1316,15 +1371,16 @@ impl Simulation {
                 }
             }
         }
-        let mg = self.build_multigrid(self.constraints(false), self.options.gravity_tangent)?;
+        let kept = self.gravity_multigrid.take();
+        let (stage, _) =
+            self.prepared_multigrid(kept, self.constraints(false), self.options.gravity_tangent)?;
+        self.gravity_multigrid = Some(stage);
         self.u_before_gravity = Some(self.u.clone());
         self.gravity = None;
-        self.multigrid = Some(mg);
         self.f_ext = f_ext;
         self.stage = Stage::Gravity;
         self.stage_cycles = 0;
         self.fresh = true;
-        self.dirty = false;
         Ok(())
     }
 
@@ -1419,17 +1475,21 @@ impl Simulation {
         out
     }
 
-    /// The current stage's multigrid (its system, phase timings), once a cycle has built
-    /// it; `None` before the first cycle and after leaving the gravity stage.
+    /// The current stage's multigrid (its system, phase timings), once built: stage 1's
+    /// by its first cycle, stage 2's by [`Simulation::start_gravity_correction`].
     pub fn multigrid(&self) -> Option<&Multigrid> {
-        self.multigrid.as_ref()
+        self.stage_multigrid()
     }
 
     /// The current multigrid, mutably: for solving its assembled system another way
     /// (e.g. [`Multigrid::pcg`] in checks and benchmarks). Changing its constraints or
     /// materials through it would desynchronise the session.
     pub fn multigrid_mut(&mut self) -> Option<&mut Multigrid> {
-        self.multigrid.as_mut()
+        match self.stage {
+            Stage::Implant => self.implant_multigrid.as_mut(),
+            Stage::Gravity => self.gravity_multigrid.as_mut(),
+        }
+        .map(|stage| &mut stage.multigrid)
     }
 
     /// Finest elements whose deformed volume is not positive.

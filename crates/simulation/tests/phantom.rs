@@ -404,3 +404,36 @@ fn landmarks_stay_on_the_simulated_scan() {
         );
     }
 }
+
+/// The scan's displacement (the finite-element field carried to the scan, smoothed only
+/// where it can be non-zero) has, to the last bit, the numbers of the smoother over the
+/// whole scan: tolerance 0, the same operations in the same order (see
+/// `simulation::field::SurfaceSmoother::with_support`).
+#[test]
+fn the_scan_displacement_equals_the_smoothing_over_the_whole_scan() {
+    let b = baseline();
+    let p = common::phantom();
+    let scan = &p.marked.scan.mesh;
+    let sim = &b.sim;
+    let locator =
+        simulation::field::FieldLocator::new(sim.finest_mesh(), sim.spacing_mm()).unwrap();
+    let map = simulation::PointMap::new(&locator, &scan.positions, sim.options().falloff_mm);
+    let mut expected = map.displacements(sim.displacement());
+    let full = simulation::field::SurfaceSmoother::new(scan, 0.5 * sim.spacing_mm());
+    full.apply(&mut expected);
+    let bits = |field: &[DVec3]| -> Vec<[u64; 3]> {
+        field
+            .iter()
+            .map(|d| d.to_array().map(f64::to_bits))
+            .collect()
+    };
+    let moved = sim.scan_displacements();
+    let still = moved.iter().filter(|d| **d == DVec3::ZERO).count();
+    println!(
+        "scan: {} vertices, {still} not moved, {} smoothing steps",
+        moved.len(),
+        full.iterations()
+    );
+    assert!(still > 0 && still < moved.len());
+    assert!(bits(&moved) == bits(&expected));
+}

@@ -35,7 +35,7 @@ pub use spline::{ClosedSpline, MIN_CONTROL_POINT_SPACING_MM, SplineError};
 use crate::fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks, MAX_SNAP_DISTANCE_MM};
-use crate::measure::MeasuredSurface;
+use crate::measure::{MeasuredSurface, mean_normal_near};
 use crate::scan_holes::{ClosedHole, OpenHole, close_scan_holes, loop_length};
 use glam::DVec3;
 use mesh::{
@@ -561,44 +561,6 @@ pub fn max_stitch_angle_deg(base: &TriMesh, fill: &FillIn, radius_mm: f64) -> f6
         })
         .filter(|angle| angle.is_finite())
         .fold(0.0, f64::max)
-}
-
-/// Area-weighted mean normal (not normalised) of `start` and the triangles connected to
-/// it through vertices whose centroids lie within `radius_mm` of `centre`.
-fn mean_normal_near(
-    mesh: &TriMesh,
-    topology: &Topology,
-    start: usize,
-    centre: DVec3,
-    radius_mm: f64,
-) -> DVec3 {
-    let weighted_normal = |t: usize| {
-        let [a, b, c] = mesh.triangles[t].map(|v| mesh.positions[v as usize]);
-        (b - a).cross(c - a)
-    };
-    let centroid = |t: usize| {
-        mesh.triangles[t]
-            .iter()
-            .map(|&v| mesh.positions[v as usize])
-            .sum::<DVec3>()
-            / 3.0
-    };
-    let mut visited = vec![start];
-    let mut queue = vec![start];
-    let mut sum = weighted_normal(start);
-    while let Some(t) = queue.pop() {
-        for &v in &mesh.triangles[t] {
-            for &next in topology.vertex_triangles(v as usize) {
-                let next = next as usize;
-                if !visited.contains(&next) && centroid(next).distance(centre) <= radius_mm {
-                    visited.push(next);
-                    queue.push(next);
-                    sum += weighted_normal(next);
-                }
-            }
-        }
-    }
-    sum
 }
 
 /// A breast patch closed by its fill-in: the fill-in's triangles reversed (it was made
