@@ -8,6 +8,7 @@ mod planning;
 mod scripted;
 
 use crate::camera::{Camera, StandardView};
+use crate::deviation::DeviationMap;
 use crate::document::{Document, Placing};
 use crate::hints::hint;
 use crate::implant_plan::{ImplantPlan, MoveDirection};
@@ -17,6 +18,7 @@ use crate::model_build::ModelBuild;
 use crate::render::{self, Layer, LayerStyle, SceneMesh, ViewportCallback};
 use anatomy::LandmarkName;
 use anatomy::measure::clinical_distances;
+use assess::{DEVIATION_COLOR_MAX_MM, deviation_color};
 use eframe::egui::{self, Color32, Key, PointerButton, Pos2, Rect, Sense, Stroke};
 use eframe::egui_wgpu;
 use glam::{DMat3, DVec2, DVec3};
@@ -585,6 +587,7 @@ impl GuiApp {
             |pos: Pos2| DVec2::new(f64::from(pos.x - rect.min.x), f64::from(pos.y - rect.min.y));
         let painter = ui.painter_at(rect);
         let layers = self.layers();
+        let legend = self.legend_title();
         // Landmarks are placed, shown and dragged on the pre-operative scan only.
         let editing = self.shows_pre_operative();
         let curves: Vec<Vec<DVec3>> = match &self.model {
@@ -741,6 +744,9 @@ impl GuiApp {
                 },
             );
         }
+        if let Some(title) = legend {
+            deviation_legend(&painter, rect, title);
+        }
         if !self.gpu {
             painter.text(
                 rect.center_top() + egui::vec2(0.0, 12.0),
@@ -777,6 +783,13 @@ impl GuiApp {
                 scene: Arc::clone(&frame.scene),
                 style: LayerStyle::Opaque,
             }],
+            // The map of the settled prediction; the prediction itself until there is one.
+            (DisplayMode::Deviation, Some(frame)) => vec![Layer {
+                scene: self
+                    .simulated_deviation()
+                    .map_or_else(|| Arc::clone(&frame.scene), |map| Arc::clone(&map.scene)),
+                style: LayerStyle::Opaque,
+            }],
             (DisplayMode::Overlay, Some(frame)) => vec![
                 pre_operative,
                 Layer {
@@ -785,6 +798,18 @@ impl GuiApp {
                 },
             ],
         }
+    }
+
+    /// The deviation map of the settled prediction, if there is one.
+    fn simulated_deviation(&self) -> Option<&DeviationMap> {
+        let settled = self.live.as_ref()?.settled.as_ref()?;
+        settled.deviation.as_ref().ok()
+    }
+
+    /// The title of the colour legend the viewport shows, if it shows a colour map.
+    fn legend_title(&self) -> Option<&'static str> {
+        (self.display == DisplayMode::Deviation && self.simulated_deviation().is_some())
+            .then_some("Distance from the pre-operative surface (mm)")
     }
 
     /// Whether the pre-operative scan is drawn opaque (landmarks and cut curves are on it).
@@ -850,6 +875,78 @@ fn nearest_marker(
         })
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .map(|(_, name)| name)
+}
+
+/// The colour legend of the deviation map (paper Fig. 3) in the viewport's lower left
+/// corner: the ramp of [`deviation_color`] sampled finely enough to be drawn exactly
+/// (it is linear in each channel between 0, 10 and 20 mm), its ticks, and the colour of
+/// vertices outside the overlap.
+fn deviation_legend(painter: &egui::Painter, viewport: Rect, title: &str) {
+    const WIDTH: f32 = 240.0;
+    const HEIGHT: f32 = 14.0;
+    const SAMPLES: usize = 40;
+    let font = egui::FontId::proportional(13.0);
+    let text_color = Color32::from_gray(230);
+    let color = |distance_mm: f64| {
+        let [r, g, b] = deviation_color(distance_mm);
+        Color32::from_rgb(r, g, b)
+    };
+    let origin = viewport.left_bottom() + egui::vec2(16.0, -64.0);
+    let box_rect = Rect::from_min_size(
+        origin - egui::vec2(8.0, 22.0),
+        egui::vec2(WIDTH + 130.0, 74.0),
+    );
+    painter.rect_filled(box_rect, 4.0, Color32::from_black_alpha(150));
+    painter.text(
+        origin - egui::vec2(0.0, 4.0),
+        egui::Align2::LEFT_BOTTOM,
+        title,
+        font.clone(),
+        text_color,
+    );
+    let mut ramp = egui::epaint::Mesh::default();
+    for k in 0..=SAMPLES {
+        let fraction = k as f32 / SAMPLES as f32;
+        let x = origin.x + fraction * WIDTH;
+        let c = color(f64::from(fraction) * DEVIATION_COLOR_MAX_MM);
+        ramp.colored_vertex(Pos2::new(x, origin.y), c);
+        ramp.colored_vertex(Pos2::new(x, origin.y + HEIGHT), c);
+        if k > 0 {
+            let i = 2 * k as u32;
+            ramp.add_triangle(i - 2, i - 1, i);
+            ramp.add_triangle(i - 1, i + 1, i);
+        }
+    }
+    painter.add(ramp);
+    for (fraction, label) in [(0.0, "0"), (0.5, "10"), (1.0, "≥ 20")] {
+        let x = origin.x + fraction * WIDTH;
+        painter.line_segment(
+            [
+                Pos2::new(x, origin.y + HEIGHT),
+                Pos2::new(x, origin.y + HEIGHT + 4.0),
+            ],
+            Stroke::new(1.0, text_color),
+        );
+        painter.text(
+            Pos2::new(x, origin.y + HEIGHT + 5.0),
+            egui::Align2::CENTER_TOP,
+            label,
+            font.clone(),
+            text_color,
+        );
+    }
+    let outside = Rect::from_min_size(
+        Pos2::new(origin.x + WIDTH + 22.0, origin.y),
+        egui::vec2(HEIGHT, HEIGHT),
+    );
+    painter.rect_filled(outside, 0.0, color(f64::NAN));
+    painter.text(
+        outside.right_center() + egui::vec2(6.0, 0.0),
+        egui::Align2::LEFT_CENTER,
+        "outside\noverlap",
+        font,
+        text_color,
+    );
 }
 
 fn format_point(p: DVec3) -> String {

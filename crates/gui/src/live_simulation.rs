@@ -3,18 +3,23 @@
 //! The worker applies the newest set when several are queued (a slider being dragged),
 //! runs one cycle at a time ([`Session::advance`]: the implant stage, then the gravity
 //! correction) and after each cycle sends back the scan as simulated so far, ready to
-//! draw, with the solver's figures. Measuring and exporting the prediction run on the
-//! worker too, between cycles.
+//! draw, with the landmarks moved with it and the solver's figures. Measuring and
+//! exporting the prediction run on the worker too, between cycles. Once the solver has
+//! settled on a frame, a background job prepares that frame's simulated scan for queries
+//! and its deviation from the pre-operative scan ([`SettledSimulation`]).
 
+use crate::deviation::DeviationMap;
+use crate::job::Job;
 use crate::render::SceneMesh;
+use anatomy::Landmarks;
 use anatomy::breast::Side;
 use glam::DVec3;
-use plan::Silent;
 use plan::model::PerSide;
 use plan::simulate::{
     Advance, ImplantRequest, ImplantSummary, Session, SimulatedMeasurements, SolveState, Stage,
 };
-use std::path::PathBuf;
+use plan::{Scan, Silent};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
@@ -88,9 +93,25 @@ pub struct SimulatedFrame {
     /// Every scan vertex (mm, file frame, the scan's order).
     pub positions: Arc<Vec<DVec3>>,
     pub scene: Arc<SceneMesh>,
+    /// The landmarks (required and extra) moved with the tissue.
+    pub landmarks: Arc<Landmarks>,
     /// Counts the frames of this session, from 1.
     pub number: u64,
 }
+
+/// The simulated scan of a frame the solver has settled on, prepared in the background.
+pub struct SettledSimulation {
+    /// The frame's number.
+    pub frame: u64,
+    /// The simulated scan with its spatial index (what hides what in the view; the
+    /// reference a post-operative scan can be compared with).
+    pub scan: Arc<Scan>,
+    /// Its deviation from the pre-operative scan.
+    pub deviation: Result<DeviationMap, String>,
+}
+
+/// A callback that asks the window for a repaint.
+pub type Wake = Arc<dyn Fn() + Send + Sync>;
 
 /// The measurements of the prediction.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -133,6 +154,13 @@ pub struct LiveSimulation {
     pub failure: Option<String>,
     /// Simulated frames received so far.
     pub frames_received: u64,
+    /// The latest settled frame, prepared ([`LiveSimulation::poll`] starts the work).
+    pub settled: Option<Arc<SettledSimulation>>,
+    /// The preparation under way, and its frame's number.
+    settling: Option<(u64, Job<anyhow::Result<SettledSimulation>>)>,
+    /// The scan as loaded, which the session simulates.
+    pre_operative: Arc<Scan>,
+    wake: Wake,
 }
 
 impl LiveSimulation {
@@ -142,11 +170,16 @@ impl LiveSimulation {
     pub fn start(
         session: Session,
         scene: Arc<SceneMesh>,
-        wake: impl Fn() + Send + 'static,
+        wake: impl Fn() + Send + Sync + 'static,
     ) -> LiveSimulation {
         let (commands, inbox) = channel();
         let (outbox, updates) = channel();
-        std::thread::spawn(move || Worker::new(session, scene, outbox, wake).run(&inbox));
+        let wake: Wake = Arc::new(wake);
+        let pre_operative = Arc::clone(&session.marked.scan);
+        let worker_wake = Arc::clone(&wake);
+        std::thread::spawn(move || {
+            Worker::new(session, scene, outbox, move || worker_wake()).run(&inbox)
+        });
         LiveSimulation {
             commands,
             updates,
@@ -160,6 +193,10 @@ impl LiveSimulation {
             exported: None,
             failure: None,
             frames_received: 0,
+            settled: None,
+            settling: None,
+            pre_operative,
+            wake,
         }
     }
 
@@ -215,6 +252,56 @@ impl LiveSimulation {
                 Update::Failed(message) => self.failure = Some(message),
             }
         }
+        self.prepare_settled();
+    }
+
+    /// Takes the settled frame once prepared, and starts preparing the newest frame once
+    /// the solver has settled on it (one preparation at a time).
+    fn prepare_settled(&mut self) {
+        if let Some((number, job)) = &self.settling
+            && let Some(answer) = job.poll()
+        {
+            let number = *number;
+            self.settling = None;
+            let settled = answer
+                .and_then(|prepared| prepared.map_err(|error| format!("{error:#}")))
+                .unwrap_or_else(|message| SettledSimulation {
+                    frame: number,
+                    scan: Arc::clone(&self.pre_operative),
+                    deviation: Err(message),
+                });
+            self.settled = Some(Arc::new(settled));
+        }
+        let Some(frame) = &self.frame else {
+            return;
+        };
+        let prepared = self.settled.as_ref().map(|s| s.frame);
+        if self.settling.is_some() || !self.is_settled() || prepared == Some(frame.number) {
+            return;
+        }
+        let pre_operative = Arc::clone(&self.pre_operative);
+        let frame = frame.clone();
+        let wake = Arc::clone(&self.wake);
+        let job = Job::spawn(
+            move || wake(),
+            move || -> anyhow::Result<SettledSimulation> {
+                let scan = pre_operative
+                    .moved_to(frame.positions.to_vec(), Path::new("the simulated scan"))?;
+                let deviation = DeviationMap::compute(&pre_operative, &scan, &frame.scene)
+                    .map_err(|error| format!("{error:#}"));
+                Ok(SettledSimulation {
+                    frame: frame.number,
+                    scan: Arc::new(scan),
+                    deviation,
+                })
+            },
+        );
+        self.settling = Some((frame.number, job));
+    }
+
+    /// Whether the settled frame is being prepared.
+    pub fn is_preparing_settled(&self) -> bool {
+        self.settling.is_some()
     }
 
     /// Whether the worker has applied the last set sent and stopped cycling on it
@@ -359,11 +446,17 @@ impl<W: Fn()> Worker<W> {
                 self.frame += 1;
                 self.running = advance.state == SolveState::Running;
                 let start = Instant::now();
-                let positions = self.session.scan_positions();
+                let simulation = &self.session.simulation;
+                let displacements = simulation.scan_displacements();
+                let positions: Vec<DVec3> = (self.session.marked.scan.mesh.positions.iter())
+                    .zip(&displacements)
+                    .map(|(p, d)| *p + *d)
+                    .collect();
                 self.moved.positions.clone_from(&positions);
                 let frame = SimulatedFrame {
                     positions: Arc::new(positions),
                     scene: Arc::new(self.scene.moved(&self.moved)),
+                    landmarks: Arc::new(simulation.landmarks_moved_by(&displacements)),
                     number: self.frame,
                 };
                 let status = SolverStatus {

@@ -15,7 +15,7 @@
 //! drag projection FROM TO SECONDS the Projection slider dragged from FROM to TO (mm),
 //!                                 a new value every frame
 //! wait                            until the simulation has converged or stopped
-//! display MODE                    pre-operative, simulated or overlay
+//! display MODE                    pre-operative, simulated, overlay or deviation
 //! view NAME                       front, left-oblique, left, right-oblique, right
 //! stats                           from now on, once a second on stderr: window frames
 //!                                 per second and simulated frames received per second
@@ -205,9 +205,10 @@ fn parse_action(code: &str) -> Result<Action> {
                 "pre-operative" => DisplayMode::PreOperative,
                 "simulated" => DisplayMode::Simulated,
                 "overlay" => DisplayMode::Overlay,
-                other => {
-                    bail!("unknown display mode `{other}`: pre-operative, simulated or overlay")
-                }
+                "deviation" => DisplayMode::Deviation,
+                other => bail!(
+                    "unknown display mode `{other}`: pre-operative, simulated, overlay or deviation"
+                ),
             })
         }
         "view" => {

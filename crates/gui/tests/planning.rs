@@ -36,7 +36,16 @@ fn wait_until(harness: &mut Harness<'_, GuiApp>, what: &str, done: impl Fn(&GuiA
         if let Some(error) = harness.state().error() {
             panic!("waiting for {what}: {error}");
         }
-        assert!(start.elapsed() < PATIENCE, "no {what} after {PATIENCE:?}");
+        assert!(
+            start.elapsed() < PATIENCE,
+            "no {what} after {PATIENCE:?}; the simulation: {:?}",
+            harness.state().live().map(|live| (
+                live.is_settled(),
+                live.solver,
+                live.failure.clone(),
+                live.frames_received
+            ))
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
     for _ in 0..3 {
@@ -95,6 +104,20 @@ fn positions(app: &GuiApp) -> Vec<DVec3> {
         .and_then(|live| live.frame.as_ref())
         .map(|frame| frame.positions.to_vec())
         .expect("a simulated frame")
+}
+
+/// Whether the settled prediction's deviation map is there for the latest frame.
+fn deviation_ready(app: &GuiApp) -> bool {
+    app.live().is_some_and(|live| {
+        live.is_settled()
+            && live.frame.is_some()
+            && live.settled.as_ref().map(|s| s.frame) == live.frame.as_ref().map(|f| f.number)
+    })
+}
+
+fn deviation(app: &GuiApp) -> &gui::deviation::DeviationMap {
+    let settled = app.live().unwrap().settled.as_ref().unwrap();
+    settled.deviation.as_ref().expect("a deviation map")
 }
 
 fn anchor(app: &GuiApp, side: Side) -> DVec3 {
@@ -304,6 +327,66 @@ fn a_saved_case_reopens_with_the_same_state() {
         .map(|(a, b)| a.distance(*b))
         .fold(0.0, f64::max);
     assert!(largest_mm < 0.3, "{largest_mm} mm");
+}
+
+#[test]
+fn the_deviation_view_colours_the_prediction_by_its_distance_from_the_scan() {
+    let mut harness = with_model();
+    // No implant yet: the prediction is the scan itself, at distance zero wherever it
+    // lies over itself (all but the border, whose closest points are on the border).
+    click(&mut harness, "Deviation");
+    wait_until(&mut harness, "the deviation map", deviation_ready);
+    let map = deviation(harness.state());
+    assert!(map.distances_mm.iter().all(|d| d.is_nan() || *d < 1e-6));
+    assert!(map.overlap_fraction > 0.95, "{}", map.overlap_fraction);
+    harness.get_by_label_contains("Deviation from the pre-operative surface: RMS 0.00 mm");
+
+    click(&mut harness, "Implants on both sides");
+    wait_until(&mut harness, "the deviation map", deviation_ready);
+    let app = harness.state();
+    let map = deviation(app);
+    let scan = &app.document().unwrap().scan.mesh;
+    let positions = positions(app);
+    // Independent check: the distance of every 500th simulated vertex to the
+    // pre-operative scan by testing every triangle (Ericson's closest point); the BVH
+    // answers the same to rounding.
+    let mut compared = 0;
+    for v in (0..scan.vertex_count()).step_by(500) {
+        let mapped = map.distances_mm[v];
+        if mapped.is_nan() {
+            continue;
+        }
+        let brute = (0..scan.triangle_count())
+            .map(|t| {
+                let corners = scan.triangle_positions(t);
+                tetra::locate::closest_point_on_triangle(positions[v], corners)
+                    .distance(positions[v])
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            (mapped - brute).abs() < 1e-6,
+            "vertex {v}: {mapped} vs {brute}"
+        );
+        compared += 1;
+    }
+    assert!(compared > 200, "{compared}");
+    // The implants pushed the breasts forward: centimetres at the nipples, nothing at
+    // the sternal notch (outside the model).
+    let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
+    let nearest = |p: DVec3| {
+        (0..scan.vertex_count())
+            .min_by(|&a, &b| {
+                scan.positions[a]
+                    .distance(p)
+                    .total_cmp(&scan.positions[b].distance(p))
+            })
+            .unwrap()
+    };
+    let nipple = map.distances_mm[nearest(marked.landmarks.get(anatomy::LandmarkName::Pnl))];
+    let notch = map.distances_mm[nearest(marked.landmarks.get(anatomy::LandmarkName::Pj))];
+    assert!(nipple > 10.0, "{nipple} mm at the nipple");
+    assert!(notch < 0.05, "{notch} mm at the notch");
+    assert!(map.statistics.rms_mm > 1.0);
 }
 
 /// Types `text` into the toolbar's path field.

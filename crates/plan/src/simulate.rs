@@ -14,7 +14,7 @@
 
 use crate::measure::measure;
 use crate::model::{ModelOptions, PatientModel, PerSide, build_model, load_model};
-use crate::{Distance, MarkedScan, Progress, Scan, check_cancelled};
+use crate::{Distance, MarkedScan, Progress, check_cancelled};
 use anatomy::breast::Side;
 use anyhow::{Context, Result};
 use glam::DVec3;
@@ -265,12 +265,12 @@ impl Session {
     /// `path` names it in messages.
     pub fn simulated_scan(&self, path: &Path) -> Result<MarkedScan> {
         let scan_displacements = self.simulation.scan_displacements();
-        let mut mesh = self.marked.scan.mesh.clone();
-        for (p, d) in mesh.positions.iter_mut().zip(&scan_displacements) {
-            *p += *d;
-        }
+        let positions = (self.marked.scan.mesh.positions.iter())
+            .zip(&scan_displacements)
+            .map(|(p, d)| *p + *d)
+            .collect();
         MarkedScan::new(
-            Scan::from_mesh(mesh, path)?,
+            self.marked.scan.moved_to(positions, path)?,
             self.simulation.landmarks_moved_by(&scan_displacements),
             path,
             &crate::Silent,

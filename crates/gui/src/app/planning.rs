@@ -36,13 +36,16 @@ pub enum DisplayMode {
     Simulated,
     /// The scan as loaded with the prediction over it, translucent.
     Overlay,
+    /// The prediction coloured by its distance from the scan as loaded (paper Fig. 3).
+    Deviation,
 }
 
 impl DisplayMode {
-    const ALL: [DisplayMode; 3] = [
+    const ALL: [DisplayMode; 4] = [
         DisplayMode::PreOperative,
         DisplayMode::Simulated,
         DisplayMode::Overlay,
+        DisplayMode::Deviation,
     ];
 
     fn label(self) -> &'static str {
@@ -50,6 +53,7 @@ impl DisplayMode {
             DisplayMode::PreOperative => "Pre-operative",
             DisplayMode::Simulated => "Simulated",
             DisplayMode::Overlay => "Overlay",
+            DisplayMode::Deviation => "Deviation",
         }
     }
 }
@@ -671,6 +675,9 @@ impl GuiApp {
             ui.weak("No model built yet.");
             return;
         };
+        if self.display == DisplayMode::Deviation {
+            deviation_summary(ui, live);
+        }
         if let Some(failure) = &live.failure {
             ui.colored_label(ERROR_COLOR, failure);
         }
@@ -803,6 +810,40 @@ impl GuiApp {
             }
             None => {}
         }
+    }
+}
+
+/// What the deviation view shows: the figures of the settled prediction's deviation from
+/// the scan as loaded, or why there are none yet.
+fn deviation_summary(ui: &mut egui::Ui, live: &LiveSimulation) {
+    let latest = live.frame.as_ref().map(|f| f.number);
+    match &live.settled {
+        Some(settled) => match &settled.deviation {
+            Ok(map) => {
+                ui.label(format!(
+                    "Deviation from the pre-operative surface: RMS {:.2} mm, mean {:.2} mm, \
+                     largest {:.1} mm over {:.0}% of the vertices",
+                    map.statistics.rms_mm,
+                    map.statistics.mean_mm,
+                    map.statistics.max_test_to_reference_mm,
+                    100.0 * map.overlap_fraction
+                ));
+            }
+            Err(message) => {
+                ui.colored_label(ERROR_COLOR, message);
+            }
+        },
+        None => {
+            ui.weak("The deviation map follows once the simulation has settled.");
+        }
+    }
+    if live.is_preparing_settled() {
+        ui.horizontal(|ui| {
+            ui.spinner();
+            ui.weak("computing the deviation map…");
+        });
+    } else if live.settled.as_ref().map(|s| s.frame) != latest && latest.is_some() {
+        ui.weak("updated once the simulation has settled");
     }
 }
 

@@ -192,10 +192,18 @@ impl GuiApp {
                 Some(_) if self.implant_error.is_some() => {
                     Step::Failed(self.implant_error.clone().unwrap_or_default())
                 }
-                Some(live) if live.is_settled() => match &live.failure {
-                    Some(failure) => Step::Failed(failure.clone()),
-                    None => Step::Done,
-                },
+                // Settled, and the settled frame prepared (its deviation map).
+                Some(live)
+                    if live.is_settled()
+                        && !live.is_preparing_settled()
+                        && live.settled.as_ref().map(|s| s.frame)
+                            == live.frame.as_ref().map(|f| f.number) =>
+                {
+                    match &live.failure {
+                        Some(failure) => Step::Failed(failure.clone()),
+                        None => Step::Done,
+                    }
+                }
                 Some(_) => Step::Pending,
             },
             Action::Display(mode) => {
