@@ -5,6 +5,7 @@
 //! `plan`/`mesh`/`anatomy` functions behind them.
 
 mod planning;
+mod postoperative;
 mod scripted;
 
 use crate::camera::{Camera, StandardView};
@@ -13,8 +14,9 @@ use crate::document::{Document, Placing};
 use crate::hints::hint;
 use crate::implant_plan::{ImplantPlan, MoveDirection};
 use crate::live_distances::{LiveDistances, Table};
-use crate::live_simulation::LiveSimulation;
+use crate::live_simulation::{LiveSimulation, SimulatedFrame};
 use crate::model_build::ModelBuild;
+use crate::registration::RegisteredScan;
 use crate::render::{self, Layer, LayerStyle, SceneMesh, ViewportCallback};
 use anatomy::LandmarkName;
 use anatomy::measure::clinical_distances;
@@ -28,6 +30,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub use planning::{DisplayMode, ModelFigures, ModelSettings};
+pub use postoperative::{DeviationReference, PostOperative};
 
 /// Markers closer than this to the pointer are grabbed by a drag (points).
 const GRAB_RADIUS: f32 = 10.0;
@@ -89,6 +92,8 @@ pub struct GuiApp {
     /// The window's context once it has drawn a frame (workers wake the window with it).
     ctx: Option<egui::Context>,
     script: Option<scripted::ScriptRun>,
+    /// A post-operative scan registered onto this one.
+    postoperative: PostOperative,
 }
 
 impl GuiApp {
@@ -127,6 +132,7 @@ impl GuiApp {
             export_folder: String::new(),
             ctx: None,
             script: None,
+            postoperative: PostOperative::default(),
         };
         if let Some(document) = document {
             app.set_document(document);
@@ -165,6 +171,7 @@ impl GuiApp {
         self.poll_build(ui.ctx());
         self.advance_script(ui.ctx());
         self.update_simulation();
+        self.update_postoperative();
         if let (Some(document), None) = (&self.document, &self.distances) {
             let ctx = ui.ctx().clone();
             let mut distances =
@@ -187,6 +194,7 @@ impl GuiApp {
                 egui::ScrollArea::vertical().show(ui, |ui| {
                     section(ui, "Landmarks", |ui| self.landmark_panel(ui));
                     section(ui, "Breast model", |ui| self.model_panel(ui));
+                    section(ui, "Post-operative scan", |ui| self.postoperative_panel(ui));
                 });
             });
         egui::Panel::right("planning")
@@ -218,6 +226,7 @@ impl GuiApp {
         self.live = None;
         self.settings.control_points = None;
         self.display = DisplayMode::PreOperative;
+        self.postoperative.reset();
         self.scene = Some(Arc::new(SceneMesh::new(&document.scan.mesh)));
         self.info(format!(
             "{}: {} vertices, {} triangles",
@@ -767,36 +776,49 @@ impl GuiApp {
         }
     }
 
+    /// The surface the viewport shows opaque in the current display mode (the
+    /// pre-operative scan until the one asked for exists).
+    fn shown(&self) -> Shown<'_> {
+        let frame = self.live.as_ref().and_then(|live| live.frame.as_ref());
+        match (self.display, frame, &self.postoperative.registered) {
+            (DisplayMode::Simulated | DisplayMode::Deviation, Some(frame), _) => {
+                Shown::Simulated(frame)
+            }
+            (DisplayMode::PostOperative, _, Some(registered)) => Shown::PostOperative(registered),
+            _ => Shown::PreOperative,
+        }
+    }
+
     /// The meshes the viewport draws in the current display mode.
     fn layers(&self) -> Vec<Layer> {
         let Some(scene) = &self.scene else {
             return Vec::new();
         };
-        let pre_operative = Layer {
+        let opaque = |scene: &Arc<SceneMesh>| Layer {
             scene: Arc::clone(scene),
             style: LayerStyle::Opaque,
         };
-        let simulated = self.live.as_ref().and_then(|live| live.frame.as_ref());
-        match (self.display, simulated) {
-            (_, None) | (DisplayMode::PreOperative, _) => vec![pre_operative],
-            (DisplayMode::Simulated, Some(frame)) => vec![Layer {
-                scene: Arc::clone(&frame.scene),
-                style: LayerStyle::Opaque,
-            }],
+        match self.shown() {
+            Shown::PreOperative => {
+                let mut layers = vec![opaque(scene)];
+                let frame = self.live.as_ref().and_then(|live| live.frame.as_ref());
+                if let (DisplayMode::Overlay, Some(frame)) = (self.display, frame) {
+                    layers.push(Layer {
+                        scene: Arc::clone(&frame.scene),
+                        style: LayerStyle::Translucent,
+                    });
+                }
+                layers
+            }
             // The map of the settled prediction; the prediction itself until there is one.
-            (DisplayMode::Deviation, Some(frame)) => vec![Layer {
-                scene: self
-                    .simulated_deviation()
-                    .map_or_else(|| Arc::clone(&frame.scene), |map| Arc::clone(&map.scene)),
-                style: LayerStyle::Opaque,
-            }],
-            (DisplayMode::Overlay, Some(frame)) => vec![
-                pre_operative,
-                Layer {
-                    scene: Arc::clone(&frame.scene),
-                    style: LayerStyle::Translucent,
-                },
-            ],
+            Shown::Simulated(frame) => match self.simulated_deviation() {
+                Some(map) if self.display == DisplayMode::Deviation => vec![opaque(&map.scene)],
+                _ => vec![opaque(&frame.scene)],
+            },
+            Shown::PostOperative(registered) => match self.postoperative.deviation() {
+                Some((_, map)) => vec![opaque(&map.scene)],
+                None => vec![opaque(&registered.scene)],
+            },
         }
     }
 
@@ -808,15 +830,29 @@ impl GuiApp {
 
     /// The title of the colour legend the viewport shows, if it shows a colour map.
     fn legend_title(&self) -> Option<&'static str> {
-        (self.display == DisplayMode::Deviation && self.simulated_deviation().is_some())
-            .then_some("Distance from the pre-operative surface (mm)")
+        match self.shown() {
+            Shown::Simulated(_) if self.display == DisplayMode::Deviation => self
+                .simulated_deviation()
+                .map(|_| DeviationReference::PreOperative.legend_title()),
+            Shown::PostOperative(_) => self
+                .postoperative
+                .deviation()
+                .map(|(reference, _)| reference.legend_title()),
+            _ => None,
+        }
     }
 
     /// Whether the pre-operative scan is drawn opaque (landmarks and cut curves are on it).
     fn shows_pre_operative(&self) -> bool {
-        self.display != DisplayMode::Simulated
-            || self.live.as_ref().is_none_or(|live| live.frame.is_none())
+        matches!(self.shown(), Shown::PreOperative)
     }
+}
+
+/// The surface the viewport shows opaque.
+enum Shown<'a> {
+    PreOperative,
+    Simulated(&'a SimulatedFrame),
+    PostOperative(&'a RegisteredScan),
 }
 
 impl eframe::App for GuiApp {

@@ -15,7 +15,8 @@
 //! drag projection FROM TO SECONDS the Projection slider dragged from FROM to TO (mm),
 //!                                 a new value every frame
 //! wait                            until the simulation has converged or stopped
-//! display MODE                    pre-operative, simulated, overlay or deviation
+//! display MODE                    pre-operative, simulated, overlay, deviation or
+//!                                 post-operative
 //! view NAME                       front, left-oblique, left, right-oblique, right
 //! stats                           from now on, once a second on stderr: window frames
 //!                                 per second and simulated frames received per second
@@ -206,8 +207,10 @@ fn parse_action(code: &str) -> Result<Action> {
                 "simulated" => DisplayMode::Simulated,
                 "overlay" => DisplayMode::Overlay,
                 "deviation" => DisplayMode::Deviation,
+                "post-operative" => DisplayMode::PostOperative,
                 other => bail!(
-                    "unknown display mode `{other}`: pre-operative, simulated, overlay or deviation"
+                    "unknown display mode `{other}`: pre-operative, simulated, overlay, \
+                     deviation or post-operative"
                 ),
             })
         }

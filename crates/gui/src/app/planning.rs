@@ -38,14 +38,18 @@ pub enum DisplayMode {
     Overlay,
     /// The prediction coloured by its distance from the scan as loaded (paper Fig. 3).
     Deviation,
+    /// The registered post-operative scan, coloured by its distance from the scan as
+    /// loaded or from the prediction.
+    PostOperative,
 }
 
 impl DisplayMode {
-    const ALL: [DisplayMode; 4] = [
+    const ALL: [DisplayMode; 5] = [
         DisplayMode::PreOperative,
         DisplayMode::Simulated,
         DisplayMode::Overlay,
         DisplayMode::Deviation,
+        DisplayMode::PostOperative,
     ];
 
     fn label(self) -> &'static str {
@@ -54,6 +58,7 @@ impl DisplayMode {
             DisplayMode::Simulated => "Simulated",
             DisplayMode::Overlay => "Overlay",
             DisplayMode::Deviation => "Deviation",
+            DisplayMode::PostOperative => "Post-operative",
         }
     }
 }
@@ -176,7 +181,7 @@ impl GuiApp {
     }
 
     /// A callback that asks the window for a repaint (a no-op before the first frame).
-    fn waker(&self) -> impl Fn() + Send + Sync + 'static {
+    pub(super) fn waker(&self) -> impl Fn() + Send + Sync + 'static {
         let ctx = self.ctx.clone();
         move || {
             if let Some(ctx) = &ctx {
