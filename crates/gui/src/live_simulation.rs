@@ -4,7 +4,9 @@
 //! runs one cycle at a time ([`Session::advance`]: the implant stage, then the gravity
 //! correction) and after each cycle sends back the scan as simulated so far, ready to
 //! draw, with the landmarks moved with it and the solver's figures. Measuring and
-//! exporting the prediction run on the worker too, between cycles. Once the solver has
+//! exporting the prediction run on the worker too, between cycles, and so does writing
+//! the folders a report is made from (the report itself is then written on a thread of
+//! its own, from those files). Once the solver has
 //! settled on a frame, a background job prepares that frame's simulated scan for queries
 //! and its deviation from the pre-operative scan ([`SettledSimulation`]).
 
@@ -15,8 +17,10 @@ use anatomy::Landmarks;
 use anatomy::breast::Side;
 use glam::DVec3;
 use plan::model::PerSide;
+use plan::report::{PostoperativeScan, ReportInputs, ReportSummary, write_report};
 use plan::simulate::{
-    Advance, ImplantRequest, ImplantSummary, Session, SimulatedMeasurements, SolveState, Stage,
+    Advance, ImplantRequest, ImplantSummary, Session, SimulatedMeasurements, SimulationState,
+    SolveState, SolverReport, Stage,
 };
 use plan::{Scan, Silent};
 use std::path::{Path, PathBuf};
@@ -56,6 +60,22 @@ enum Command {
     Implants(u64, ImplantSet),
     Measure,
     Export(ExportPaths),
+    /// The folders of a report into this folder.
+    ReportFolders(PathBuf, Option<PostoperativeScan>),
+}
+
+/// The report written from the window (`report.html` with the folders it is made from).
+#[derive(Default)]
+pub enum ReportState {
+    #[default]
+    NotYet,
+    /// The session's scan, model and simulation folders are being written into this
+    /// folder (on the worker, between cycles).
+    WritingFolders(PathBuf),
+    /// The report is being written from them (on a thread of its own).
+    Writing(PathBuf, Job<anyhow::Result<ReportSummary>>),
+    /// How the last report ended.
+    Written(Result<ReportSummary, String>),
 }
 
 /// One side of the session.
@@ -131,6 +151,7 @@ enum Update {
     Cycle(SimulatedFrame, SolverStatus),
     Measured(Result<(SimulatedMeasurements, u64), String>),
     Exported(Result<ExportPaths, String>),
+    ReportFolders(Result<ReportInputs, String>),
     Failed(String),
 }
 
@@ -150,6 +171,8 @@ pub struct LiveSimulation {
     pub measurements: MeasurementState,
     /// The outcome of the last export.
     pub exported: Option<Result<ExportPaths, String>>,
+    /// The report being written, or the last one.
+    pub report: ReportState,
     /// A solver failure (the worker waits for the next change).
     pub failure: Option<String>,
     /// Simulated frames received so far.
@@ -191,6 +214,7 @@ impl LiveSimulation {
             sides: PerSide::default(),
             measurements: MeasurementState::NotYet,
             exported: None,
+            report: ReportState::NotYet,
             failure: None,
             frames_received: 0,
             settled: None,
@@ -225,6 +249,24 @@ impl LiveSimulation {
         let _ = self.commands.send(Command::Export(paths));
     }
 
+    /// Asks for the report of the current prediction: `report.html` in `folder` with the
+    /// folders it is made from (see [`plan::report::write_session_folders`]), compared
+    /// with `postoperative` when given.
+    pub fn write_report(&mut self, folder: PathBuf, postoperative: Option<PostoperativeScan>) {
+        self.report = ReportState::WritingFolders(folder.clone());
+        let _ = self
+            .commands
+            .send(Command::ReportFolders(folder, postoperative));
+    }
+
+    /// Whether a report is being written.
+    pub fn is_writing_report(&self) -> bool {
+        matches!(
+            self.report,
+            ReportState::WritingFolders(_) | ReportState::Writing(..)
+        )
+    }
+
     /// Takes the worker's updates.
     pub fn poll(&mut self) {
         while let Ok(update) = self.updates.try_recv() {
@@ -249,10 +291,33 @@ impl LiveSimulation {
                     self.measurements = MeasurementState::Failed(message);
                 }
                 Update::Exported(outcome) => self.exported = Some(outcome),
+                Update::ReportFolders(Ok(inputs)) => {
+                    let out = inputs.model_dir.with_file_name("report.html");
+                    let job = Job::spawn(self.waker(), {
+                        let out = out.clone();
+                        move || write_report(&inputs, &out, &Silent)
+                    });
+                    self.report = ReportState::Writing(out, job);
+                }
+                Update::ReportFolders(Err(message)) => {
+                    self.report = ReportState::Written(Err(message));
+                }
                 Update::Failed(message) => self.failure = Some(message),
             }
         }
+        if let ReportState::Writing(_, job) = &self.report
+            && let Some(answer) = job.poll()
+        {
+            let written = answer.and_then(|result| result.map_err(|error| format!("{error:#}")));
+            self.report = ReportState::Written(written);
+        }
         self.prepare_settled();
+    }
+
+    /// A repaint request for a background job's end.
+    fn waker(&self) -> impl Fn() + Send + 'static {
+        let wake = Arc::clone(&self.wake);
+        move || wake()
     }
 
     /// Takes the settled frame once prepared, and starts preparing the newest frame once
@@ -281,9 +346,8 @@ impl LiveSimulation {
         }
         let pre_operative = Arc::clone(&self.pre_operative);
         let frame = frame.clone();
-        let wake = Arc::clone(&self.wake);
         let job = Job::spawn(
-            move || wake(),
+            self.waker(),
             move || -> anyhow::Result<SettledSimulation> {
                 let scan = pre_operative
                     .moved_to(frame.positions.to_vec(), Path::new("the simulated scan"))?;
@@ -328,6 +392,8 @@ struct Worker<W> {
     sides: PerSide<SideState>,
     running: bool,
     cycles: usize,
+    /// The solve since the implants last changed, as a simulation folder records it.
+    solve: SolverReport,
     frame: u64,
     /// The number of the implant set last applied.
     set_number: u64,
@@ -345,6 +411,7 @@ impl<W: Fn()> Worker<W> {
             sides: PerSide::default(),
             running: false,
             cycles: 0,
+            solve: new_solve(),
             frame: 0,
             set_number: 0,
         }
@@ -384,6 +451,10 @@ impl<W: Fn()> Worker<W> {
                     Command::Export(paths) => {
                         let outcome = self.export(&paths).map(|()| paths);
                         self.outbox.send(Update::Exported(outcome))
+                    }
+                    Command::ReportFolders(folder, postoperative) => {
+                        let outcome = self.report_folders(&folder, postoperative);
+                        self.outbox.send(Update::ReportFolders(outcome))
                     }
                 };
                 if sent.is_err() {
@@ -433,6 +504,7 @@ impl<W: Fn()> Worker<W> {
         if restart {
             self.running = true;
             self.cycles = 0;
+            self.solve = new_solve();
         }
         restart
     }
@@ -445,6 +517,7 @@ impl<W: Fn()> Worker<W> {
                 self.cycles += 1;
                 self.frame += 1;
                 self.running = advance.state == SolveState::Running;
+                self.tally(&advance);
                 let start = Instant::now();
                 let simulation = &self.session.simulation;
                 let displacements = simulation.scan_displacements();
@@ -477,6 +550,48 @@ impl<W: Fn()> Worker<W> {
         sent
     }
 
+    /// Counts a cycle into the solve's figures.
+    fn tally(&mut self, advance: &Advance) {
+        let solve = &mut self.solve;
+        solve.vcycles += 1;
+        solve.time_ms += advance.cycle.time_ms;
+        solve.relative_residual = advance.cycle.relative_residual;
+        solve.converged = advance.state == SolveState::Converged;
+        match advance.cycle.stage {
+            Stage::Implant => solve.implant_stage_vcycles = advance.stage_cycles,
+            Stage::Gravity => solve.gravity_stage_vcycles = Some(advance.stage_cycles),
+        }
+    }
+
+    /// Writes the scan, model and simulation folders of a report into `folder`.
+    fn report_folders(
+        &mut self,
+        folder: &std::path::Path,
+        postoperative: Option<PostoperativeScan>,
+    ) -> Result<ReportInputs, String> {
+        let state = SimulationState {
+            implants: PerSide::from_fn(|side| self.sides.get(side).placed.clone()),
+            solver: SolverReport {
+                inverted_elements: self.session.simulation.inverted_elements().len(),
+                ..self.solve.clone()
+            },
+            no_gravity: !self.applied.as_ref().is_some_and(|a| a.gravity),
+        };
+        plan::report::write_session_folders(
+            &mut self.session,
+            &state,
+            folder,
+            postoperative,
+            &Silent,
+        )
+        .map_err(|error| {
+            format!(
+                "writing the report's files into {}: {error:#}",
+                folder.display()
+            )
+        })
+    }
+
     fn measure(&mut self) -> Result<(SimulatedMeasurements, u64), String> {
         self.session
             .measurements(&Silent)
@@ -502,5 +617,18 @@ impl<W: Fn()> Worker<W> {
             .outbox
             .send(Update::Measured(Ok((measurements, self.frame))));
         Ok(())
+    }
+}
+
+/// The figures of a solve that has not run a cycle yet.
+fn new_solve() -> SolverReport {
+    SolverReport {
+        vcycles: 0,
+        relative_residual: f64::NAN,
+        converged: false,
+        time_ms: 0.0,
+        implant_stage_vcycles: 0,
+        gravity_stage_vcycles: None,
+        inverted_elements: 0,
     }
 }

@@ -389,6 +389,60 @@ fn the_deviation_view_colours_the_prediction_by_its_distance_from_the_scan() {
     assert!(map.statistics.rms_mm > 1.0);
 }
 
+#[test]
+fn the_report_is_written_from_the_window() {
+    let mut harness = with_implants();
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("plan");
+    harness
+        .get_by_role_and_label(Role::TextInput, "Folder")
+        .focus();
+    harness.step();
+    harness
+        .get_by_role_and_label(Role::TextInput, "Folder")
+        .type_text(&folder.display().to_string());
+    harness.step();
+    click(&mut harness, "Write report");
+    assert!(harness.state().live().unwrap().is_writing_report());
+    wait_until(&mut harness, "the report", |app| {
+        !app.live().unwrap().is_writing_report()
+    });
+    let live = harness.state().live().unwrap();
+    let gui::live_simulation::ReportState::Written(written) = &live.report else {
+        panic!("no report");
+    };
+    let summary = written.as_ref().expect("the report");
+    assert_eq!(summary.out, folder.join("report.html"));
+    // Without a post-operative scan: the pre-operative and the simulated scan from five
+    // sides each, and the change from the front and the obliques.
+    assert_eq!(summary.views, 13);
+    harness.get_by_label_contains("Report written:");
+    let page = std::fs::read_to_string(folder.join("report.html")).unwrap();
+    assert!(page.contains("Breast augmentation plan"));
+    // The folders it was made from: the phantom's scan (it has no file), the landmarks,
+    // the model and the simulation with the implants as placed in the window.
+    for file in [
+        "scan.ply",
+        "landmarks.json",
+        "model/model.json",
+        "simulation/result.json",
+    ] {
+        assert!(folder.join(file).is_file(), "{file}");
+    }
+    let result: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(folder.join("simulation/result.json")).unwrap(),
+    )
+    .unwrap();
+    for side in Side::BOTH {
+        let placed = live.sides.get(side).placed.as_ref().unwrap();
+        let recorded = &result["implants"][side.name()];
+        assert_eq!(recorded["spec"], placed.spec.as_str());
+        assert_eq!(recorded["volume_ml"], placed.volume_ml);
+        assert!(page.contains(&placed.spec), "{}", placed.spec);
+    }
+    assert_eq!(result["solver"]["converged"], true);
+}
+
 /// Types `text` into the toolbar's path field.
 fn type_path(harness: &mut Harness<'_, GuiApp>, text: &str) {
     // The path field is the first text field (the toolbar is drawn first).

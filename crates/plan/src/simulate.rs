@@ -566,6 +566,40 @@ pub fn run_session(
             solver.vcycles, solver.relative_residual
         ));
     }
+    let report = write_simulation(
+        &mut session,
+        &SimulationState {
+            implants,
+            solver,
+            no_gravity: options.no_gravity,
+        },
+        model_dir,
+        out_dir,
+        progress,
+    )?;
+    progress.step();
+    Ok(report)
+}
+
+/// Where a session's solve stands, as the simulation folder records it: the implants as
+/// placed, the solver's figures and whether the gravity correction was left out.
+#[derive(Debug, Clone)]
+pub struct SimulationState {
+    pub implants: PerSide<Option<ImplantSummary>>,
+    pub solver: SolverReport,
+    pub no_gravity: bool,
+}
+
+/// Writes the simulation folder of the session's current prediction (see the module
+/// documentation) and returns what `result.json` holds; `state` is how the session got
+/// there, `model_dir` is only reported. `result.json` is written last.
+pub fn write_simulation(
+    session: &mut Session,
+    state: &SimulationState,
+    model_dir: &Path,
+    out_dir: &Path,
+    progress: &dyn Progress,
+) -> Result<SimulateReport> {
     let (breast_volume_before_ml, breast_volume_ml) = session.breast_volumes()?;
     let simulated = session.simulated_scan(&out_dir.join("simulated_scan.ply"))?;
     let distances = measure(&simulated, &[], progress)?.distances;
@@ -592,18 +626,17 @@ pub fn run_session(
     let report = SimulateReport {
         model: model_dir.to_path_buf(),
         implant_volume_ml: session.implant_volumes_ml(),
-        implants,
+        implants: state.implants.clone(),
         breast_volume_ml,
         breast_volume_before_ml,
         distances,
-        solver,
-        no_gravity: options.no_gravity,
+        solver: state.solver.clone(),
+        no_gravity: state.no_gravity,
         materials: MaterialsReport::new(session.simulation.options()),
         out_dir: out_dir.to_path_buf(),
         files,
     };
     crate::demo::write_json(&report_path, &report)?;
-    progress.step();
     Ok(report)
 }
 

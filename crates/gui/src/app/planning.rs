@@ -6,7 +6,7 @@ use super::{ERROR_COLOR, GuiApp, PLACED_COLOR, Status};
 use crate::document::Document;
 use crate::implant_plan::{Editing, ImplantPlan, MoveDirection, Source};
 use crate::live_simulation::{
-    ExportPaths, ImplantSet, LiveSimulation, MeasurementState, SolverStatus,
+    ExportPaths, ImplantSet, LiveSimulation, MeasurementState, ReportState, SolverStatus,
 };
 use crate::model_build::{BuildOutcome, ModelBuild};
 use anatomy::ControlPoints;
@@ -16,6 +16,7 @@ use glam::DVec3;
 use plan::case::PlanningCase;
 use plan::catalog::ShapeKind;
 use plan::model::{DEFAULT_ELEMENTS, PerSide};
+use plan::report::PostoperativeScan;
 use plan::simulate::{Material, Session, SolveState, Stage};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -708,6 +709,14 @@ impl GuiApp {
     }
 
     pub(super) fn measurement_panel(&mut self, ui: &mut egui::Ui) {
+        let postoperative =
+            self.postoperative
+                .registered
+                .as_ref()
+                .map(|registered| PostoperativeScan {
+                    scan: registered.scan_path.clone(),
+                    landmarks: registered.landmarks_path.clone(),
+                });
         let Some(live) = &mut self.live else {
             ui.weak("Build the model and choose implants to measure the prediction.");
             return;
@@ -778,11 +787,13 @@ impl GuiApp {
             }
         }
         ui.horizontal(|ui| {
+            let label = ui.label("Folder");
             ui.add(
                 egui::TextEdit::singleline(&mut self.export_folder)
-                    .hint_text("export folder")
+                    .hint_text("where to export and write the report")
                     .desired_width(220.0),
-            );
+            )
+            .labelled_by(label.id);
             if ui
                 .add_enabled(frame > 0, egui::Button::new("Export"))
                 .on_hover_text(
@@ -814,6 +825,43 @@ impl GuiApp {
                 ui.colored_label(ERROR_COLOR, message);
             }
             None => {}
+        }
+        ui.horizontal(|ui| {
+            let writing = live.is_writing_report();
+            if ui
+                .add_enabled(frame > 0 && !writing, egui::Button::new("Write report"))
+                .on_hover_text(
+                    "report.html into the folder (as mammaplan report), with the scan, model and \
+                     simulation folders it is made from; compared with the post-operative scan \
+                     when one is registered",
+                )
+                .clicked()
+            {
+                live.write_report(PathBuf::from(self.export_folder.trim()), postoperative);
+            }
+            if writing {
+                ui.spinner();
+                ui.weak(match &live.report {
+                    ReportState::WritingFolders(_) => "writing the model and simulation…",
+                    _ => "writing the report (views, measurements)…",
+                });
+            }
+        });
+        match &live.report {
+            ReportState::Written(Ok(summary)) => {
+                ui.colored_label(
+                    PLACED_COLOR,
+                    format!(
+                        "Report written: {} ({} views)",
+                        summary.out.display(),
+                        summary.views
+                    ),
+                );
+            }
+            ReportState::Written(Err(message)) => {
+                ui.colored_label(ERROR_COLOR, format!("The report failed: {message}"));
+            }
+            _ => {}
         }
     }
 }
