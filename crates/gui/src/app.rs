@@ -7,23 +7,21 @@
 mod planning;
 mod postoperative;
 mod scripted;
+mod viewport;
 
 use crate::camera::{Camera, StandardView};
-use crate::deviation::DeviationMap;
 use crate::document::{Document, Placing};
 use crate::hints::hint;
 use crate::implant_plan::{ImplantPlan, MoveDirection};
 use crate::live_distances::{LiveDistances, Table};
-use crate::live_simulation::{LiveSimulation, SimulatedFrame};
+use crate::live_simulation::LiveSimulation;
 use crate::model_build::ModelBuild;
-use crate::registration::RegisteredScan;
-use crate::render::{self, Layer, LayerStyle, SceneMesh, ViewportCallback};
+use crate::render::{self, SceneMesh};
 use anatomy::LandmarkName;
 use anatomy::measure::clinical_distances;
-use assess::{DEVIATION_COLOR_MAX_MM, deviation_color};
-use eframe::egui::{self, Color32, Key, PointerButton, Pos2, Rect, Sense, Stroke};
+use eframe::egui::{self, Color32, Key, Rect};
 use eframe::egui_wgpu;
-use glam::{DMat3, DVec2, DVec3};
+use glam::{DMat3, DVec3};
 use plan::case::PlanningCase;
 use plan::catalog::Catalog;
 use std::path::{Path, PathBuf};
@@ -31,6 +29,8 @@ use std::sync::Arc;
 
 pub use planning::{DisplayMode, ModelFigures, ModelSettings};
 pub use postoperative::{DeviationReference, PostOperative};
+pub use viewport::ControlPointTool;
+use viewport::Drag;
 
 /// Markers closer than this to the pointer are grabbed by a drag (points).
 const GRAB_RADIUS: f32 = 10.0;
@@ -52,15 +52,6 @@ const CURVE_WIDTH: f32 = 2.0;
 enum Status {
     Info(String),
     Error(String),
-}
-
-/// What a drag in the viewport does.
-#[derive(Debug, Clone, PartialEq)]
-enum Drag {
-    /// Moves a placed point along the surface.
-    Point(String),
-    Orbit,
-    Pan,
 }
 
 /// The planning application.
@@ -94,6 +85,10 @@ pub struct GuiApp {
     script: Option<scripted::ScriptRun>,
     /// A post-operative scan registered onto this one.
     postoperative: PostOperative,
+    /// The control points changed since the model was built from them.
+    control_points_edited: bool,
+    /// What a click does to the control points, if anything.
+    control_point_tool: Option<ControlPointTool>,
 }
 
 impl GuiApp {
@@ -133,6 +128,8 @@ impl GuiApp {
             ctx: None,
             script: None,
             postoperative: PostOperative::default(),
+            control_points_edited: false,
+            control_point_tool: None,
         };
         if let Some(document) = document {
             app.set_document(document);
@@ -225,6 +222,8 @@ impl GuiApp {
         self.model = None;
         self.live = None;
         self.settings.control_points = None;
+        self.control_points_edited = false;
+        self.control_point_tool = None;
         self.display = DisplayMode::PreOperative;
         self.postoperative.reset();
         self.scene = Some(Arc::new(SceneMesh::new(&document.scan.mesh)));
@@ -262,6 +261,8 @@ impl GuiApp {
             distances.update(&document.landmarks);
         }
         self.settings.control_points = None;
+        self.control_points_edited = false;
+        self.control_point_tool = None;
         if let Some(model) = &mut self.model {
             model.stale = true;
         }
@@ -587,272 +588,6 @@ impl GuiApp {
                 }
             });
     }
-
-    fn viewport(&mut self, ui: &mut egui::Ui) {
-        let (rect, response) = ui.allocate_exact_size(ui.available_size(), Sense::click_and_drag());
-        self.viewport_rect = Some(rect);
-        let size = DVec2::new(f64::from(rect.width()), f64::from(rect.height()));
-        let local =
-            |pos: Pos2| DVec2::new(f64::from(pos.x - rect.min.x), f64::from(pos.y - rect.min.y));
-        let painter = ui.painter_at(rect);
-        let layers = self.layers();
-        let legend = self.legend_title();
-        // Landmarks are placed, shown and dragged on the pre-operative scan only.
-        let editing = self.shows_pre_operative();
-        let curves: Vec<Vec<DVec3>> = match &self.model {
-            Some(model) if self.show_curves && editing => {
-                vec![
-                    model.cut_curves.left.clone(),
-                    model.cut_curves.right.clone(),
-                ]
-            }
-            _ => Vec::new(),
-        };
-        let Some(document) = &mut self.document else {
-            painter.rect_filled(rect, 0.0, render::background());
-            painter.text(
-                rect.center(),
-                egui::Align2::CENTER_CENTER,
-                "Open a scan or the phantom (File menu), or drop a scan and its landmarks here",
-                egui::FontId::proportional(16.0),
-                Color32::GRAY,
-            );
-            return;
-        };
-
-        // Input: drags orbit, pan (right or middle button, or Shift) or move a marker;
-        // a click places a point; the wheel zooms.
-        let mut changed = false;
-        if response.drag_started() {
-            let shift = ui.input(|i| i.modifiers.shift);
-            let origin = ui.input(|i| i.pointer.press_origin());
-            self.drag = if response.dragged_by(PointerButton::Primary) && !shift {
-                let grabbed = origin
-                    .filter(|_| editing)
-                    .and_then(|origin| nearest_marker(document, &self.camera, local(origin), size));
-                Some(grabbed.map_or(Drag::Orbit, Drag::Point))
-            } else {
-                Some(Drag::Pan)
-            };
-        }
-        if response.dragged() {
-            let delta = response.drag_delta();
-            let delta = DVec2::new(f64::from(delta.x), f64::from(delta.y));
-            match &self.drag {
-                Some(Drag::Point(name)) => {
-                    if let Some(pointer) = response.interact_pointer_pos() {
-                        let ray = self.camera.ray(local(pointer), size);
-                        if let Some(point) = document.pick(ray.origin, ray.direction) {
-                            document.drag_to(name, point);
-                            changed = true;
-                        }
-                    }
-                }
-                Some(Drag::Orbit) => self.camera.orbit(delta),
-                Some(Drag::Pan) => self.camera.pan(delta, size.y),
-                None => {}
-            }
-        }
-        if response.drag_stopped() {
-            self.drag = None;
-        }
-        let mut placed = None;
-        if response.clicked()
-            && editing
-            && let Some(pointer) = response.interact_pointer_pos()
-        {
-            let ray = self.camera.ray(local(pointer), size);
-            match document.pick(ray.origin, ray.direction) {
-                Some(point) => {
-                    placed = document.place(point);
-                    changed |= placed.is_some();
-                }
-                None => self.status = Status::Info("No surface under the pointer.".into()),
-            }
-        }
-        if response.hovered() {
-            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-            if scroll != 0.0 {
-                self.camera
-                    .zoom((-f64::from(scroll) * ZOOM_PER_SCROLL).exp());
-            }
-        }
-
-        // Drawing: the shaded scans (GPU), then the cut curves and markers on top.
-        if self.gpu {
-            painter.add(egui_wgpu::Callback::new_paint_callback(
-                rect,
-                ViewportCallback {
-                    camera: self.camera,
-                    layers,
-                    size_points: size,
-                },
-            ));
-        } else {
-            painter.rect_filled(rect, 0.0, render::background());
-        }
-        let eye = self.camera.eye();
-        let on_screen = |point: DVec3| {
-            let pixel = self.camera.project(point, size)?;
-            Some(rect.min + egui::vec2(pixel.x as f32, pixel.y as f32))
-        };
-        for curve in &curves {
-            // A closed curve; segments whose ends are both in sight are drawn.
-            let shown: Vec<Option<Pos2>> = curve
-                .iter()
-                .map(|&p| {
-                    document
-                        .visible_from(eye, p, OCCLUSION_TOLERANCE_MM)
-                        .then(|| on_screen(p))
-                        .flatten()
-                })
-                .collect();
-            for k in 0..shown.len() {
-                if let (Some(a), Some(b)) = (shown[k], shown[(k + 1) % shown.len()]) {
-                    painter.line_segment([a, b], Stroke::new(CURVE_WIDTH, CURVE_COLOR));
-                }
-            }
-        }
-        let markers: Vec<(&str, DVec3)> = if editing {
-            document.landmarks.iter().collect()
-        } else {
-            Vec::new()
-        };
-        for (name, point) in markers {
-            let Some(at) = on_screen(point) else {
-                continue;
-            };
-            let visible = document.visible_from(eye, point, OCCLUSION_TOLERANCE_MM);
-            let selected = document.selected.as_deref() == Some(name);
-            let color = if selected {
-                SELECTED_COLOR
-            } else if LandmarkName::parse(name).is_some() {
-                PLACED_COLOR
-            } else {
-                EXTRA_COLOR
-            };
-            if visible {
-                painter.circle_filled(at, MARKER_RADIUS, color);
-                painter.circle_stroke(at, MARKER_RADIUS, Stroke::new(1.0, Color32::BLACK));
-            } else {
-                painter.circle_stroke(
-                    at,
-                    MARKER_RADIUS,
-                    Stroke::new(1.0, color.gamma_multiply(0.6)),
-                );
-            }
-            painter.text(
-                at + egui::vec2(MARKER_RADIUS + 2.0, -MARKER_RADIUS - 2.0),
-                egui::Align2::LEFT_BOTTOM,
-                name,
-                egui::FontId::proportional(13.0),
-                if visible {
-                    Color32::WHITE
-                } else {
-                    Color32::GRAY
-                },
-            );
-        }
-        if let Some(title) = legend {
-            deviation_legend(&painter, rect, title);
-        }
-        if !self.gpu {
-            painter.text(
-                rect.center_top() + egui::vec2(0.0, 12.0),
-                egui::Align2::CENTER_TOP,
-                "no GPU renderer: markers only",
-                egui::FontId::proportional(13.0),
-                Color32::GRAY,
-            );
-        }
-        if let Some(name) = placed {
-            let next = document
-                .placing()
-                .map_or(String::new(), |p| format!("; next: {}", p.name()));
-            self.status = Status::Info(format!("placed {name}{next}"));
-        }
-        if changed {
-            self.landmarks_changed();
-        }
-    }
-
-    /// The surface the viewport shows opaque in the current display mode (the
-    /// pre-operative scan until the one asked for exists).
-    fn shown(&self) -> Shown<'_> {
-        let frame = self.live.as_ref().and_then(|live| live.frame.as_ref());
-        match (self.display, frame, &self.postoperative.registered) {
-            (DisplayMode::Simulated | DisplayMode::Deviation, Some(frame), _) => {
-                Shown::Simulated(frame)
-            }
-            (DisplayMode::PostOperative, _, Some(registered)) => Shown::PostOperative(registered),
-            _ => Shown::PreOperative,
-        }
-    }
-
-    /// The meshes the viewport draws in the current display mode.
-    fn layers(&self) -> Vec<Layer> {
-        let Some(scene) = &self.scene else {
-            return Vec::new();
-        };
-        let opaque = |scene: &Arc<SceneMesh>| Layer {
-            scene: Arc::clone(scene),
-            style: LayerStyle::Opaque,
-        };
-        match self.shown() {
-            Shown::PreOperative => {
-                let mut layers = vec![opaque(scene)];
-                let frame = self.live.as_ref().and_then(|live| live.frame.as_ref());
-                if let (DisplayMode::Overlay, Some(frame)) = (self.display, frame) {
-                    layers.push(Layer {
-                        scene: Arc::clone(&frame.scene),
-                        style: LayerStyle::Translucent,
-                    });
-                }
-                layers
-            }
-            // The map of the settled prediction; the prediction itself until there is one.
-            Shown::Simulated(frame) => match self.simulated_deviation() {
-                Some(map) if self.display == DisplayMode::Deviation => vec![opaque(&map.scene)],
-                _ => vec![opaque(&frame.scene)],
-            },
-            Shown::PostOperative(registered) => match self.postoperative.deviation() {
-                Some((_, map)) => vec![opaque(&map.scene)],
-                None => vec![opaque(&registered.scene)],
-            },
-        }
-    }
-
-    /// The deviation map of the settled prediction, if there is one.
-    fn simulated_deviation(&self) -> Option<&DeviationMap> {
-        let settled = self.live.as_ref()?.settled.as_ref()?;
-        settled.deviation.as_ref().ok()
-    }
-
-    /// The title of the colour legend the viewport shows, if it shows a colour map.
-    fn legend_title(&self) -> Option<&'static str> {
-        match self.shown() {
-            Shown::Simulated(_) if self.display == DisplayMode::Deviation => self
-                .simulated_deviation()
-                .map(|_| DeviationReference::PreOperative.legend_title()),
-            Shown::PostOperative(_) => self
-                .postoperative
-                .deviation()
-                .map(|(reference, _)| reference.legend_title()),
-            _ => None,
-        }
-    }
-
-    /// Whether the pre-operative scan is drawn opaque (landmarks and cut curves are on it).
-    fn shows_pre_operative(&self) -> bool {
-        matches!(self.shown(), Shown::PreOperative)
-    }
-}
-
-/// The surface the viewport shows opaque.
-enum Shown<'a> {
-    PreOperative,
-    Simulated(&'a SimulatedFrame),
-    PostOperative(&'a RegisteredScan),
 }
 
 impl eframe::App for GuiApp {
@@ -889,100 +624,6 @@ fn move_key(direction: MoveDirection) -> Key {
         MoveDirection::Front => Key::PageUp,
         MoveDirection::Back => Key::PageDown,
     }
-}
-
-/// The visible placed point whose marker is within [`GRAB_RADIUS`] of `pixel`.
-fn nearest_marker(
-    document: &Document,
-    camera: &Camera,
-    pixel: DVec2,
-    size: DVec2,
-) -> Option<String> {
-    let eye = camera.eye();
-    document
-        .landmarks
-        .iter()
-        .filter_map(|(name, point)| {
-            let at = camera.project(point, size)?;
-            let distance = at.distance(pixel);
-            (distance <= f64::from(GRAB_RADIUS)
-                && document.visible_from(eye, point, OCCLUSION_TOLERANCE_MM))
-            .then(|| (distance, name.to_string()))
-        })
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, name)| name)
-}
-
-/// The colour legend of the deviation map (paper Fig. 3) in the viewport's lower left
-/// corner: the ramp of [`deviation_color`] sampled finely enough to be drawn exactly
-/// (it is linear in each channel between 0, 10 and 20 mm), its ticks, and the colour of
-/// vertices outside the overlap.
-fn deviation_legend(painter: &egui::Painter, viewport: Rect, title: &str) {
-    const WIDTH: f32 = 240.0;
-    const HEIGHT: f32 = 14.0;
-    const SAMPLES: usize = 40;
-    let font = egui::FontId::proportional(13.0);
-    let text_color = Color32::from_gray(230);
-    let color = |distance_mm: f64| {
-        let [r, g, b] = deviation_color(distance_mm);
-        Color32::from_rgb(r, g, b)
-    };
-    let origin = viewport.left_bottom() + egui::vec2(16.0, -64.0);
-    let box_rect = Rect::from_min_size(
-        origin - egui::vec2(8.0, 22.0),
-        egui::vec2(WIDTH + 130.0, 74.0),
-    );
-    painter.rect_filled(box_rect, 4.0, Color32::from_black_alpha(150));
-    painter.text(
-        origin - egui::vec2(0.0, 4.0),
-        egui::Align2::LEFT_BOTTOM,
-        title,
-        font.clone(),
-        text_color,
-    );
-    let mut ramp = egui::epaint::Mesh::default();
-    for k in 0..=SAMPLES {
-        let fraction = k as f32 / SAMPLES as f32;
-        let x = origin.x + fraction * WIDTH;
-        let c = color(f64::from(fraction) * DEVIATION_COLOR_MAX_MM);
-        ramp.colored_vertex(Pos2::new(x, origin.y), c);
-        ramp.colored_vertex(Pos2::new(x, origin.y + HEIGHT), c);
-        if k > 0 {
-            let i = 2 * k as u32;
-            ramp.add_triangle(i - 2, i - 1, i);
-            ramp.add_triangle(i - 1, i + 1, i);
-        }
-    }
-    painter.add(ramp);
-    for (fraction, label) in [(0.0, "0"), (0.5, "10"), (1.0, "≥ 20")] {
-        let x = origin.x + fraction * WIDTH;
-        painter.line_segment(
-            [
-                Pos2::new(x, origin.y + HEIGHT),
-                Pos2::new(x, origin.y + HEIGHT + 4.0),
-            ],
-            Stroke::new(1.0, text_color),
-        );
-        painter.text(
-            Pos2::new(x, origin.y + HEIGHT + 5.0),
-            egui::Align2::CENTER_TOP,
-            label,
-            font.clone(),
-            text_color,
-        );
-    }
-    let outside = Rect::from_min_size(
-        Pos2::new(origin.x + WIDTH + 22.0, origin.y),
-        egui::vec2(HEIGHT, HEIGHT),
-    );
-    painter.rect_filled(outside, 0.0, color(f64::NAN));
-    painter.text(
-        outside.right_center() + egui::vec2(6.0, 0.0),
-        egui::Align2::LEFT_CENTER,
-        "outside\noverlap",
-        font,
-        text_color,
-    );
 }
 
 fn format_point(p: DVec3) -> String {

@@ -11,6 +11,8 @@
 
 pub mod app;
 pub mod camera;
+pub mod carried;
+pub mod control_points;
 pub mod deviation;
 pub mod document;
 mod hints;

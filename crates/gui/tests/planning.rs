@@ -14,6 +14,9 @@ use plan::simulate::SolveState;
 use plan::{MarkedScan, PhantomParams};
 use std::time::{Duration, Instant};
 
+mod common;
+use common::{click_at, drag, screen_position};
+
 const ELEMENTS: f64 = 6_000.0;
 /// Longest a build or a solve may take here (2 cores shared with other work).
 const PATIENCE: Duration = Duration::from_secs(600);
@@ -441,6 +444,83 @@ fn the_report_is_written_from_the_window() {
         assert!(page.contains(&placed.spec), "{}", placed.spec);
     }
     assert_eq!(result["solver"]["converged"], true);
+}
+
+#[test]
+fn control_points_are_dragged_and_inserted_on_the_surface_and_the_rebuild_cuts_along_them() {
+    let mut harness = with_model();
+    let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
+    let scan = &marked.scan;
+    let volume_before = harness.state().model().unwrap().breast_volume_ml;
+    let points = harness.state().settings().control_points.clone().unwrap();
+    // The defaults: PSMFm, PSMF, PSMFl, a lateral, the upper and a medial point.
+    assert_eq!((points.left.len(), points.right.len()), (6, 6));
+    harness.get_by_label_contains("Control points: 6 left, 6 right");
+    // They are edited on the scan as loaded (the build showed the simulated one).
+    click(&mut harness, "Pre-operative");
+
+    // Drag the left upper point up the screen by what 15 mm up would be.
+    let upper = points.left[4];
+    let (from, _, _) = screen_position(harness.state(), upper);
+    let (to, _, _) = screen_position(harness.state(), upper + 15.0 * marked.frame.up());
+    drag(&mut harness, from, to);
+    let moved = harness
+        .state()
+        .settings()
+        .control_points
+        .as_ref()
+        .unwrap()
+        .left[4];
+    assert!(
+        scan.index.closest_point(moved).distance < 1e-6,
+        "{moved} off the surface"
+    );
+    // The surface there leans back towards the clavicle, so the point lands within a few
+    // mm of 15 mm from where it was, and higher.
+    let distance = moved.distance(upper);
+    assert!((distance - 15.0).abs() < 4.0, "moved {distance} mm");
+    assert!((moved - upper).dot(marked.frame.up()) > 10.0, "{moved}");
+    harness.get_by_label_contains("The control points changed since the model was built");
+
+    // Insert a point halfway between the (moved) upper and the medial point.
+    click(&mut harness, "Insert point");
+    let edited = harness.state().settings().control_points.clone().unwrap();
+    let spline = anatomy::breast::ClosedSpline::through(&edited.left).unwrap();
+    let between = scan.index.closest_point(spline.evaluate(4, 0.5)).point;
+    let (at, _, _) = screen_position(harness.state(), between);
+    click_at(&mut harness, at);
+    let edited = harness.state().settings().control_points.clone().unwrap();
+    assert_eq!((edited.left.len(), edited.right.len()), (7, 6));
+    let inserted = edited.left[5];
+    assert!(inserted.distance(between) < 1.0, "{inserted} vs {between}");
+    assert_eq!(edited.left[4], moved);
+
+    // The rebuild cuts along them: its left curve passes through both points (to the
+    // snapping of the cut onto scan vertices, a fraction of a triangle), and the left
+    // breast holds more with its upper border moved up.
+    click(&mut harness, "Rebuild model");
+    assert!(harness.state().is_building());
+    wait_until(&mut harness, "the rebuilt model", |app| !app.is_building());
+    let app = harness.state();
+    let model = app.model().unwrap();
+    for point in [moved, inserted] {
+        let nearest = (model.cut_curves.left.iter())
+            .map(|p| p.distance(point))
+            .fold(f64::INFINITY, f64::min);
+        assert!(nearest < 1.5, "the curve passes {nearest} mm from {point}");
+    }
+    // (Little more: the chest above the breast is a thin layer over the fill-in.) The
+    // right side, its points unchanged, is cut as before (the first build's points as
+    // derived, the rebuild's as snapped onto the scan: a tenth of a millilitre apart).
+    assert!(
+        model.breast_volume_ml.left > volume_before.left + 0.5,
+        "{} ml, before {} ml",
+        model.breast_volume_ml.left,
+        volume_before.left
+    );
+    assert!((model.breast_volume_ml.right - volume_before.right).abs() < 0.5);
+    // The planning case holds the edited points.
+    assert_eq!(app.case().unwrap().control_points.unwrap().left.len(), 7);
 }
 
 /// Types `text` into the toolbar's path field.

@@ -2,7 +2,9 @@
 //! progress, volumes, cut curves), the implant panel, the simulation's indicator and
 //! display modes, the measurements and their export, and planning cases.
 
+use super::ControlPointTool;
 use super::{ERROR_COLOR, GuiApp, PLACED_COLOR, Status};
+use crate::carried::{SurfaceAnchor, anchors};
 use crate::document::Document;
 use crate::implant_plan::{Editing, ImplantPlan, MoveDirection, Source};
 use crate::live_simulation::{
@@ -92,6 +94,8 @@ pub struct ModelFigures {
     pub quadrant_volume_ml: PerSide<QuadrantVolumes>,
     /// Each breast's cut curve (closed, mm, file frame).
     pub cut_curves: PerSide<Vec<DVec3>>,
+    /// The cut curves' points on the scan, to carry them onto simulated frames.
+    pub cut_curve_anchors: PerSide<Vec<SurfaceAnchor>>,
     /// Tetrahedra of the finest level and number of levels.
     pub elements: usize,
     pub levels: usize,
@@ -103,18 +107,22 @@ pub struct ModelFigures {
 impl ModelFigures {
     fn of(session: &Session, build_time: Duration) -> ModelFigures {
         let breasts = &session.model.breasts;
+        let cut_curves: PerSide<Vec<DVec3>> = PerSide::from_fn(|side| {
+            breasts
+                .breast(side)
+                .curve
+                .points
+                .iter()
+                .map(|p| p.position)
+                .collect()
+        });
         ModelFigures {
             breast_volume_ml: PerSide::from_fn(|side| breasts.breast(side).volume_ml),
             quadrant_volume_ml: PerSide::from_fn(|side| breasts.breast(side).quadrant_volume_ml),
-            cut_curves: PerSide::from_fn(|side| {
-                breasts
-                    .breast(side)
-                    .curve
-                    .points
-                    .iter()
-                    .map(|p| p.position)
-                    .collect()
+            cut_curve_anchors: PerSide::from_fn(|side| {
+                anchors(&session.marked.scan.index, cut_curves.get(side))
             }),
+            cut_curves,
             elements: session.model.levels.first().map_or(0, |l| l.elements),
             levels: session.model.levels.len(),
             build_time,
@@ -164,6 +172,9 @@ impl GuiApp {
             Err(error) => return self.error_status(&error),
         };
         self.cancel_build();
+        // The build cuts along the control points as they are now.
+        self.control_points_edited = false;
+        self.control_point_tool = None;
         let wake = self.waker();
         self.build = Some(ModelBuild::start(
             marked,
@@ -441,6 +452,56 @@ impl GuiApp {
                 }
             });
         ui.checkbox(&mut self.show_curves, "Show cut curves");
+        if let Some(points) = &self.settings.control_points {
+            ui.label(format!(
+                "Control points: {} left, {} right (squares on the cut curves: drag them along \
+                 the surface)",
+                points.left.len(),
+                points.right.len()
+            ));
+        }
+        ui.horizontal(|ui| {
+            for (tool, label, hint) in [
+                (
+                    ControlPointTool::Insert,
+                    "Insert point",
+                    "then click on the surface near a cut curve",
+                ),
+                (
+                    ControlPointTool::Remove,
+                    "Remove point",
+                    "then click on a control point (three stay at least)",
+                ),
+            ] {
+                let active = self.control_point_tool == Some(tool);
+                if ui
+                    .add_enabled(
+                        self.settings.control_points.is_some(),
+                        egui::Button::selectable(active, label),
+                    )
+                    .on_hover_text(hint)
+                    .clicked()
+                {
+                    self.control_point_tool = (!active).then_some(tool);
+                }
+            }
+            if ui
+                .button("Default points")
+                .on_hover_text("the control points derived from the landmarks, at the next build")
+                .clicked()
+            {
+                self.settings.control_points = None;
+                self.control_points_edited = true;
+                self.control_point_tool = None;
+            }
+        });
+        if self.control_points_edited {
+            ui.colored_label(
+                RUNNING_COLOR,
+                "The control points changed since the model was built: rebuild it to cut along \
+                 them.",
+            );
+        }
         ui.weak(format!(
             "{} tetrahedra in {} levels, built in {:.1} s",
             model.elements,
