@@ -29,8 +29,8 @@ use std::sync::Arc;
 
 pub use planning::{DisplayMode, ModelFigures, ModelSettings};
 pub use postoperative::{DeviationReference, PostOperative};
-pub use viewport::ControlPointTool;
 use viewport::Drag;
+pub use viewport::{ControlPointTool, Overlay};
 
 /// Markers closer than this to the pointer are grabbed by a drag (points).
 const GRAB_RADIUS: f32 = 10.0;
@@ -79,6 +79,8 @@ pub struct GuiApp {
     implant_error: Option<String>,
     display: DisplayMode,
     show_curves: bool,
+    /// Whether the implants' footprint outlines are drawn on the scan.
+    show_outlines: bool,
     export_folder: String,
     /// The window's context once it has drawn a frame (workers wake the window with it).
     ctx: Option<egui::Context>,
@@ -124,6 +126,7 @@ impl GuiApp {
             implant_error: None,
             display: DisplayMode::PreOperative,
             show_curves: true,
+            show_outlines: false,
             export_folder: String::new(),
             ctx: None,
             script: None,

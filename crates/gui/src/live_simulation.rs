@@ -10,6 +10,7 @@
 //! settled on a frame, a background job prepares that frame's simulated scan for queries
 //! and its deviation from the pre-operative scan ([`SettledSimulation`]).
 
+use crate::carried::{SurfaceAnchor, anchors};
 use crate::deviation::DeviationMap;
 use crate::job::Job;
 use crate::render::SceneMesh;
@@ -27,6 +28,9 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
+
+/// Points of an implant's footprint outline drawn on the scan.
+const OUTLINE_SEGMENTS: usize = 64;
 
 /// The implants wanted on both sides, and whether the gravity correction follows.
 #[derive(Debug, Clone, PartialEq)]
@@ -85,6 +89,9 @@ pub struct SideState {
     pub placed: Option<ImplantSummary>,
     /// Why the last request for this side was refused (the session kept `placed`).
     pub error: Option<String>,
+    /// The outline of the implant's footprint on the scan as loaded, to be carried onto
+    /// the simulated frames (empty without an implant).
+    pub outline: Vec<SurfaceAnchor>,
 }
 
 /// The solver's figures after the latest cycle.
@@ -500,6 +507,13 @@ impl<W: Fn()> Worker<W> {
             }
         }
         self.applied = Some(set.clone());
+        for side in Side::BOTH {
+            let outline = self
+                .session
+                .implant_outline_on_scan(side, OUTLINE_SEGMENTS)
+                .unwrap_or_default();
+            self.sides.get_mut(side).outline = anchors(&self.session.marked.scan.index, &outline);
+        }
         let restart = changed || gravity_changed || self.frame == 0;
         if restart {
             self.running = true;

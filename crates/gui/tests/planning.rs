@@ -523,6 +523,84 @@ fn control_points_are_dragged_and_inserted_on_the_surface_and_the_rebuild_cuts_a
     assert_eq!(app.case().unwrap().control_points.unwrap().left.len(), 7);
 }
 
+#[test]
+fn landmarks_cut_curves_and_implant_outlines_are_drawn_on_the_shown_surface() {
+    let mut harness = with_implants();
+    click(&mut harness, "Show implant outlines");
+    wait_until(&mut harness, "the prepared simulated scan", deviation_ready);
+    let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
+    let frame = marked.frame;
+    let app = harness.state();
+    assert_eq!(app.display(), gui::app::DisplayMode::Simulated);
+    let live = app.live().unwrap();
+    let simulated = &live.settled.as_ref().unwrap().scan;
+    let on_simulated = |p: DVec3| simulated.index.closest_point(p).distance;
+
+    // On the simulated scan: the landmarks moved with the tissue (the nipples forward),
+    // the cut curves and the outlines carried with it, all on its surface.
+    let overlay = app.overlay();
+    assert!(!overlay.editable);
+    assert_eq!(overlay.landmarks.len(), 12);
+    for (name, point) in &overlay.landmarks {
+        assert!(on_simulated(*point) < 1e-6, "{name} {point}");
+    }
+    let nipple = |overlay: &gui::app::Overlay| {
+        overlay
+            .landmarks
+            .iter()
+            .find(|(name, _)| name == "Pnl")
+            .unwrap()
+            .1
+    };
+    let forward =
+        (nipple(&overlay) - marked.landmarks.get(anatomy::LandmarkName::Pnl)).dot(frame.anterior());
+    assert!(forward > 5.0, "the nipple moved {forward} mm forward");
+    assert_eq!(overlay.curves.len(), 2);
+    assert_eq!(overlay.outlines.len(), 2);
+    for point in overlay.curves.iter().chain(&overlay.outlines).flatten() {
+        assert!(on_simulated(*point) < 1e-6, "{point}");
+    }
+
+    // On the scan as loaded: the outlines on its skin, each around its breast's nipple
+    // and about as wide as the implant (the skin lies in front of the bed, so a little
+    // wider), seen from the front.
+    let diameter = live.sides.left.placed.as_ref().unwrap().width_mm;
+    click(&mut harness, "Pre-operative");
+    let overlay = harness.state().overlay();
+    assert!(overlay.editable);
+    for (outline, nipple) in overlay.outlines.iter().zip([
+        marked.landmarks.get(anatomy::LandmarkName::Pnl),
+        marked.landmarks.get(anatomy::LandmarkName::Pnr),
+    ]) {
+        assert_eq!(outline.len(), 64);
+        for point in outline {
+            assert!(
+                marked.scan.index.closest_point(*point).distance < 1e-6,
+                "{point}"
+            );
+        }
+        let across = |axis: DVec3| {
+            let values = outline.iter().map(|p| (*p - nipple).dot(axis));
+            let (low, high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(v), h.max(v))
+            });
+            (low, high)
+        };
+        for axis in [frame.left(), frame.up()] {
+            let (low, high) = across(axis);
+            assert!(
+                low < 0.0 && high > 0.0,
+                "the nipple is not inside: {low} {high}"
+            );
+            let width = high - low;
+            assert!(
+                width > 0.85 * diameter && width < 1.4 * diameter,
+                "{width} mm across for a {diameter} mm implant"
+            );
+        }
+    }
+}
+
 /// Types `text` into the toolbar's path field.
 fn type_path(harness: &mut Harness<'_, GuiApp>, text: &str) {
     // The path field is the first text field (the toolbar is drawn first).

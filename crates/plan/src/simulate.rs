@@ -210,6 +210,30 @@ impl Session {
         Ok(ImplantSummary::new(request, placed, catalog_entry.as_ref()))
     }
 
+    /// The outline of one side's implant footprint seen on the skin (mm, file frame):
+    /// `segments` points of the footprint's boundary laid on the implant bed, each carried
+    /// along the bed's normal to the scan as loaded (the closest scan point where the
+    /// normal misses it). `None` without an implant on that side.
+    pub fn implant_outline_on_scan(&self, side: Side, segments: usize) -> Option<Vec<DVec3>> {
+        /// How far in front of the bed the skin may be (mm): beyond any breast's depth.
+        const SKIN_SEARCH_MM: f64 = 300.0;
+        let placed = self.simulation.implant(side)?;
+        let bed = self.simulation.bed(side);
+        let index = &self.marked.scan.index;
+        let outline = placed
+            .shape
+            .footprint_outline_mm(segments)
+            .into_iter()
+            .filter_map(|local| bed.at(placed.anchor.uv_of(local)))
+            .map(|at| {
+                index
+                    .cast_ray(at.position, at.normal, SKIN_SEARCH_MM)
+                    .map_or_else(|| index.closest_point(at.position).point, |hit| hit.point)
+            })
+            .collect();
+        Some(outline)
+    }
+
     /// Removes the implant of one side.
     pub fn remove_implant(&mut self, side: Side) {
         self.simulation.remove_implant(side);

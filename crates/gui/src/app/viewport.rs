@@ -66,15 +66,19 @@ pub(super) enum Shown<'a> {
     PostOperative(&'a RegisteredScan),
 }
 
-/// What is drawn over the shown surface (mm, on it).
-#[derive(Default)]
-struct Overlay {
-    curves: Vec<Vec<DVec3>>,
-    control_points: Vec<(Side, usize, DVec3)>,
-    landmarks: Vec<(String, DVec3)>,
-    outlines: Vec<Vec<DVec3>>,
+/// What the viewport draws over the shown surface (mm, on it).
+#[derive(Debug, Clone, Default)]
+pub struct Overlay {
+    /// The cut curves (closed).
+    pub curves: Vec<Vec<DVec3>>,
+    /// The cut curves' control points: side, index and position.
+    pub control_points: Vec<(Side, usize, DVec3)>,
+    /// The landmarks and extra points by name.
+    pub landmarks: Vec<(String, DVec3)>,
+    /// The implants' footprint outlines (closed).
+    pub outlines: Vec<Vec<DVec3>>,
     /// Landmarks and control points can be placed and moved (the pre-operative scan).
-    editable: bool,
+    pub editable: bool,
 }
 
 impl GuiApp {
@@ -367,12 +371,25 @@ impl GuiApp {
         }
     }
 
-    /// What is drawn over the shown surface.
-    fn overlay(&self) -> Overlay {
+    /// What the viewport draws over the shown surface.
+    pub fn overlay(&self) -> Overlay {
         let Some(document) = &self.document else {
             return Overlay::default();
         };
         let model = self.model.as_ref().filter(|_| self.show_curves);
+        let triangles = &document.scan.mesh.triangles;
+        // The implant outlines on a scan whose vertices are at `positions`.
+        let outlines = |positions: &[DVec3]| -> Vec<Vec<DVec3>> {
+            let Some(live) = self.live.as_ref().filter(|_| self.show_outlines) else {
+                return Vec::new();
+            };
+            Side::BOTH
+                .iter()
+                .map(|&side| &live.sides.get(side).outline)
+                .filter(|outline| !outline.is_empty())
+                .map(|outline| carried(outline, triangles, positions))
+                .collect()
+        };
         match self.shown() {
             Shown::PreOperative => {
                 let control_points = match (&self.settings.control_points, model) {
@@ -401,12 +418,11 @@ impl GuiApp {
                     curves,
                     control_points,
                     landmarks: owned(document.landmarks.iter()),
-                    outlines: Vec::new(),
+                    outlines: outlines(&document.scan.mesh.positions),
                     editable: true,
                 }
             }
             Shown::Simulated(frame) => {
-                let triangles = &document.scan.mesh.triangles;
                 let curves = model.map_or_else(Vec::new, |model| {
                     Side::BOTH
                         .iter()
@@ -422,6 +438,7 @@ impl GuiApp {
                 Overlay {
                     curves,
                     landmarks: owned(frame.landmarks.iter()),
+                    outlines: outlines(&frame.positions),
                     ..Overlay::default()
                 }
             }
