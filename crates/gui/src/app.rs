@@ -4,6 +4,7 @@
 //! [`Camera`], [`LiveDistances`], [`ModelBuild`], [`LiveSimulation`] and the
 //! `plan`/`mesh`/`anatomy` functions behind them.
 
+mod dialogs;
 mod planning;
 mod postoperative;
 mod scripted;
@@ -27,6 +28,7 @@ use plan::catalog::Catalog;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+pub use dialogs::FileChoice;
 pub use planning::{DisplayMode, ModelFigures, ModelSettings};
 pub use postoperative::{DeviationReference, PostOperative};
 use viewport::Drag;
@@ -91,6 +93,8 @@ pub struct GuiApp {
     control_points_edited: bool,
     /// What a click does to the control points, if anything.
     control_point_tool: Option<ControlPointTool>,
+    /// The desktop's file dialog, while it is open.
+    dialog: Option<dialogs::OpenDialog>,
 }
 
 impl GuiApp {
@@ -133,6 +137,7 @@ impl GuiApp {
             postoperative: PostOperative::default(),
             control_points_edited: false,
             control_point_tool: None,
+            dialog: None,
         };
         if let Some(document) = document {
             app.set_document(document);
@@ -172,6 +177,7 @@ impl GuiApp {
         self.advance_script(ui.ctx());
         self.update_simulation();
         self.update_postoperative();
+        self.poll_dialog();
         if let (Some(document), None) = (&self.document, &self.distances) {
             let ctx = ui.ctx().clone();
             let mut distances =
@@ -406,6 +412,14 @@ impl GuiApp {
                 let path = PathBuf::from(self.path_text.trim());
                 self.open(&path);
             }
+            let asking = self.dialog.is_some();
+            if ui
+                .add_enabled(!asking, egui::Button::new("Browse…"))
+                .on_hover_text("choose the file to open in the desktop's file dialog")
+                .clicked()
+            {
+                self.ask_for_file(FileChoice::Open);
+            }
             let has_document = self.document.is_some();
             if ui
                 .add_enabled(has_document, egui::Button::new("Save landmarks"))
@@ -419,6 +433,13 @@ impl GuiApp {
                 .clicked()
             {
                 self.save_case();
+            }
+            if ui
+                .add_enabled(has_document && !asking, egui::Button::new("Save case as…"))
+                .on_hover_text("choose where in the desktop's file dialog")
+                .clicked()
+            {
+                self.ask_for_file(FileChoice::SaveCase);
             }
             ui.separator();
             for view in StandardView::ALL {

@@ -272,3 +272,29 @@ fn landmarks_placed_in_the_window_are_saved_in_the_guide_format() {
         assert!(a.distance(b) < 1e-9, "{name}: {a} vs {b}");
     }
 }
+
+#[test]
+fn without_a_file_chooser_portal_browse_says_to_type_the_path() {
+    // Only where no real dialog can open: no session bus and no display (CI, a terminal).
+    let desktop = ["DBUS_SESSION_BUS_ADDRESS", "DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|name| std::env::var_os(name).is_some());
+    if desktop {
+        eprintln!("skipped: a desktop session here could open a real file dialog");
+        return;
+    }
+    let mut harness = harness(GuiApp::new(None, None));
+    settle(&mut harness);
+    harness.get_by_label("Browse…").click();
+    settle(&mut harness);
+    let start = std::time::Instant::now();
+    while harness.state().is_asking_for_file() {
+        assert!(start.elapsed().as_secs() < 60, "the dialog never answered");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        harness.step();
+    }
+    settle(&mut harness);
+    harness.get_by_label_contains("type the path in the field instead");
+    assert!(harness.state().document().is_none());
+    assert!(harness.state().error().is_none());
+}

@@ -2,7 +2,7 @@
 //! its registration onto the planned scan and its deviation map from the pre-operative or
 //! the simulated surface, each on a background job, and the panel that drives them.
 
-use super::{ERROR_COLOR, GuiApp, PLACED_COLOR};
+use super::{ERROR_COLOR, FileChoice, GuiApp, PLACED_COLOR};
 use crate::deviation::DeviationMap;
 use crate::job::Job;
 use crate::registration::RegisteredScan;
@@ -189,29 +189,44 @@ impl GuiApp {
             return;
         }
         let postoperative = &mut self.postoperative;
+        let asking = self.dialog.is_some();
+        let mut browse = None;
         egui::Grid::new("post-operative files").show(ui, |ui| {
-            for (label, text, hint) in [
+            for (label, text, hint, choice) in [
                 (
                     "Scan file",
                     &mut postoperative.scan_text,
                     "post-operative scan .ply / .obj / .stl",
+                    FileChoice::PostoperativeScan,
                 ),
                 (
                     "Landmark file",
                     &mut postoperative.landmarks_text,
                     "its landmarks .json",
+                    FileChoice::PostoperativeLandmarks,
                 ),
             ] {
                 let label = ui.label(label);
                 ui.add(
                     egui::TextEdit::singleline(text)
                         .hint_text(hint)
-                        .desired_width(220.0),
+                        .desired_width(190.0),
                 )
                 .labelled_by(label.id);
+                if ui
+                    .add_enabled(!asking, egui::Button::new("…"))
+                    .on_hover_text("choose in the desktop's file dialog")
+                    .clicked()
+                {
+                    browse = Some(choice);
+                }
                 ui.end_row();
             }
         });
+        if let Some(choice) = browse {
+            self.ask_for_file(choice);
+        }
+        let postoperative = &mut self.postoperative;
         let busy = postoperative.registering.is_some();
         let mut register = false;
         ui.horizontal(|ui| {
