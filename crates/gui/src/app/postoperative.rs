@@ -73,6 +73,16 @@ impl PostOperative {
         self.comparing.is_some()
     }
 
+    /// Why the latest deviation map could not be computed, if it could not.
+    pub fn deviation_failure(&self) -> Option<&str> {
+        self.deviation
+            .as_ref()?
+            .1
+            .as_ref()
+            .err()
+            .map(String::as_str)
+    }
+
     /// The latest deviation map (perhaps of an earlier reference while the current one
     /// is computed), with the reference it was computed against.
     pub fn deviation(&self) -> Option<(DeviationReference, &DeviationMap)> {
@@ -88,7 +98,7 @@ impl GuiApp {
     }
 
     /// Starts registering the post-operative scan typed in the panel onto the open scan.
-    fn start_registration(&mut self) {
+    pub(super) fn start_registration(&mut self) {
         let Some(document) = &self.document else {
             return;
         };
@@ -191,26 +201,26 @@ impl GuiApp {
         let postoperative = &mut self.postoperative;
         let asking = self.dialog.is_some();
         let mut browse = None;
-        egui::Grid::new("post-operative files").show(ui, |ui| {
-            for (label, text, hint, choice) in [
-                (
-                    "Scan file",
-                    &mut postoperative.scan_text,
-                    "post-operative scan .ply / .obj / .stl",
-                    FileChoice::PostoperativeScan,
-                ),
-                (
-                    "Landmark file",
-                    &mut postoperative.landmarks_text,
-                    "its landmarks .json",
-                    FileChoice::PostoperativeLandmarks,
-                ),
-            ] {
-                let label = ui.label(label);
+        for (label, text, hint, choice) in [
+            (
+                "Scan file",
+                &mut postoperative.scan_text,
+                "post-operative scan .ply / .obj / .stl",
+                FileChoice::PostoperativeScan,
+            ),
+            (
+                "Landmark file",
+                &mut postoperative.landmarks_text,
+                "its landmarks .json",
+                FileChoice::PostoperativeLandmarks,
+            ),
+        ] {
+            let label = ui.label(label);
+            ui.horizontal(|ui| {
                 ui.add(
                     egui::TextEdit::singleline(text)
                         .hint_text(hint)
-                        .desired_width(190.0),
+                        .desired_width(230.0),
                 )
                 .labelled_by(label.id);
                 if ui
@@ -220,9 +230,8 @@ impl GuiApp {
                 {
                     browse = Some(choice);
                 }
-                ui.end_row();
-            }
-        });
+            });
+        }
         if let Some(choice) = browse {
             self.ask_for_file(choice);
         }

@@ -206,6 +206,26 @@ impl GuiApp {
                 }
                 Some(_) => Step::Pending,
             },
+            Action::Register { scan, landmarks } => {
+                if first {
+                    self.postoperative.scan_text = scan.display().to_string();
+                    self.postoperative.landmarks_text = landmarks.display().to_string();
+                    self.start_registration();
+                }
+                let postoperative = &self.postoperative;
+                match self.error() {
+                    Some(error) => Step::Failed(error.to_string()),
+                    None if postoperative.is_registering() || postoperative.is_comparing() => {
+                        Step::Pending
+                    }
+                    None if postoperative.deviation().is_some() => Step::Done,
+                    None if let Some(failure) = postoperative.deviation_failure() => {
+                        Step::Failed(failure.to_string())
+                    }
+                    None if postoperative.registered.is_some() => Step::Pending,
+                    None => Step::Failed("the scan was not registered".into()),
+                }
+            }
             Action::Display(mode) => {
                 self.display = *mode;
                 Step::Done
