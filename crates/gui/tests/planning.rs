@@ -444,6 +444,22 @@ fn the_report_is_written_from_the_window() {
         assert!(page.contains(&placed.spec), "{}", placed.spec);
     }
     assert_eq!(result["solver"]["converged"], true);
+
+    // A folder that cannot be made: the panel says why, the window goes on.
+    harness
+        .get_by_role_and_label(Role::TextInput, "Folder")
+        .focus();
+    harness.step();
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    harness
+        .get_by_role_and_label(Role::TextInput, "Folder")
+        .type_text("/proc/mammaplan-report");
+    harness.step();
+    click(&mut harness, "Write report");
+    wait_until(&mut harness, "the failed report", |app| {
+        !app.live().unwrap().is_writing_report()
+    });
+    harness.get_by_label_contains("The report failed: writing the report's files into /proc");
 }
 
 #[test]
