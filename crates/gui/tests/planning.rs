@@ -537,6 +537,17 @@ fn control_points_are_dragged_and_inserted_on_the_surface_and_the_rebuild_cuts_a
     assert!((model.breast_volume_ml.right - volume_before.right).abs() < 0.5);
     // The planning case holds the edited points.
     assert_eq!(app.case().unwrap().control_points.unwrap().left.len(), 7);
+
+    // Remove point, then a click on the inserted point: it goes, the others stay.
+    click(&mut harness, "Pre-operative");
+    click(&mut harness, "Remove point");
+    let (at, _, _) = screen_position(harness.state(), inserted);
+    click_at(&mut harness, at);
+    let edited = harness.state().settings().control_points.clone().unwrap();
+    assert_eq!(edited.left.len(), 6);
+    assert!(!edited.left.contains(&inserted));
+    assert_eq!(edited.left[4], moved);
+    harness.get_by_label_contains("The control points changed since the model was built");
 }
 
 #[test]
