@@ -4,8 +4,11 @@
 //! [`Camera`], [`LiveDistances`], [`ModelBuild`], [`LiveSimulation`] and the
 //! `plan`/`mesh`/`anatomy` functions behind them.
 
+mod dialogs;
 mod planning;
+mod postoperative;
 mod scripted;
+mod viewport;
 
 use crate::camera::{Camera, StandardView};
 use crate::document::{Document, Placing};
@@ -14,18 +17,22 @@ use crate::implant_plan::{ImplantPlan, MoveDirection};
 use crate::live_distances::{LiveDistances, Table};
 use crate::live_simulation::LiveSimulation;
 use crate::model_build::ModelBuild;
-use crate::render::{self, Layer, LayerStyle, SceneMesh, ViewportCallback};
+use crate::render::{self, SceneMesh};
 use anatomy::LandmarkName;
 use anatomy::measure::clinical_distances;
-use eframe::egui::{self, Color32, Key, PointerButton, Pos2, Rect, Sense, Stroke};
+use eframe::egui::{self, Color32, Key, Rect};
 use eframe::egui_wgpu;
-use glam::{DMat3, DVec2, DVec3};
+use glam::{DMat3, DVec3};
 use plan::case::PlanningCase;
 use plan::catalog::Catalog;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+pub use dialogs::FileChoice;
 pub use planning::{DisplayMode, ModelFigures, ModelSettings};
+pub use postoperative::{DeviationReference, PostOperative};
+use viewport::Drag;
+pub use viewport::{ControlPointTool, Overlay};
 
 /// Markers closer than this to the pointer are grabbed by a drag (points).
 const GRAB_RADIUS: f32 = 10.0;
@@ -47,15 +54,6 @@ const CURVE_WIDTH: f32 = 2.0;
 enum Status {
     Info(String),
     Error(String),
-}
-
-/// What a drag in the viewport does.
-#[derive(Debug, Clone, PartialEq)]
-enum Drag {
-    /// Moves a placed point along the surface.
-    Point(String),
-    Orbit,
-    Pan,
 }
 
 /// The planning application.
@@ -83,10 +81,20 @@ pub struct GuiApp {
     implant_error: Option<String>,
     display: DisplayMode,
     show_curves: bool,
+    /// Whether the implants' footprint outlines are drawn on the scan.
+    show_outlines: bool,
     export_folder: String,
     /// The window's context once it has drawn a frame (workers wake the window with it).
     ctx: Option<egui::Context>,
     script: Option<scripted::ScriptRun>,
+    /// A post-operative scan registered onto this one.
+    postoperative: PostOperative,
+    /// The control points changed since the model was built from them.
+    control_points_edited: bool,
+    /// What a click does to the control points, if anything.
+    control_point_tool: Option<ControlPointTool>,
+    /// The desktop's file dialog, while it is open.
+    dialog: Option<dialogs::OpenDialog>,
 }
 
 impl GuiApp {
@@ -122,9 +130,14 @@ impl GuiApp {
             implant_error: None,
             display: DisplayMode::PreOperative,
             show_curves: true,
+            show_outlines: false,
             export_folder: String::new(),
             ctx: None,
             script: None,
+            postoperative: PostOperative::default(),
+            control_points_edited: false,
+            control_point_tool: None,
+            dialog: None,
         };
         if let Some(document) = document {
             app.set_document(document);
@@ -163,6 +176,8 @@ impl GuiApp {
         self.poll_build(ui.ctx());
         self.advance_script(ui.ctx());
         self.update_simulation();
+        self.update_postoperative();
+        self.poll_dialog();
         if let (Some(document), None) = (&self.document, &self.distances) {
             let ctx = ui.ctx().clone();
             let mut distances =
@@ -185,6 +200,7 @@ impl GuiApp {
                 egui::ScrollArea::vertical().show(ui, |ui| {
                     section(ui, "Landmarks", |ui| self.landmark_panel(ui));
                     section(ui, "Breast model", |ui| self.model_panel(ui));
+                    section(ui, "Post-operative scan", |ui| self.postoperative_panel(ui));
                 });
             });
         egui::Panel::right("planning")
@@ -215,7 +231,10 @@ impl GuiApp {
         self.model = None;
         self.live = None;
         self.settings.control_points = None;
+        self.control_points_edited = false;
+        self.control_point_tool = None;
         self.display = DisplayMode::PreOperative;
+        self.postoperative.reset();
         self.scene = Some(Arc::new(SceneMesh::new(&document.scan.mesh)));
         self.info(format!(
             "{}: {} vertices, {} triangles",
@@ -251,6 +270,8 @@ impl GuiApp {
             distances.update(&document.landmarks);
         }
         self.settings.control_points = None;
+        self.control_points_edited = false;
+        self.control_point_tool = None;
         if let Some(model) = &mut self.model {
             model.stale = true;
         }
@@ -391,6 +412,14 @@ impl GuiApp {
                 let path = PathBuf::from(self.path_text.trim());
                 self.open(&path);
             }
+            let asking = self.dialog.is_some();
+            if ui
+                .add_enabled(!asking, egui::Button::new("Browse…"))
+                .on_hover_text("choose the file to open in the desktop's file dialog")
+                .clicked()
+            {
+                self.ask_for_file(FileChoice::Open);
+            }
             let has_document = self.document.is_some();
             if ui
                 .add_enabled(has_document, egui::Button::new("Save landmarks"))
@@ -404,6 +433,13 @@ impl GuiApp {
                 .clicked()
             {
                 self.save_case();
+            }
+            if ui
+                .add_enabled(has_document && !asking, egui::Button::new("Save case as…"))
+                .on_hover_text("choose where in the desktop's file dialog")
+                .clicked()
+            {
+                self.ask_for_file(FileChoice::SaveCase);
             }
             ui.separator();
             for view in StandardView::ALL {
@@ -576,222 +612,6 @@ impl GuiApp {
                 }
             });
     }
-
-    fn viewport(&mut self, ui: &mut egui::Ui) {
-        let (rect, response) = ui.allocate_exact_size(ui.available_size(), Sense::click_and_drag());
-        self.viewport_rect = Some(rect);
-        let size = DVec2::new(f64::from(rect.width()), f64::from(rect.height()));
-        let local =
-            |pos: Pos2| DVec2::new(f64::from(pos.x - rect.min.x), f64::from(pos.y - rect.min.y));
-        let painter = ui.painter_at(rect);
-        let layers = self.layers();
-        // Landmarks are placed, shown and dragged on the pre-operative scan only.
-        let editing = self.shows_pre_operative();
-        let curves: Vec<Vec<DVec3>> = match &self.model {
-            Some(model) if self.show_curves && editing => {
-                vec![
-                    model.cut_curves.left.clone(),
-                    model.cut_curves.right.clone(),
-                ]
-            }
-            _ => Vec::new(),
-        };
-        let Some(document) = &mut self.document else {
-            painter.rect_filled(rect, 0.0, render::background());
-            painter.text(
-                rect.center(),
-                egui::Align2::CENTER_CENTER,
-                "Open a scan or the phantom (File menu), or drop a scan and its landmarks here",
-                egui::FontId::proportional(16.0),
-                Color32::GRAY,
-            );
-            return;
-        };
-
-        // Input: drags orbit, pan (right or middle button, or Shift) or move a marker;
-        // a click places a point; the wheel zooms.
-        let mut changed = false;
-        if response.drag_started() {
-            let shift = ui.input(|i| i.modifiers.shift);
-            let origin = ui.input(|i| i.pointer.press_origin());
-            self.drag = if response.dragged_by(PointerButton::Primary) && !shift {
-                let grabbed = origin
-                    .filter(|_| editing)
-                    .and_then(|origin| nearest_marker(document, &self.camera, local(origin), size));
-                Some(grabbed.map_or(Drag::Orbit, Drag::Point))
-            } else {
-                Some(Drag::Pan)
-            };
-        }
-        if response.dragged() {
-            let delta = response.drag_delta();
-            let delta = DVec2::new(f64::from(delta.x), f64::from(delta.y));
-            match &self.drag {
-                Some(Drag::Point(name)) => {
-                    if let Some(pointer) = response.interact_pointer_pos() {
-                        let ray = self.camera.ray(local(pointer), size);
-                        if let Some(point) = document.pick(ray.origin, ray.direction) {
-                            document.drag_to(name, point);
-                            changed = true;
-                        }
-                    }
-                }
-                Some(Drag::Orbit) => self.camera.orbit(delta),
-                Some(Drag::Pan) => self.camera.pan(delta, size.y),
-                None => {}
-            }
-        }
-        if response.drag_stopped() {
-            self.drag = None;
-        }
-        let mut placed = None;
-        if response.clicked()
-            && editing
-            && let Some(pointer) = response.interact_pointer_pos()
-        {
-            let ray = self.camera.ray(local(pointer), size);
-            match document.pick(ray.origin, ray.direction) {
-                Some(point) => {
-                    placed = document.place(point);
-                    changed |= placed.is_some();
-                }
-                None => self.status = Status::Info("No surface under the pointer.".into()),
-            }
-        }
-        if response.hovered() {
-            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-            if scroll != 0.0 {
-                self.camera
-                    .zoom((-f64::from(scroll) * ZOOM_PER_SCROLL).exp());
-            }
-        }
-
-        // Drawing: the shaded scans (GPU), then the cut curves and markers on top.
-        if self.gpu {
-            painter.add(egui_wgpu::Callback::new_paint_callback(
-                rect,
-                ViewportCallback {
-                    camera: self.camera,
-                    layers,
-                    size_points: size,
-                },
-            ));
-        } else {
-            painter.rect_filled(rect, 0.0, render::background());
-        }
-        let eye = self.camera.eye();
-        let on_screen = |point: DVec3| {
-            let pixel = self.camera.project(point, size)?;
-            Some(rect.min + egui::vec2(pixel.x as f32, pixel.y as f32))
-        };
-        for curve in &curves {
-            // A closed curve; segments whose ends are both in sight are drawn.
-            let shown: Vec<Option<Pos2>> = curve
-                .iter()
-                .map(|&p| {
-                    document
-                        .visible_from(eye, p, OCCLUSION_TOLERANCE_MM)
-                        .then(|| on_screen(p))
-                        .flatten()
-                })
-                .collect();
-            for k in 0..shown.len() {
-                if let (Some(a), Some(b)) = (shown[k], shown[(k + 1) % shown.len()]) {
-                    painter.line_segment([a, b], Stroke::new(CURVE_WIDTH, CURVE_COLOR));
-                }
-            }
-        }
-        let markers: Vec<(&str, DVec3)> = if editing {
-            document.landmarks.iter().collect()
-        } else {
-            Vec::new()
-        };
-        for (name, point) in markers {
-            let Some(at) = on_screen(point) else {
-                continue;
-            };
-            let visible = document.visible_from(eye, point, OCCLUSION_TOLERANCE_MM);
-            let selected = document.selected.as_deref() == Some(name);
-            let color = if selected {
-                SELECTED_COLOR
-            } else if LandmarkName::parse(name).is_some() {
-                PLACED_COLOR
-            } else {
-                EXTRA_COLOR
-            };
-            if visible {
-                painter.circle_filled(at, MARKER_RADIUS, color);
-                painter.circle_stroke(at, MARKER_RADIUS, Stroke::new(1.0, Color32::BLACK));
-            } else {
-                painter.circle_stroke(
-                    at,
-                    MARKER_RADIUS,
-                    Stroke::new(1.0, color.gamma_multiply(0.6)),
-                );
-            }
-            painter.text(
-                at + egui::vec2(MARKER_RADIUS + 2.0, -MARKER_RADIUS - 2.0),
-                egui::Align2::LEFT_BOTTOM,
-                name,
-                egui::FontId::proportional(13.0),
-                if visible {
-                    Color32::WHITE
-                } else {
-                    Color32::GRAY
-                },
-            );
-        }
-        if !self.gpu {
-            painter.text(
-                rect.center_top() + egui::vec2(0.0, 12.0),
-                egui::Align2::CENTER_TOP,
-                "no GPU renderer: markers only",
-                egui::FontId::proportional(13.0),
-                Color32::GRAY,
-            );
-        }
-        if let Some(name) = placed {
-            let next = document
-                .placing()
-                .map_or(String::new(), |p| format!("; next: {}", p.name()));
-            self.status = Status::Info(format!("placed {name}{next}"));
-        }
-        if changed {
-            self.landmarks_changed();
-        }
-    }
-
-    /// The meshes the viewport draws in the current display mode.
-    fn layers(&self) -> Vec<Layer> {
-        let Some(scene) = &self.scene else {
-            return Vec::new();
-        };
-        let pre_operative = Layer {
-            scene: Arc::clone(scene),
-            style: LayerStyle::Opaque,
-        };
-        let simulated = self.live.as_ref().and_then(|live| live.frame.as_ref());
-        match (self.display, simulated) {
-            (_, None) | (DisplayMode::PreOperative, _) => vec![pre_operative],
-            (DisplayMode::Simulated, Some(frame)) => vec![Layer {
-                scene: Arc::clone(&frame.scene),
-                style: LayerStyle::Opaque,
-            }],
-            (DisplayMode::Overlay, Some(frame)) => vec![
-                pre_operative,
-                Layer {
-                    scene: Arc::clone(&frame.scene),
-                    style: LayerStyle::Translucent,
-                },
-            ],
-        }
-    }
-
-    /// Whether the pre-operative scan is drawn opaque (landmarks and cut curves are on it).
-    fn shows_pre_operative(&self) -> bool {
-        self.display != DisplayMode::Simulated
-            || self.live.as_ref().is_none_or(|live| live.frame.is_none())
-    }
 }
 
 impl eframe::App for GuiApp {
@@ -828,28 +648,6 @@ fn move_key(direction: MoveDirection) -> Key {
         MoveDirection::Front => Key::PageUp,
         MoveDirection::Back => Key::PageDown,
     }
-}
-
-/// The visible placed point whose marker is within [`GRAB_RADIUS`] of `pixel`.
-fn nearest_marker(
-    document: &Document,
-    camera: &Camera,
-    pixel: DVec2,
-    size: DVec2,
-) -> Option<String> {
-    let eye = camera.eye();
-    document
-        .landmarks
-        .iter()
-        .filter_map(|(name, point)| {
-            let at = camera.project(point, size)?;
-            let distance = at.distance(pixel);
-            (distance <= f64::from(GRAB_RADIUS)
-                && document.visible_from(eye, point, OCCLUSION_TOLERANCE_MM))
-            .then(|| (distance, name.to_string()))
-        })
-        .min_by(|a, b| a.0.total_cmp(&b.0))
-        .map(|(_, name)| name)
 }
 
 fn format_point(p: DVec3) -> String {

@@ -6,6 +6,7 @@
 use anatomy::{LandmarkName, Landmarks, PartialLandmarks};
 use anyhow::{Context, Result, bail};
 use glam::DVec3;
+use mesh::SurfaceIndex;
 use plan::case::{PlanningCase, ScanSource};
 use plan::{MarkedScan, PhantomParams, Scan, Silent};
 use std::path::{Path, PathBuf};
@@ -178,14 +179,7 @@ impl Document {
     /// Whether no part of the surface hides `point` from `eye` (mm): nothing on the line
     /// between them closer to the eye than `tolerance` short of the point.
     pub fn visible_from(&self, eye: DVec3, point: DVec3, tolerance: f64) -> bool {
-        let offset = point - eye;
-        let distance = offset.length();
-        distance <= tolerance
-            || self
-                .scan
-                .index
-                .cast_ray(eye, offset / distance, distance - tolerance)
-                .is_none()
+        visible_on(&self.scan.index, eye, point, tolerance)
     }
 
     /// Places what [`Document::placing`] names at `point` (on the surface); returns its
@@ -255,6 +249,17 @@ impl Document {
         path.extension()
             .is_some_and(|e| e.eq_ignore_ascii_case("json"))
     }
+}
+
+/// Whether no part of the surface of `index` hides `point` from `eye` (mm): nothing on
+/// the line between them closer to the eye than `tolerance` short of the point.
+pub fn visible_on(index: &SurfaceIndex, eye: DVec3, point: DVec3, tolerance: f64) -> bool {
+    let offset = point - eye;
+    let distance = offset.length();
+    distance <= tolerance
+        || index
+            .cast_ray(eye, offset / distance, distance - tolerance)
+            .is_none()
 }
 
 #[cfg(test)]

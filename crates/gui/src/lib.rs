@@ -11,12 +11,17 @@
 
 pub mod app;
 pub mod camera;
+pub mod carried;
+pub mod control_points;
+pub mod deviation;
 pub mod document;
 mod hints;
 pub mod implant_plan;
+pub mod job;
 pub mod live_distances;
 pub mod live_simulation;
 pub mod model_build;
+pub mod registration;
 pub mod render;
 pub mod script;
 

@@ -3,21 +3,34 @@
 //! The worker applies the newest set when several are queued (a slider being dragged),
 //! runs one cycle at a time ([`Session::advance`]: the implant stage, then the gravity
 //! correction) and after each cycle sends back the scan as simulated so far, ready to
-//! draw, with the solver's figures. Measuring and exporting the prediction run on the
-//! worker too, between cycles.
+//! draw, with the landmarks moved with it and the solver's figures. Measuring and
+//! exporting the prediction run on the worker too, between cycles, and so does writing
+//! the folders a report is made from (the report itself is then written on a thread of
+//! its own, from those files). Once the solver has
+//! settled on a frame, a background job prepares that frame's simulated scan for queries
+//! and its deviation from the pre-operative scan ([`SettledSimulation`]).
 
+use crate::carried::{SurfaceAnchor, anchors};
+use crate::deviation::DeviationMap;
+use crate::job::Job;
 use crate::render::SceneMesh;
+use anatomy::Landmarks;
 use anatomy::breast::Side;
 use glam::DVec3;
-use plan::Silent;
 use plan::model::PerSide;
+use plan::report::{PostoperativeScan, ReportInputs, ReportSummary, write_report};
 use plan::simulate::{
-    Advance, ImplantRequest, ImplantSummary, Session, SimulatedMeasurements, SolveState, Stage,
+    Advance, ImplantRequest, ImplantSummary, Session, SimulatedMeasurements, SimulationState,
+    SolveState, SolverReport, Stage,
 };
-use std::path::PathBuf;
+use plan::{Scan, Silent};
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
+
+/// Points of an implant's footprint outline drawn on the scan.
+const OUTLINE_SEGMENTS: usize = 64;
 
 /// The implants wanted on both sides, and whether the gravity correction follows.
 #[derive(Debug, Clone, PartialEq)]
@@ -51,6 +64,22 @@ enum Command {
     Implants(u64, ImplantSet),
     Measure,
     Export(ExportPaths),
+    /// The folders of a report into this folder.
+    ReportFolders(PathBuf, Option<PostoperativeScan>),
+}
+
+/// The report written from the window (`report.html` with the folders it is made from).
+#[derive(Default)]
+pub enum ReportState {
+    #[default]
+    NotYet,
+    /// The session's scan, model and simulation folders are being written into this
+    /// folder (on the worker, between cycles).
+    WritingFolders(PathBuf),
+    /// The report is being written from them (on a thread of its own).
+    Writing(PathBuf, Job<anyhow::Result<ReportSummary>>),
+    /// How the last report ended.
+    Written(Result<ReportSummary, String>),
 }
 
 /// One side of the session.
@@ -60,6 +89,9 @@ pub struct SideState {
     pub placed: Option<ImplantSummary>,
     /// Why the last request for this side was refused (the session kept `placed`).
     pub error: Option<String>,
+    /// The outline of the implant's footprint on the scan as loaded, to be carried onto
+    /// the simulated frames (empty without an implant).
+    pub outline: Vec<SurfaceAnchor>,
 }
 
 /// The solver's figures after the latest cycle.
@@ -88,9 +120,25 @@ pub struct SimulatedFrame {
     /// Every scan vertex (mm, file frame, the scan's order).
     pub positions: Arc<Vec<DVec3>>,
     pub scene: Arc<SceneMesh>,
+    /// The landmarks (required and extra) moved with the tissue.
+    pub landmarks: Arc<Landmarks>,
     /// Counts the frames of this session, from 1.
     pub number: u64,
 }
+
+/// The simulated scan of a frame the solver has settled on, prepared in the background.
+pub struct SettledSimulation {
+    /// The frame's number.
+    pub frame: u64,
+    /// The simulated scan with its spatial index (what hides what in the view; the
+    /// reference a post-operative scan can be compared with).
+    pub scan: Arc<Scan>,
+    /// Its deviation from the pre-operative scan.
+    pub deviation: Result<DeviationMap, String>,
+}
+
+/// A callback that asks the window for a repaint.
+pub type Wake = Arc<dyn Fn() + Send + Sync>;
 
 /// The measurements of the prediction.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -110,6 +158,7 @@ enum Update {
     Cycle(SimulatedFrame, SolverStatus),
     Measured(Result<(SimulatedMeasurements, u64), String>),
     Exported(Result<ExportPaths, String>),
+    ReportFolders(Result<ReportInputs, String>),
     Failed(String),
 }
 
@@ -129,10 +178,19 @@ pub struct LiveSimulation {
     pub measurements: MeasurementState,
     /// The outcome of the last export.
     pub exported: Option<Result<ExportPaths, String>>,
+    /// The report being written, or the last one.
+    pub report: ReportState,
     /// A solver failure (the worker waits for the next change).
     pub failure: Option<String>,
     /// Simulated frames received so far.
     pub frames_received: u64,
+    /// The latest settled frame, prepared ([`LiveSimulation::poll`] starts the work).
+    pub settled: Option<Arc<SettledSimulation>>,
+    /// The preparation under way, and its frame's number.
+    settling: Option<(u64, Job<anyhow::Result<SettledSimulation>>)>,
+    /// The scan as loaded, which the session simulates.
+    pre_operative: Arc<Scan>,
+    wake: Wake,
 }
 
 impl LiveSimulation {
@@ -142,11 +200,16 @@ impl LiveSimulation {
     pub fn start(
         session: Session,
         scene: Arc<SceneMesh>,
-        wake: impl Fn() + Send + 'static,
+        wake: impl Fn() + Send + Sync + 'static,
     ) -> LiveSimulation {
         let (commands, inbox) = channel();
         let (outbox, updates) = channel();
-        std::thread::spawn(move || Worker::new(session, scene, outbox, wake).run(&inbox));
+        let wake: Wake = Arc::new(wake);
+        let pre_operative = Arc::clone(&session.marked.scan);
+        let worker_wake = Arc::clone(&wake);
+        std::thread::spawn(move || {
+            Worker::new(session, scene, outbox, move || worker_wake()).run(&inbox)
+        });
         LiveSimulation {
             commands,
             updates,
@@ -158,8 +221,13 @@ impl LiveSimulation {
             sides: PerSide::default(),
             measurements: MeasurementState::NotYet,
             exported: None,
+            report: ReportState::NotYet,
             failure: None,
             frames_received: 0,
+            settled: None,
+            settling: None,
+            pre_operative,
+            wake,
         }
     }
 
@@ -188,6 +256,24 @@ impl LiveSimulation {
         let _ = self.commands.send(Command::Export(paths));
     }
 
+    /// Asks for the report of the current prediction: `report.html` in `folder` with the
+    /// folders it is made from (see [`plan::report::write_session_folders`]), compared
+    /// with `postoperative` when given.
+    pub fn write_report(&mut self, folder: PathBuf, postoperative: Option<PostoperativeScan>) {
+        self.report = ReportState::WritingFolders(folder.clone());
+        let _ = self
+            .commands
+            .send(Command::ReportFolders(folder, postoperative));
+    }
+
+    /// Whether a report is being written.
+    pub fn is_writing_report(&self) -> bool {
+        matches!(
+            self.report,
+            ReportState::WritingFolders(_) | ReportState::Writing(..)
+        )
+    }
+
     /// Takes the worker's updates.
     pub fn poll(&mut self) {
         while let Ok(update) = self.updates.try_recv() {
@@ -212,9 +298,81 @@ impl LiveSimulation {
                     self.measurements = MeasurementState::Failed(message);
                 }
                 Update::Exported(outcome) => self.exported = Some(outcome),
+                Update::ReportFolders(Ok(inputs)) => {
+                    let out = inputs.model_dir.with_file_name("report.html");
+                    let job = Job::spawn(self.waker(), {
+                        let out = out.clone();
+                        move || write_report(&inputs, &out, &Silent)
+                    });
+                    self.report = ReportState::Writing(out, job);
+                }
+                Update::ReportFolders(Err(message)) => {
+                    self.report = ReportState::Written(Err(message));
+                }
                 Update::Failed(message) => self.failure = Some(message),
             }
         }
+        if let ReportState::Writing(_, job) = &self.report
+            && let Some(answer) = job.poll()
+        {
+            let written = answer.and_then(|result| result.map_err(|error| format!("{error:#}")));
+            self.report = ReportState::Written(written);
+        }
+        self.prepare_settled();
+    }
+
+    /// A repaint request for a background job's end.
+    fn waker(&self) -> impl Fn() + Send + 'static {
+        let wake = Arc::clone(&self.wake);
+        move || wake()
+    }
+
+    /// Takes the settled frame once prepared, and starts preparing the newest frame once
+    /// the solver has settled on it (one preparation at a time).
+    fn prepare_settled(&mut self) {
+        if let Some((number, job)) = &self.settling
+            && let Some(answer) = job.poll()
+        {
+            let number = *number;
+            self.settling = None;
+            let settled = answer
+                .and_then(|prepared| prepared.map_err(|error| format!("{error:#}")))
+                .unwrap_or_else(|message| SettledSimulation {
+                    frame: number,
+                    scan: Arc::clone(&self.pre_operative),
+                    deviation: Err(message),
+                });
+            self.settled = Some(Arc::new(settled));
+        }
+        let Some(frame) = &self.frame else {
+            return;
+        };
+        let prepared = self.settled.as_ref().map(|s| s.frame);
+        if self.settling.is_some() || !self.is_settled() || prepared == Some(frame.number) {
+            return;
+        }
+        let pre_operative = Arc::clone(&self.pre_operative);
+        let frame = frame.clone();
+        let job = Job::spawn(
+            self.waker(),
+            move || -> anyhow::Result<SettledSimulation> {
+                let scan = pre_operative
+                    .moved_to(frame.positions.to_vec(), Path::new("the simulated scan"))?;
+                let deviation = DeviationMap::compute(&pre_operative, &scan, &frame.scene)
+                    .map_err(|error| format!("{error:#}"));
+                Ok(SettledSimulation {
+                    frame: frame.number,
+                    scan: Arc::new(scan),
+                    deviation,
+                })
+            },
+        );
+        self.settling = Some((frame.number, job));
+    }
+
+    /// Whether the settled frame is being prepared.
+    pub fn is_preparing_settled(&self) -> bool {
+        self.settling.is_some()
     }
 
     /// Whether the worker has applied the last set sent and stopped cycling on it
@@ -241,6 +399,8 @@ struct Worker<W> {
     sides: PerSide<SideState>,
     running: bool,
     cycles: usize,
+    /// The solve since the implants last changed, as a simulation folder records it.
+    solve: SolverReport,
     frame: u64,
     /// The number of the implant set last applied.
     set_number: u64,
@@ -258,6 +418,7 @@ impl<W: Fn()> Worker<W> {
             sides: PerSide::default(),
             running: false,
             cycles: 0,
+            solve: new_solve(),
             frame: 0,
             set_number: 0,
         }
@@ -297,6 +458,10 @@ impl<W: Fn()> Worker<W> {
                     Command::Export(paths) => {
                         let outcome = self.export(&paths).map(|()| paths);
                         self.outbox.send(Update::Exported(outcome))
+                    }
+                    Command::ReportFolders(folder, postoperative) => {
+                        let outcome = self.report_folders(&folder, postoperative);
+                        self.outbox.send(Update::ReportFolders(outcome))
                     }
                 };
                 if sent.is_err() {
@@ -342,10 +507,18 @@ impl<W: Fn()> Worker<W> {
             }
         }
         self.applied = Some(set.clone());
+        for side in Side::BOTH {
+            let outline = self
+                .session
+                .implant_outline_on_scan(side, OUTLINE_SEGMENTS)
+                .unwrap_or_default();
+            self.sides.get_mut(side).outline = anchors(&self.session.marked.scan.index, &outline);
+        }
         let restart = changed || gravity_changed || self.frame == 0;
         if restart {
             self.running = true;
             self.cycles = 0;
+            self.solve = new_solve();
         }
         restart
     }
@@ -358,12 +531,19 @@ impl<W: Fn()> Worker<W> {
                 self.cycles += 1;
                 self.frame += 1;
                 self.running = advance.state == SolveState::Running;
+                self.tally(&advance);
                 let start = Instant::now();
-                let positions = self.session.scan_positions();
+                let simulation = &self.session.simulation;
+                let displacements = simulation.scan_displacements();
+                let positions: Vec<DVec3> = (self.session.marked.scan.mesh.positions.iter())
+                    .zip(&displacements)
+                    .map(|(p, d)| *p + *d)
+                    .collect();
                 self.moved.positions.clone_from(&positions);
                 let frame = SimulatedFrame {
                     positions: Arc::new(positions),
                     scene: Arc::new(self.scene.moved(&self.moved)),
+                    landmarks: Arc::new(simulation.landmarks_moved_by(&displacements)),
                     number: self.frame,
                 };
                 let status = SolverStatus {
@@ -382,6 +562,48 @@ impl<W: Fn()> Worker<W> {
         let sent = self.outbox.send(update).is_ok();
         (self.wake)();
         sent
+    }
+
+    /// Counts a cycle into the solve's figures.
+    fn tally(&mut self, advance: &Advance) {
+        let solve = &mut self.solve;
+        solve.vcycles += 1;
+        solve.time_ms += advance.cycle.time_ms;
+        solve.relative_residual = advance.cycle.relative_residual;
+        solve.converged = advance.state == SolveState::Converged;
+        match advance.cycle.stage {
+            Stage::Implant => solve.implant_stage_vcycles = advance.stage_cycles,
+            Stage::Gravity => solve.gravity_stage_vcycles = Some(advance.stage_cycles),
+        }
+    }
+
+    /// Writes the scan, model and simulation folders of a report into `folder`.
+    fn report_folders(
+        &mut self,
+        folder: &std::path::Path,
+        postoperative: Option<PostoperativeScan>,
+    ) -> Result<ReportInputs, String> {
+        let state = SimulationState {
+            implants: PerSide::from_fn(|side| self.sides.get(side).placed.clone()),
+            solver: SolverReport {
+                inverted_elements: self.session.simulation.inverted_elements().len(),
+                ..self.solve.clone()
+            },
+            no_gravity: !self.applied.as_ref().is_some_and(|a| a.gravity),
+        };
+        plan::report::write_session_folders(
+            &mut self.session,
+            &state,
+            folder,
+            postoperative,
+            &Silent,
+        )
+        .map_err(|error| {
+            format!(
+                "writing the report's files into {}: {error:#}",
+                folder.display()
+            )
+        })
     }
 
     fn measure(&mut self) -> Result<(SimulatedMeasurements, u64), String> {
@@ -409,5 +631,18 @@ impl<W: Fn()> Worker<W> {
             .outbox
             .send(Update::Measured(Ok((measurements, self.frame))));
         Ok(())
+    }
+}
+
+/// The figures of a solve that has not run a cycle yet.
+fn new_solve() -> SolverReport {
+    SolverReport {
+        vcycles: 0,
+        relative_residual: f64::NAN,
+        converged: false,
+        time_ms: 0.0,
+        implant_stage_vcycles: 0,
+        gravity_stage_vcycles: None,
+        inverted_elements: 0,
     }
 }

@@ -176,6 +176,23 @@ impl SceneMesh {
         .with_vertices(moved, |i| self.vertices[i].color)
     }
 
+    /// The same mesh drawn in other colours (display RGB, one per vertex; a colour map).
+    pub fn recoloured(&self, colors: &[[u8; 3]]) -> SceneMesh {
+        SceneMesh {
+            generation: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+            topology: self.topology,
+            origin: self.origin,
+            vertices: (self.vertices.iter())
+                .zip(colors)
+                .map(|(vertex, color)| Vertex {
+                    color: color.map(|c| f32::from(c) / 255.0),
+                    ..*vertex
+                })
+                .collect(),
+            indices: Arc::clone(&self.indices),
+        }
+    }
+
     fn with_vertices(mut self, mesh: &TriMesh, color: impl Fn(usize) -> [f32; 3]) -> SceneMesh {
         let normals = mesh.vertex_normals();
         self.vertices = mesh

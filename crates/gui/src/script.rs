@@ -14,8 +14,12 @@
 //! move DIRECTION [TIMES]          a move button: left, right, up, down, front, back
 //! drag projection FROM TO SECONDS the Projection slider dragged from FROM to TO (mm),
 //!                                 a new value every frame
-//! wait                            until the simulation has converged or stopped
-//! display MODE                    pre-operative, simulated or overlay
+//! wait                            until the simulation has converged or stopped and
+//!                                 its deviation map is computed
+//! register SCAN LANDMARKS         the post-operative scan registered onto the open one
+//!                                 (paths without spaces), then its deviation map
+//! display MODE                    pre-operative, simulated, overlay, deviation or
+//!                                 post-operative
 //! view NAME                       front, left-oblique, left, right-oblique, right
 //! stats                           from now on, once a second on stderr: window frames
 //!                                 per second and simulated frames received per second
@@ -55,6 +59,10 @@ pub enum Action {
         seconds: f64,
     },
     Wait,
+    Register {
+        scan: PathBuf,
+        landmarks: PathBuf,
+    },
     Display(DisplayMode),
     View(StandardView),
     Stats,
@@ -199,15 +207,25 @@ fn parse_action(code: &str) -> Result<Action> {
             }
         }
         "wait" => Action::Wait,
+        "register" => {
+            count(3)?;
+            Action::Register {
+                scan: PathBuf::from(words[1]),
+                landmarks: PathBuf::from(words[2]),
+            }
+        }
         "display" => {
             count(2)?;
             Action::Display(match words[1] {
                 "pre-operative" => DisplayMode::PreOperative,
                 "simulated" => DisplayMode::Simulated,
                 "overlay" => DisplayMode::Overlay,
-                other => {
-                    bail!("unknown display mode `{other}`: pre-operative, simulated or overlay")
-                }
+                "deviation" => DisplayMode::Deviation,
+                "post-operative" => DisplayMode::PostOperative,
+                other => bail!(
+                    "unknown display mode `{other}`: pre-operative, simulated, overlay, \
+                     deviation or post-operative"
+                ),
             })
         }
         "view" => {
@@ -240,7 +258,8 @@ mod tests {
         let text = "# CI's session\nphantom\nelements 8000\nbuild\nimplant R-MOD-120\n\
                     move up 2   # two presses\ndrag projection 30 45 2.5\nwait\n\
                     custom anatomic 120 113 42\ndisplay overlay\nview left-oblique\n\
-                    screenshot /tmp/shot one.png\nquit\n";
+                    screenshot /tmp/shot one.png\nregister post.ply post.json\n\
+                    display post-operative\nquit\n";
         let script = Script::parse(text, Path::new("ci.script")).unwrap();
         let actions: Vec<&Action> = script.actions.iter().map(|(_, a)| a).collect();
         assert_eq!(script.actions[0].0, 2);
@@ -269,6 +288,14 @@ mod tests {
             actions[10],
             &Action::Screenshot(PathBuf::from("/tmp/shot one.png"))
         );
+        assert_eq!(
+            actions[11],
+            &Action::Register {
+                scan: PathBuf::from("post.ply"),
+                landmarks: PathBuf::from("post.json")
+            }
+        );
+        assert_eq!(actions[12], &Action::Display(DisplayMode::PostOperative));
 
         for (line, expected) in [
             ("elements many", "`many` is not a number"),
@@ -276,6 +303,7 @@ mod tests {
             ("drag width 1 2 3", "only the projection slider"),
             ("fly", "unknown action `fly`"),
             ("screenshot", "expected a file"),
+            ("register post.ply", "expected 3 words"),
         ] {
             let error =
                 Script::parse(&format!("phantom\n{line}\n"), Path::new("s.txt")).unwrap_err();

@@ -14,6 +14,9 @@ use plan::simulate::SolveState;
 use plan::{MarkedScan, PhantomParams};
 use std::time::{Duration, Instant};
 
+mod common;
+use common::{click_at, drag, screen_position};
+
 const ELEMENTS: f64 = 6_000.0;
 /// Longest a build or a solve may take here (2 cores shared with other work).
 const PATIENCE: Duration = Duration::from_secs(600);
@@ -36,7 +39,16 @@ fn wait_until(harness: &mut Harness<'_, GuiApp>, what: &str, done: impl Fn(&GuiA
         if let Some(error) = harness.state().error() {
             panic!("waiting for {what}: {error}");
         }
-        assert!(start.elapsed() < PATIENCE, "no {what} after {PATIENCE:?}");
+        assert!(
+            start.elapsed() < PATIENCE,
+            "no {what} after {PATIENCE:?}; the simulation: {:?}",
+            harness.state().live().map(|live| (
+                live.is_settled(),
+                live.solver,
+                live.failure.clone(),
+                live.frames_received
+            ))
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
     for _ in 0..3 {
@@ -95,6 +107,20 @@ fn positions(app: &GuiApp) -> Vec<DVec3> {
         .and_then(|live| live.frame.as_ref())
         .map(|frame| frame.positions.to_vec())
         .expect("a simulated frame")
+}
+
+/// Whether the settled prediction's deviation map is there for the latest frame.
+fn deviation_ready(app: &GuiApp) -> bool {
+    app.live().is_some_and(|live| {
+        live.is_settled()
+            && live.frame.is_some()
+            && live.settled.as_ref().map(|s| s.frame) == live.frame.as_ref().map(|f| f.number)
+    })
+}
+
+fn deviation(app: &GuiApp) -> &gui::deviation::DeviationMap {
+    let settled = app.live().unwrap().settled.as_ref().unwrap();
+    settled.deviation.as_ref().expect("a deviation map")
 }
 
 fn anchor(app: &GuiApp, side: Side) -> DVec3 {
@@ -304,6 +330,302 @@ fn a_saved_case_reopens_with_the_same_state() {
         .map(|(a, b)| a.distance(*b))
         .fold(0.0, f64::max);
     assert!(largest_mm < 0.3, "{largest_mm} mm");
+}
+
+#[test]
+fn the_deviation_view_colours_the_prediction_by_its_distance_from_the_scan() {
+    let mut harness = with_model();
+    // No implant yet: the prediction is the scan itself, at distance zero wherever it
+    // lies over itself (all but the border, whose closest points are on the border).
+    click(&mut harness, "Deviation");
+    wait_until(&mut harness, "the deviation map", deviation_ready);
+    let map = deviation(harness.state());
+    assert!(map.distances_mm.iter().all(|d| d.is_nan() || *d < 1e-6));
+    assert!(map.overlap_fraction > 0.95, "{}", map.overlap_fraction);
+    harness.get_by_label_contains("Deviation from the pre-operative surface: RMS 0.00 mm");
+
+    click(&mut harness, "Implants on both sides");
+    wait_until(&mut harness, "the deviation map", deviation_ready);
+    let app = harness.state();
+    let map = deviation(app);
+    let scan = &app.document().unwrap().scan.mesh;
+    let positions = positions(app);
+    // Independent check: the distance of every 500th simulated vertex to the
+    // pre-operative scan by testing every triangle (Ericson's closest point); the BVH
+    // answers the same to rounding.
+    let mut compared = 0;
+    for v in (0..scan.vertex_count()).step_by(500) {
+        let mapped = map.distances_mm[v];
+        if mapped.is_nan() {
+            continue;
+        }
+        let brute = (0..scan.triangle_count())
+            .map(|t| {
+                let corners = scan.triangle_positions(t);
+                tetra::locate::closest_point_on_triangle(positions[v], corners)
+                    .distance(positions[v])
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            (mapped - brute).abs() < 1e-6,
+            "vertex {v}: {mapped} vs {brute}"
+        );
+        compared += 1;
+    }
+    assert!(compared > 200, "{compared}");
+    // The implants pushed the breasts forward: centimetres at the nipples, nothing at
+    // the sternal notch (outside the model).
+    let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
+    let nearest = |p: DVec3| {
+        (0..scan.vertex_count())
+            .min_by(|&a, &b| {
+                scan.positions[a]
+                    .distance(p)
+                    .total_cmp(&scan.positions[b].distance(p))
+            })
+            .unwrap()
+    };
+    let nipple = map.distances_mm[nearest(marked.landmarks.get(anatomy::LandmarkName::Pnl))];
+    let notch = map.distances_mm[nearest(marked.landmarks.get(anatomy::LandmarkName::Pj))];
+    assert!(nipple > 10.0, "{nipple} mm at the nipple");
+    assert!(notch < 0.05, "{notch} mm at the notch");
+    assert!(map.statistics.rms_mm > 1.0);
+}
+
+#[test]
+fn the_report_is_written_from_the_window() {
+    let mut harness = with_implants();
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("plan");
+    harness
+        .get_by_role_and_label(Role::TextInput, "Folder")
+        .focus();
+    harness.step();
+    harness
+        .get_by_role_and_label(Role::TextInput, "Folder")
+        .type_text(&folder.display().to_string());
+    harness.step();
+    click(&mut harness, "Write report");
+    assert!(harness.state().live().unwrap().is_writing_report());
+    wait_until(&mut harness, "the report", |app| {
+        !app.live().unwrap().is_writing_report()
+    });
+    let live = harness.state().live().unwrap();
+    let gui::live_simulation::ReportState::Written(written) = &live.report else {
+        panic!("no report");
+    };
+    let summary = written.as_ref().expect("the report");
+    assert_eq!(summary.out, folder.join("report.html"));
+    // Without a post-operative scan: the pre-operative and the simulated scan from five
+    // sides each, and the change from the front and the obliques.
+    assert_eq!(summary.views, 13);
+    harness.get_by_label_contains("Report written:");
+    let page = std::fs::read_to_string(folder.join("report.html")).unwrap();
+    assert!(page.contains("Breast augmentation plan"));
+    // The folders it was made from: the phantom's scan (it has no file), the landmarks,
+    // the model and the simulation with the implants as placed in the window.
+    for file in [
+        "scan.ply",
+        "landmarks.json",
+        "model/model.json",
+        "simulation/result.json",
+    ] {
+        assert!(folder.join(file).is_file(), "{file}");
+    }
+    let result: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(folder.join("simulation/result.json")).unwrap(),
+    )
+    .unwrap();
+    for side in Side::BOTH {
+        let placed = live.sides.get(side).placed.as_ref().unwrap();
+        let recorded = &result["implants"][side.name()];
+        assert_eq!(recorded["spec"], placed.spec.as_str());
+        assert_eq!(recorded["volume_ml"], placed.volume_ml);
+        assert!(page.contains(&placed.spec), "{}", placed.spec);
+    }
+    assert_eq!(result["solver"]["converged"], true);
+
+    // A folder that cannot be made: the panel says why, the window goes on.
+    harness
+        .get_by_role_and_label(Role::TextInput, "Folder")
+        .focus();
+    harness.step();
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    harness
+        .get_by_role_and_label(Role::TextInput, "Folder")
+        .type_text("/proc/mammaplan-report");
+    harness.step();
+    click(&mut harness, "Write report");
+    wait_until(&mut harness, "the failed report", |app| {
+        !app.live().unwrap().is_writing_report()
+    });
+    harness.get_by_label_contains("The report failed: writing the report's files into /proc");
+}
+
+#[test]
+fn control_points_are_dragged_and_inserted_on_the_surface_and_the_rebuild_cuts_along_them() {
+    let mut harness = with_model();
+    let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
+    let scan = &marked.scan;
+    let volume_before = harness.state().model().unwrap().breast_volume_ml;
+    let points = harness.state().settings().control_points.clone().unwrap();
+    // The defaults: PSMFm, PSMF, PSMFl, a lateral, the upper and a medial point.
+    assert_eq!((points.left.len(), points.right.len()), (6, 6));
+    harness.get_by_label_contains("Control points: 6 left, 6 right");
+    // They are edited on the scan as loaded (the build showed the simulated one).
+    click(&mut harness, "Pre-operative");
+
+    // Drag the left upper point up the screen by what 15 mm up would be.
+    let upper = points.left[4];
+    let (from, _, _) = screen_position(harness.state(), upper);
+    let (to, _, _) = screen_position(harness.state(), upper + 15.0 * marked.frame.up());
+    drag(&mut harness, from, to);
+    let moved = harness
+        .state()
+        .settings()
+        .control_points
+        .as_ref()
+        .unwrap()
+        .left[4];
+    assert!(
+        scan.index.closest_point(moved).distance < 1e-6,
+        "{moved} off the surface"
+    );
+    // The surface there leans back towards the clavicle, so the point lands within a few
+    // mm of 15 mm from where it was, and higher.
+    let distance = moved.distance(upper);
+    assert!((distance - 15.0).abs() < 4.0, "moved {distance} mm");
+    assert!((moved - upper).dot(marked.frame.up()) > 10.0, "{moved}");
+    harness.get_by_label_contains("The control points changed since the model was built");
+
+    // Insert a point halfway between the (moved) upper and the medial point.
+    click(&mut harness, "Insert point");
+    let edited = harness.state().settings().control_points.clone().unwrap();
+    let spline = anatomy::breast::ClosedSpline::through(&edited.left).unwrap();
+    let between = scan.index.closest_point(spline.evaluate(4, 0.5)).point;
+    let (at, _, _) = screen_position(harness.state(), between);
+    click_at(&mut harness, at);
+    let edited = harness.state().settings().control_points.clone().unwrap();
+    assert_eq!((edited.left.len(), edited.right.len()), (7, 6));
+    let inserted = edited.left[5];
+    assert!(inserted.distance(between) < 1.0, "{inserted} vs {between}");
+    assert_eq!(edited.left[4], moved);
+
+    // The rebuild cuts along them: its left curve passes through both points (to the
+    // snapping of the cut onto scan vertices, a fraction of a triangle), and the left
+    // breast holds more with its upper border moved up.
+    click(&mut harness, "Rebuild model");
+    assert!(harness.state().is_building());
+    wait_until(&mut harness, "the rebuilt model", |app| !app.is_building());
+    let app = harness.state();
+    let model = app.model().unwrap();
+    for point in [moved, inserted] {
+        let nearest = (model.cut_curves.left.iter())
+            .map(|p| p.distance(point))
+            .fold(f64::INFINITY, f64::min);
+        assert!(nearest < 1.5, "the curve passes {nearest} mm from {point}");
+    }
+    // (Little more: the chest above the breast is a thin layer over the fill-in.) The
+    // right side, its points unchanged, is cut as before (the first build's points as
+    // derived, the rebuild's as snapped onto the scan: a tenth of a millilitre apart).
+    assert!(
+        model.breast_volume_ml.left > volume_before.left + 0.5,
+        "{} ml, before {} ml",
+        model.breast_volume_ml.left,
+        volume_before.left
+    );
+    assert!((model.breast_volume_ml.right - volume_before.right).abs() < 0.5);
+    // The planning case holds the edited points.
+    assert_eq!(app.case().unwrap().control_points.unwrap().left.len(), 7);
+
+    // Remove point, then a click on the inserted point: it goes, the others stay.
+    click(&mut harness, "Pre-operative");
+    click(&mut harness, "Remove point");
+    let (at, _, _) = screen_position(harness.state(), inserted);
+    click_at(&mut harness, at);
+    let edited = harness.state().settings().control_points.clone().unwrap();
+    assert_eq!(edited.left.len(), 6);
+    assert!(!edited.left.contains(&inserted));
+    assert_eq!(edited.left[4], moved);
+    harness.get_by_label_contains("The control points changed since the model was built");
+}
+
+#[test]
+fn landmarks_cut_curves_and_implant_outlines_are_drawn_on_the_shown_surface() {
+    let mut harness = with_implants();
+    click(&mut harness, "Show implant outlines");
+    wait_until(&mut harness, "the prepared simulated scan", deviation_ready);
+    let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
+    let frame = marked.frame;
+    let app = harness.state();
+    assert_eq!(app.display(), gui::app::DisplayMode::Simulated);
+    let live = app.live().unwrap();
+    let simulated = &live.settled.as_ref().unwrap().scan;
+    let on_simulated = |p: DVec3| simulated.index.closest_point(p).distance;
+
+    // On the simulated scan: the landmarks moved with the tissue (the nipples forward),
+    // the cut curves and the outlines carried with it, all on its surface.
+    let overlay = app.overlay();
+    assert!(!overlay.editable);
+    assert_eq!(overlay.landmarks.len(), 12);
+    for (name, point) in &overlay.landmarks {
+        assert!(on_simulated(*point) < 1e-6, "{name} {point}");
+    }
+    let nipple = |overlay: &gui::app::Overlay| {
+        overlay
+            .landmarks
+            .iter()
+            .find(|(name, _)| name == "Pnl")
+            .unwrap()
+            .1
+    };
+    let forward =
+        (nipple(&overlay) - marked.landmarks.get(anatomy::LandmarkName::Pnl)).dot(frame.anterior());
+    assert!(forward > 5.0, "the nipple moved {forward} mm forward");
+    assert_eq!(overlay.curves.len(), 2);
+    assert_eq!(overlay.outlines.len(), 2);
+    for point in overlay.curves.iter().chain(&overlay.outlines).flatten() {
+        assert!(on_simulated(*point) < 1e-6, "{point}");
+    }
+
+    // On the scan as loaded: the outlines on its skin, each around its breast's nipple
+    // and about as wide as the implant (the skin lies in front of the bed, so a little
+    // wider), seen from the front.
+    let diameter = live.sides.left.placed.as_ref().unwrap().width_mm;
+    click(&mut harness, "Pre-operative");
+    let overlay = harness.state().overlay();
+    assert!(overlay.editable);
+    for (outline, nipple) in overlay.outlines.iter().zip([
+        marked.landmarks.get(anatomy::LandmarkName::Pnl),
+        marked.landmarks.get(anatomy::LandmarkName::Pnr),
+    ]) {
+        assert_eq!(outline.len(), 64);
+        for point in outline {
+            assert!(
+                marked.scan.index.closest_point(*point).distance < 1e-6,
+                "{point}"
+            );
+        }
+        let across = |axis: DVec3| {
+            let values = outline.iter().map(|p| (*p - nipple).dot(axis));
+            let (low, high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                (l.min(v), h.max(v))
+            });
+            (low, high)
+        };
+        for axis in [frame.left(), frame.up()] {
+            let (low, high) = across(axis);
+            assert!(
+                low < 0.0 && high > 0.0,
+                "the nipple is not inside: {low} {high}"
+            );
+            let width = high - low;
+            assert!(
+                width > 0.85 * diameter && width < 1.4 * diameter,
+                "{width} mm across for a {diameter} mm implant"
+            );
+        }
+    }
 }
 
 /// Types `text` into the toolbar's path field.

@@ -3,10 +3,10 @@
 //! wgpu state: the viewport draws markers only, picking is on the CPU as always).
 
 use anatomy::LandmarkName;
-use eframe::egui::{self, Event, Modifiers, PointerButton, Pos2};
+use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 use gui::GuiApp;
 use gui::camera::Camera;
 use mesh::TriMesh;
@@ -14,17 +14,13 @@ use plan::{MarkedScan, PhantomParams};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+mod common;
+use common::{click_at, drag, screen_position, settle};
+
 fn harness(app: GuiApp) -> Harness<'static, GuiApp> {
     Harness::builder()
         .with_size(egui::vec2(1400.0, 860.0))
         .build_ui_state(|ui, app: &mut GuiApp| app.show(ui), app)
-}
-
-/// A few frames so panels settle and the worker's answers arrive.
-fn settle(harness: &mut Harness<'_, GuiApp>) {
-    for _ in 0..4 {
-        harness.step();
-    }
 }
 
 /// A new window in which the phantom was opened from the File menu's `item`.
@@ -43,37 +39,6 @@ fn phantom_truth() -> anatomy::Landmarks {
     MarkedScan::phantom(&PhantomParams::default())
         .unwrap()
         .landmarks
-}
-
-/// Where `point` is on screen (egui points), through the app's camera and viewport.
-fn screen_position(app: &GuiApp, point: DVec3) -> (Pos2, DVec2, DVec2) {
-    let rect = app.viewport_rect().unwrap();
-    let size = DVec2::new(f64::from(rect.width()), f64::from(rect.height()));
-    let pixel = app.camera().project(point, size).unwrap();
-    let pos = rect.min + egui::vec2(pixel.x as f32, pixel.y as f32);
-    // The pixel the event really carries (f32), relative to the viewport.
-    let local = DVec2::new(f64::from(pos.x - rect.min.x), f64::from(pos.y - rect.min.y));
-    (pos, local, size)
-}
-
-/// Moves the pointer to `pos` and presses or releases the primary button there.
-fn button(harness: &mut Harness<'_, GuiApp>, pos: Pos2, pressed: bool) {
-    harness.event(Event::PointerMoved(pos));
-    harness.event(Event::PointerButton {
-        pos,
-        button: PointerButton::Primary,
-        pressed,
-        modifiers: Modifiers::default(),
-    });
-    harness.step();
-}
-
-fn click_at(harness: &mut Harness<'_, GuiApp>, pos: Pos2) {
-    harness.event(Event::PointerMoved(pos));
-    harness.step();
-    button(harness, pos, true);
-    button(harness, pos, false);
-    settle(harness);
 }
 
 /// The first hit of a ray on a mesh by testing every triangle (Möller-Trumbore): an
@@ -185,14 +150,7 @@ fn a_selected_landmark_is_replaced_by_the_next_click_and_can_be_dragged() {
     // Drag it back along the surface to the left nipple.
     let (from, _, _) = screen_position(harness.state(), moved);
     let (to, _, _) = screen_position(harness.state(), truth.get(LandmarkName::Pnl));
-    button(&mut harness, from, true);
-    for k in 1..=10 {
-        let pos = from + (to - from) * (k as f32 / 10.0);
-        harness.event(Event::PointerMoved(pos));
-        harness.step();
-    }
-    button(&mut harness, to, false);
-    settle(&mut harness);
+    drag(&mut harness, from, to);
     let document = harness.state().document().unwrap();
     let dragged = document.landmarks.get(LandmarkName::Pnl).unwrap();
     assert!(
@@ -313,4 +271,30 @@ fn landmarks_placed_in_the_window_are_saved_in_the_guide_format() {
     for ((name, a), (_, b)) in saved.iter().zip(phantom_truth().iter()) {
         assert!(a.distance(b) < 1e-9, "{name}: {a} vs {b}");
     }
+}
+
+#[test]
+fn without_a_file_chooser_portal_browse_says_to_type_the_path() {
+    // Only where no real dialog can open: no session bus and no display (CI, a terminal).
+    let desktop = ["DBUS_SESSION_BUS_ADDRESS", "DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|name| std::env::var_os(name).is_some());
+    if desktop {
+        eprintln!("skipped: a desktop session here could open a real file dialog");
+        return;
+    }
+    let mut harness = harness(GuiApp::new(None, None));
+    settle(&mut harness);
+    harness.get_by_label("Browse…").click();
+    settle(&mut harness);
+    let start = std::time::Instant::now();
+    while harness.state().is_asking_for_file() {
+        assert!(start.elapsed().as_secs() < 60, "the dialog never answered");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        harness.step();
+    }
+    settle(&mut harness);
+    harness.get_by_label_contains("type the path in the field instead");
+    assert!(harness.state().document().is_none());
+    assert!(harness.state().error().is_none());
 }

@@ -16,8 +16,8 @@
 
 use crate::compare::{CompareOptions, compare};
 use crate::measure::measure;
-use crate::model::{PerSide, build_breasts, read_folder_json, read_model_record};
-use crate::simulate::MaterialsReport;
+use crate::model::{PerSide, build_breasts, read_folder_json, read_model_record, write_model};
+use crate::simulate::{MaterialsReport, Session, SimulationState, write_simulation};
 use crate::views::{RenderedView, ViewContent, standard_views};
 use crate::{Distance, MarkedScan, Progress};
 use anatomy::breast::{BreastModel, QuadrantVolumes};
@@ -257,6 +257,46 @@ pub fn compare_with_postoperative(
         test: "Simulated scan".into(),
         regions,
     }))
+}
+
+/// Writes the files a report of an open session is made from into `folder` and returns
+/// the report's inputs (created now): the scan as `scan.ply` when it was not read from a
+/// file (the phantom), the landmarks the model was built from as `landmarks.json`, the
+/// model folder `model/` ([`write_model`]) and the simulation folder `simulation/` of the
+/// session's current prediction ([`write_simulation`], `state` saying how the session
+/// got there). The session's model then names those scan and landmark files. The
+/// report itself ([`write_report`]) reads only files, so a front end can write it on
+/// another thread while the session goes on.
+pub fn write_session_folders(
+    session: &mut Session,
+    state: &SimulationState,
+    folder: &Path,
+    postoperative: Option<PostoperativeScan>,
+    progress: &dyn Progress,
+) -> Result<ReportInputs> {
+    std::fs::create_dir_all(folder).with_context(|| format!("creating {}", folder.display()))?;
+    let scan = &session.marked.scan;
+    if !scan.path.is_file() {
+        let path = folder.join("scan.ply");
+        mesh::io::write_mesh(&path, &scan.mesh)?;
+        session.model.scan_path = path;
+    }
+    let landmarks = folder.join("landmarks.json");
+    session
+        .marked
+        .landmarks
+        .write(&landmarks, Default::default())?;
+    session.model.landmarks_path = landmarks;
+    let model_dir = folder.join("model");
+    let simulation_dir = folder.join("simulation");
+    write_model(&model_dir, &session.model, progress)?;
+    write_simulation(session, state, &model_dir, &simulation_dir, progress)?;
+    Ok(ReportInputs {
+        model_dir,
+        simulation_dir,
+        postoperative,
+        created: SystemTime::now(),
+    })
 }
 
 /// Builds the report of `inputs` and writes it to `out` (atomically).

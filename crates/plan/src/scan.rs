@@ -42,6 +42,31 @@ impl Scan {
         Scan::from_mesh(phantom::generate(params).scan, &phantom_path(params))
     }
 
+    /// The same scan with every vertex moved to `positions` (same order and count: a
+    /// simulated scan): the triangles and their connectivity are kept, the spatial index
+    /// is rebuilt; `path` names it in messages.
+    pub fn moved_to(&self, positions: Vec<glam::DVec3>, path: &Path) -> Result<Scan> {
+        anyhow::ensure!(
+            positions.len() == self.mesh.vertex_count(),
+            "{}: {} positions for a scan of {} vertices",
+            path.display(),
+            positions.len(),
+            self.mesh.vertex_count()
+        );
+        let mut mesh = self.mesh.clone();
+        mesh.positions = positions;
+        mesh.validate().map_err(|e| e.in_file(path))?;
+        let Some(index) = SurfaceIndex::new(&mesh) else {
+            bail!("{}: the mesh has no triangles", path.display());
+        };
+        Ok(Scan {
+            path: path.to_path_buf(),
+            mesh,
+            topology: self.topology.clone(),
+            index,
+        })
+    }
+
     /// Wraps a mesh already in memory (validated here).
     pub fn from_mesh(mesh: TriMesh, path: &Path) -> Result<Scan> {
         mesh.validate().map_err(|e| e.in_file(path))?;

@@ -14,7 +14,7 @@
 
 use crate::measure::measure;
 use crate::model::{ModelOptions, PatientModel, PerSide, build_model, load_model};
-use crate::{Distance, MarkedScan, Progress, Scan, check_cancelled};
+use crate::{Distance, MarkedScan, Progress, check_cancelled};
 use anatomy::breast::Side;
 use anyhow::{Context, Result};
 use glam::DVec3;
@@ -210,6 +210,30 @@ impl Session {
         Ok(ImplantSummary::new(request, placed, catalog_entry.as_ref()))
     }
 
+    /// The outline of one side's implant footprint seen on the skin (mm, file frame):
+    /// `segments` points of the footprint's boundary laid on the implant bed, each carried
+    /// along the bed's normal to the scan as loaded (the closest scan point where the
+    /// normal misses it). `None` without an implant on that side.
+    pub fn implant_outline_on_scan(&self, side: Side, segments: usize) -> Option<Vec<DVec3>> {
+        /// How far in front of the bed the skin may be (mm): beyond any breast's depth.
+        const SKIN_SEARCH_MM: f64 = 300.0;
+        let placed = self.simulation.implant(side)?;
+        let bed = self.simulation.bed(side);
+        let index = &self.marked.scan.index;
+        let outline = placed
+            .shape
+            .footprint_outline_mm(segments)
+            .into_iter()
+            .filter_map(|local| bed.at(placed.anchor.uv_of(local)))
+            .map(|at| {
+                index
+                    .cast_ray(at.position, at.normal, SKIN_SEARCH_MM)
+                    .map_or_else(|| index.closest_point(at.position).point, |hit| hit.point)
+            })
+            .collect();
+        Some(outline)
+    }
+
     /// Removes the implant of one side.
     pub fn remove_implant(&mut self, side: Side) {
         self.simulation.remove_implant(side);
@@ -265,12 +289,12 @@ impl Session {
     /// `path` names it in messages.
     pub fn simulated_scan(&self, path: &Path) -> Result<MarkedScan> {
         let scan_displacements = self.simulation.scan_displacements();
-        let mut mesh = self.marked.scan.mesh.clone();
-        for (p, d) in mesh.positions.iter_mut().zip(&scan_displacements) {
-            *p += *d;
-        }
+        let positions = (self.marked.scan.mesh.positions.iter())
+            .zip(&scan_displacements)
+            .map(|(p, d)| *p + *d)
+            .collect();
         MarkedScan::new(
-            Scan::from_mesh(mesh, path)?,
+            self.marked.scan.moved_to(positions, path)?,
             self.simulation.landmarks_moved_by(&scan_displacements),
             path,
             &crate::Silent,
@@ -566,6 +590,40 @@ pub fn run_session(
             solver.vcycles, solver.relative_residual
         ));
     }
+    let report = write_simulation(
+        &mut session,
+        &SimulationState {
+            implants,
+            solver,
+            no_gravity: options.no_gravity,
+        },
+        model_dir,
+        out_dir,
+        progress,
+    )?;
+    progress.step();
+    Ok(report)
+}
+
+/// Where a session's solve stands, as the simulation folder records it: the implants as
+/// placed, the solver's figures and whether the gravity correction was left out.
+#[derive(Debug, Clone)]
+pub struct SimulationState {
+    pub implants: PerSide<Option<ImplantSummary>>,
+    pub solver: SolverReport,
+    pub no_gravity: bool,
+}
+
+/// Writes the simulation folder of the session's current prediction (see the module
+/// documentation) and returns what `result.json` holds; `state` is how the session got
+/// there, `model_dir` is only reported. `result.json` is written last.
+pub fn write_simulation(
+    session: &mut Session,
+    state: &SimulationState,
+    model_dir: &Path,
+    out_dir: &Path,
+    progress: &dyn Progress,
+) -> Result<SimulateReport> {
     let (breast_volume_before_ml, breast_volume_ml) = session.breast_volumes()?;
     let simulated = session.simulated_scan(&out_dir.join("simulated_scan.ply"))?;
     let distances = measure(&simulated, &[], progress)?.distances;
@@ -592,18 +650,17 @@ pub fn run_session(
     let report = SimulateReport {
         model: model_dir.to_path_buf(),
         implant_volume_ml: session.implant_volumes_ml(),
-        implants,
+        implants: state.implants.clone(),
         breast_volume_ml,
         breast_volume_before_ml,
         distances,
-        solver,
-        no_gravity: options.no_gravity,
+        solver: state.solver.clone(),
+        no_gravity: state.no_gravity,
         materials: MaterialsReport::new(session.simulation.options()),
         out_dir: out_dir.to_path_buf(),
         files,
     };
     crate::demo::write_json(&report_path, &report)?;
-    progress.step();
     Ok(report)
 }
 

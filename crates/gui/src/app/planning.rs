@@ -2,11 +2,13 @@
 //! progress, volumes, cut curves), the implant panel, the simulation's indicator and
 //! display modes, the measurements and their export, and planning cases.
 
+use super::ControlPointTool;
 use super::{ERROR_COLOR, GuiApp, PLACED_COLOR, Status};
+use crate::carried::{SurfaceAnchor, anchors};
 use crate::document::Document;
 use crate::implant_plan::{Editing, ImplantPlan, MoveDirection, Source};
 use crate::live_simulation::{
-    ExportPaths, ImplantSet, LiveSimulation, MeasurementState, SolverStatus,
+    ExportPaths, ImplantSet, LiveSimulation, MeasurementState, ReportState, SolverStatus,
 };
 use crate::model_build::{BuildOutcome, ModelBuild};
 use anatomy::ControlPoints;
@@ -16,6 +18,7 @@ use glam::DVec3;
 use plan::case::PlanningCase;
 use plan::catalog::ShapeKind;
 use plan::model::{DEFAULT_ELEMENTS, PerSide};
+use plan::report::PostoperativeScan;
 use plan::simulate::{Material, Session, SolveState, Stage};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -36,13 +39,20 @@ pub enum DisplayMode {
     Simulated,
     /// The scan as loaded with the prediction over it, translucent.
     Overlay,
+    /// The prediction coloured by its distance from the scan as loaded (paper Fig. 3).
+    Deviation,
+    /// The registered post-operative scan, coloured by its distance from the scan as
+    /// loaded or from the prediction.
+    PostOperative,
 }
 
 impl DisplayMode {
-    const ALL: [DisplayMode; 3] = [
+    const ALL: [DisplayMode; 5] = [
         DisplayMode::PreOperative,
         DisplayMode::Simulated,
         DisplayMode::Overlay,
+        DisplayMode::Deviation,
+        DisplayMode::PostOperative,
     ];
 
     fn label(self) -> &'static str {
@@ -50,6 +60,8 @@ impl DisplayMode {
             DisplayMode::PreOperative => "Pre-operative",
             DisplayMode::Simulated => "Simulated",
             DisplayMode::Overlay => "Overlay",
+            DisplayMode::Deviation => "Deviation",
+            DisplayMode::PostOperative => "Post-operative",
         }
     }
 }
@@ -82,6 +94,8 @@ pub struct ModelFigures {
     pub quadrant_volume_ml: PerSide<QuadrantVolumes>,
     /// Each breast's cut curve (closed, mm, file frame).
     pub cut_curves: PerSide<Vec<DVec3>>,
+    /// The cut curves' points on the scan, to carry them onto simulated frames.
+    pub cut_curve_anchors: PerSide<Vec<SurfaceAnchor>>,
     /// Tetrahedra of the finest level and number of levels.
     pub elements: usize,
     pub levels: usize,
@@ -93,18 +107,22 @@ pub struct ModelFigures {
 impl ModelFigures {
     fn of(session: &Session, build_time: Duration) -> ModelFigures {
         let breasts = &session.model.breasts;
+        let cut_curves: PerSide<Vec<DVec3>> = PerSide::from_fn(|side| {
+            breasts
+                .breast(side)
+                .curve
+                .points
+                .iter()
+                .map(|p| p.position)
+                .collect()
+        });
         ModelFigures {
             breast_volume_ml: PerSide::from_fn(|side| breasts.breast(side).volume_ml),
             quadrant_volume_ml: PerSide::from_fn(|side| breasts.breast(side).quadrant_volume_ml),
-            cut_curves: PerSide::from_fn(|side| {
-                breasts
-                    .breast(side)
-                    .curve
-                    .points
-                    .iter()
-                    .map(|p| p.position)
-                    .collect()
+            cut_curve_anchors: PerSide::from_fn(|side| {
+                anchors(&session.marked.scan.index, cut_curves.get(side))
             }),
+            cut_curves,
             elements: session.model.levels.first().map_or(0, |l| l.elements),
             levels: session.model.levels.len(),
             build_time,
@@ -154,6 +172,9 @@ impl GuiApp {
             Err(error) => return self.error_status(&error),
         };
         self.cancel_build();
+        // The build cuts along the control points as they are now.
+        self.control_points_edited = false;
+        self.control_point_tool = None;
         let wake = self.waker();
         self.build = Some(ModelBuild::start(
             marked,
@@ -172,7 +193,7 @@ impl GuiApp {
     }
 
     /// A callback that asks the window for a repaint (a no-op before the first frame).
-    fn waker(&self) -> impl Fn() + Send + Sync + 'static {
+    pub(super) fn waker(&self) -> impl Fn() + Send + Sync + 'static {
         let ctx = self.ctx.clone();
         move || {
             if let Some(ctx) = &ctx {
@@ -431,6 +452,56 @@ impl GuiApp {
                 }
             });
         ui.checkbox(&mut self.show_curves, "Show cut curves");
+        if let Some(points) = &self.settings.control_points {
+            ui.label(format!(
+                "Control points: {} left, {} right (squares on the cut curves: drag them along \
+                 the surface)",
+                points.left.len(),
+                points.right.len()
+            ));
+        }
+        ui.horizontal(|ui| {
+            for (tool, label, hint) in [
+                (
+                    ControlPointTool::Insert,
+                    "Insert point",
+                    "then click on the surface near a cut curve",
+                ),
+                (
+                    ControlPointTool::Remove,
+                    "Remove point",
+                    "then click on a control point (three stay at least)",
+                ),
+            ] {
+                let active = self.control_point_tool == Some(tool);
+                if ui
+                    .add_enabled(
+                        self.settings.control_points.is_some(),
+                        egui::Button::selectable(active, label),
+                    )
+                    .on_hover_text(hint)
+                    .clicked()
+                {
+                    self.control_point_tool = (!active).then_some(tool);
+                }
+            }
+            if ui
+                .button("Default points")
+                .on_hover_text("the control points derived from the landmarks, at the next build")
+                .clicked()
+            {
+                self.settings.control_points = None;
+                self.control_points_edited = true;
+                self.control_point_tool = None;
+            }
+        });
+        if self.control_points_edited {
+            ui.colored_label(
+                RUNNING_COLOR,
+                "The control points changed since the model was built: rebuild it to cut along \
+                 them.",
+            );
+        }
         ui.weak(format!(
             "{} tetrahedra in {} levels, built in {:.1} s",
             model.elements,
@@ -627,6 +698,8 @@ impl GuiApp {
         }
         ui.checkbox(&mut self.implants.gravity, "Gravity correction")
             .on_hover_text("the implant's weight lets the breast sag (paper V-B)");
+        ui.checkbox(&mut self.show_outlines, "Show implant outlines")
+            .on_hover_text("the footprint of each implant, seen through the skin");
 
         if let Some(error) = &self.implant_error {
             ui.colored_label(ERROR_COLOR, error);
@@ -671,6 +744,9 @@ impl GuiApp {
             ui.weak("No model built yet.");
             return;
         };
+        if self.display == DisplayMode::Deviation {
+            deviation_summary(ui, live);
+        }
         if let Some(failure) = &live.failure {
             ui.colored_label(ERROR_COLOR, failure);
         }
@@ -696,6 +772,14 @@ impl GuiApp {
     }
 
     pub(super) fn measurement_panel(&mut self, ui: &mut egui::Ui) {
+        let postoperative =
+            self.postoperative
+                .registered
+                .as_ref()
+                .map(|registered| PostoperativeScan {
+                    scan: registered.scan_path.clone(),
+                    landmarks: registered.landmarks_path.clone(),
+                });
         let Some(live) = &mut self.live else {
             ui.weak("Build the model and choose implants to measure the prediction.");
             return;
@@ -766,11 +850,13 @@ impl GuiApp {
             }
         }
         ui.horizontal(|ui| {
+            let label = ui.label("Folder");
             ui.add(
                 egui::TextEdit::singleline(&mut self.export_folder)
-                    .hint_text("export folder")
+                    .hint_text("where to export and write the report")
                     .desired_width(220.0),
-            );
+            )
+            .labelled_by(label.id);
             if ui
                 .add_enabled(frame > 0, egui::Button::new("Export"))
                 .on_hover_text(
@@ -803,6 +889,77 @@ impl GuiApp {
             }
             None => {}
         }
+        ui.horizontal(|ui| {
+            let writing = live.is_writing_report();
+            if ui
+                .add_enabled(frame > 0 && !writing, egui::Button::new("Write report"))
+                .on_hover_text(
+                    "report.html into the folder (as mammaplan report), with the scan, model and \
+                     simulation folders it is made from; compared with the post-operative scan \
+                     when one is registered",
+                )
+                .clicked()
+            {
+                live.write_report(PathBuf::from(self.export_folder.trim()), postoperative);
+            }
+            if writing {
+                ui.spinner();
+                ui.weak(match &live.report {
+                    ReportState::WritingFolders(_) => "writing the model and simulation…",
+                    _ => "writing the report (views, measurements)…",
+                });
+            }
+        });
+        match &live.report {
+            ReportState::Written(Ok(summary)) => {
+                ui.colored_label(
+                    PLACED_COLOR,
+                    format!(
+                        "Report written: {} ({} views)",
+                        summary.out.display(),
+                        summary.views
+                    ),
+                );
+            }
+            ReportState::Written(Err(message)) => {
+                ui.colored_label(ERROR_COLOR, format!("The report failed: {message}"));
+            }
+            _ => {}
+        }
+    }
+}
+
+/// What the deviation view shows: the figures of the settled prediction's deviation from
+/// the scan as loaded, or why there are none yet.
+fn deviation_summary(ui: &mut egui::Ui, live: &LiveSimulation) {
+    let latest = live.frame.as_ref().map(|f| f.number);
+    match &live.settled {
+        Some(settled) => match &settled.deviation {
+            Ok(map) => {
+                ui.label(format!(
+                    "Deviation from the pre-operative surface: RMS {:.2} mm, mean {:.2} mm, \
+                     largest {:.1} mm over {:.0}% of the vertices",
+                    map.statistics.rms_mm,
+                    map.statistics.mean_mm,
+                    map.statistics.max_test_to_reference_mm,
+                    100.0 * map.overlap_fraction
+                ));
+            }
+            Err(message) => {
+                ui.colored_label(ERROR_COLOR, message);
+            }
+        },
+        None => {
+            ui.weak("The deviation map follows once the simulation has settled.");
+        }
+    }
+    if live.is_preparing_settled() {
+        ui.horizontal(|ui| {
+            ui.spinner();
+            ui.weak("computing the deviation map…");
+        });
+    } else if live.settled.as_ref().map(|s| s.frame) != latest && latest.is_some() {
+        ui.weak("updated once the simulation has settled");
     }
 }
 

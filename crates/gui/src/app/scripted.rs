@@ -192,12 +192,40 @@ impl GuiApp {
                 Some(_) if self.implant_error.is_some() => {
                     Step::Failed(self.implant_error.clone().unwrap_or_default())
                 }
-                Some(live) if live.is_settled() => match &live.failure {
-                    Some(failure) => Step::Failed(failure.clone()),
-                    None => Step::Done,
-                },
+                // Settled, and the settled frame prepared (its deviation map).
+                Some(live)
+                    if live.is_settled()
+                        && !live.is_preparing_settled()
+                        && live.settled.as_ref().map(|s| s.frame)
+                            == live.frame.as_ref().map(|f| f.number) =>
+                {
+                    match &live.failure {
+                        Some(failure) => Step::Failed(failure.clone()),
+                        None => Step::Done,
+                    }
+                }
                 Some(_) => Step::Pending,
             },
+            Action::Register { scan, landmarks } => {
+                if first {
+                    self.postoperative.scan_text = scan.display().to_string();
+                    self.postoperative.landmarks_text = landmarks.display().to_string();
+                    self.start_registration();
+                }
+                let postoperative = &self.postoperative;
+                match self.error() {
+                    Some(error) => Step::Failed(error.to_string()),
+                    None if postoperative.is_registering() || postoperative.is_comparing() => {
+                        Step::Pending
+                    }
+                    None if postoperative.deviation().is_some() => Step::Done,
+                    None if let Some(failure) = postoperative.deviation_failure() => {
+                        Step::Failed(failure.to_string())
+                    }
+                    None if postoperative.registered.is_some() => Step::Pending,
+                    None => Step::Failed("the scan was not registered".into()),
+                }
+            }
             Action::Display(mode) => {
                 self.display = *mode;
                 Step::Done
