@@ -371,41 +371,6 @@ mod tests {
         );
     }
 
-    /// A torus about the anterior axis `z` (a ring facing the viewer): tube centre
-    /// radius `major`, tube radius `minor`, `around` x `across` quads split in two,
-    /// outward; vertex `(i, j)` at `i` steps around the axis from `+x` and `j` steps
-    /// around the tube from its outer equator (index `i * across + j`).
-    fn torus(major: f64, minor: f64, around: usize, across: usize) -> TriMesh {
-        let index = |i: usize, j: usize| ((i % around) * across + j % across) as u32;
-        let mut positions = Vec::with_capacity(around * across);
-        for i in 0..around {
-            let phi = std::f64::consts::TAU * i as f64 / around as f64;
-            for j in 0..across {
-                let theta = std::f64::consts::TAU * j as f64 / across as f64;
-                let radius = major + minor * theta.cos();
-                positions.push(DVec3::new(
-                    radius * phi.cos(),
-                    radius * phi.sin(),
-                    minor * theta.sin(),
-                ));
-            }
-        }
-        let mut triangles = Vec::with_capacity(2 * around * across);
-        for i in 0..around {
-            for j in 0..across {
-                let [a, b, c, d] = [
-                    index(i, j),
-                    index(i + 1, j),
-                    index(i + 1, j + 1),
-                    index(i, j + 1),
-                ];
-                triangles.push([a, b, c]);
-                triangles.push([a, c, d]);
-            }
-        }
-        TriMesh::new(positions, triangles)
-    }
-
     #[test]
     fn where_the_papers_plane_misses_the_end_the_normal_section_measures() {
         // Two points a quarter turn apart on the outer equator of a ring about the
@@ -414,7 +379,7 @@ mod tests {
         // both containing their mean surface normal is the ring's equatorial plane, whose
         // section from one to the other is a quarter of the outer equator.
         let (major, minor, around) = (100.0, 10.0, 256);
-        let mesh = torus(major, minor, around, 32);
+        let mesh = mesh::shapes::torus(major, minor, around, 32);
         let (_, mut landmarks) = vertical_cylinder();
         let outer = |i: usize| mesh.positions[i * 32];
         landmarks.extra.insert("a".into(), outer(0));

@@ -170,3 +170,38 @@ mod tests {
         assert!((mesh.area() - exact).abs() / exact < 2e-4);
     }
 }
+
+/// A torus about the `z` axis: tube centre radius `major_mm`, tube radius `minor_mm`,
+/// `around` x `tube` quads split in two, outward oriented; vertex `(i, j)` (index
+/// `i * tube + j`) lies `i` steps around the axis from `+x` and `j` steps around the
+/// tube from its outer equator. Area `4π² R r`, volume `2π² R r²` (up to the facets).
+pub fn torus(major_mm: f64, minor_mm: f64, around: usize, tube: usize) -> TriMesh {
+    let index = |i: usize, j: usize| ((i % around) * tube + j % tube) as u32;
+    let mut positions = Vec::with_capacity(around * tube);
+    for i in 0..around {
+        let phi = std::f64::consts::TAU * i as f64 / around as f64;
+        for j in 0..tube {
+            let theta = std::f64::consts::TAU * j as f64 / tube as f64;
+            let radius = major_mm + minor_mm * theta.cos();
+            positions.push(DVec3::new(
+                radius * phi.cos(),
+                radius * phi.sin(),
+                minor_mm * theta.sin(),
+            ));
+        }
+    }
+    let mut triangles = Vec::with_capacity(2 * around * tube);
+    for i in 0..around {
+        for j in 0..tube {
+            let [a, b, c, d] = [
+                index(i, j),
+                index(i + 1, j),
+                index(i + 1, j + 1),
+                index(i, j + 1),
+            ];
+            triangles.push([a, b, c]);
+            triangles.push([a, c, d]);
+        }
+    }
+    TriMesh::new(positions, triangles)
+}

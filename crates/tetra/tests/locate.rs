@@ -13,7 +13,7 @@ const TOLERANCE: f64 = 1e-9;
 
 #[test]
 fn located_tetrahedra_match_brute_force() {
-    let surface = ClosedSurface::new(&common::torus(40.0, 15.0, 96, 32)).unwrap();
+    let surface = ClosedSurface::new(&mesh::shapes::torus(40.0, 15.0, 96, 32)).unwrap();
     let mesh = stuff(&surface, 5.0).unwrap();
     let locator = TetLocator::new(&mesh);
     let (lo, hi) = mesh.bounding_box();

@@ -63,7 +63,7 @@ fn sphere_volume_converges_to_the_analytic_volume() {
 #[test]
 fn torus_volume_converges_to_the_analytic_volume() {
     let (major, minor) = (40.0, 15.0);
-    let torus = surface(&common::torus(major, minor, 384, 144));
+    let torus = surface(&mesh::shapes::torus(major, minor, 384, 144));
     let exact = 2.0 * PI * PI * major * minor * minor;
     let errors = volume_errors("torus", &torus, exact, &[8.0, 4.0, 2.0, 1.0]);
     assert_second_order(&errors);
@@ -83,13 +83,13 @@ fn rotated(mesh: &TriMesh, k: usize) -> TriMesh {
 fn dihedral_angles_stay_within_the_paper_bounds_on_rotated_shapes() {
     let shapes = [
         ("sphere", mesh::shapes::icosphere(50.0, 3)),
-        ("torus", common::torus(40.0, 15.0, 96, 32)),
+        ("torus", mesh::shapes::torus(40.0, 15.0, 96, 32)),
         ("cube", mesh::shapes::cube(37.0)),
         (
             "flat ellipsoid",
             common::ellipsoid(DVec3::new(30.0, 20.0, 6.0), 48, 24),
         ),
-        ("thin torus", common::torus(30.0, 4.0, 96, 16)),
+        ("thin torus", mesh::shapes::torus(30.0, 4.0, 96, 16)),
     ];
     let (mut lowest, mut highest) = (180.0f64, 0.0f64);
     for (name, shape) in &shapes {
@@ -185,7 +185,7 @@ fn interior_is_the_regular_lattice() {
 
 #[test]
 fn stuffing_is_deterministic() {
-    let surface = surface(&common::torus(40.0, 15.0, 96, 32));
+    let surface = surface(&mesh::shapes::torus(40.0, 15.0, 96, 32));
     let first = stuff(&surface, 3.0).unwrap();
     for _ in 0..3 {
         assert_eq!(stuff(&surface, 3.0).unwrap(), first);

@@ -5,34 +5,6 @@
 use glam::DVec3;
 use mesh::TriMesh;
 
-/// A torus around the z axis, major radius `major_mm`, tube radius `minor_mm`, with
-/// `around` segments along the ring and `tube` around the tube; outward oriented.
-/// Volume `2 π² R r²`.
-pub fn torus(major_mm: f64, minor_mm: f64, around: usize, tube: usize) -> TriMesh {
-    let mut positions = Vec::with_capacity(around * tube);
-    for i in 0..around {
-        let u = std::f64::consts::TAU * i as f64 / around as f64;
-        for j in 0..tube {
-            let v = std::f64::consts::TAU * j as f64 / tube as f64;
-            let radius = major_mm + minor_mm * v.cos();
-            positions.push(DVec3::new(
-                radius * u.cos(),
-                radius * u.sin(),
-                minor_mm * v.sin(),
-            ));
-        }
-    }
-    let id = |i: usize, j: usize| ((i % around) * tube + j % tube) as u32;
-    let mut triangles = Vec::with_capacity(2 * around * tube);
-    for i in 0..around {
-        for j in 0..tube {
-            triangles.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            triangles.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    TriMesh::new(positions, triangles)
-}
-
 /// An ellipsoid with semi-axes `radii` (mm) as a latitude-longitude mesh with `slices`
 /// around the z axis and `stacks` from pole to pole: `2 slices (stacks - 1)` triangles,
 /// outward oriented. Volume `4/3 π a b c`.
