@@ -140,37 +140,6 @@ pub fn cylinder(radius_mm: f64, height_mm: f64, segments: usize, rings: usize) -
     TriMesh::new(positions, triangles)
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::topology::Topology;
-    use std::f64::consts::PI;
-
-    #[test]
-    fn icosphere_is_closed_outward_and_converges_to_the_sphere_volume() {
-        let mesh = icosphere(10.0, 5);
-        let topology = Topology::new(&mesh);
-        assert_eq!(topology.boundary_edge_count, 0);
-        assert_eq!(topology.inconsistent_edge_count, 0);
-        // An inscribed polyhedron: volume slightly below 4/3 pi r^3; at 20480 faces the
-        // relative deficit is about 3e-4, bounded here by 1e-3.
-        let exact = 4.0 / 3.0 * PI * 1000.0;
-        let volume = mesh.signed_volume();
-        assert!(
-            volume < exact && volume > exact * (1.0 - 1e-3),
-            "{volume} vs {exact}"
-        );
-    }
-
-    #[test]
-    fn cylinder_area_converges() {
-        let mesh = cylinder(5.0, 20.0, 256, 8);
-        let exact = 2.0 * PI * 5.0 * 20.0;
-        // Chord deficit of a 256-gon: 1 - sin(2pi/256)/(2pi/256) ~ 1e-4.
-        assert!((mesh.area() - exact).abs() / exact < 2e-4);
-    }
-}
-
 /// A torus about the `z` axis: tube centre radius `major_mm`, tube radius `minor_mm`,
 /// `around` x `tube` quads split in two, outward oriented; vertex `(i, j)` (index
 /// `i * tube + j`) lies `i` steps around the axis from `+x` and `j` steps around the
@@ -204,4 +173,35 @@ pub fn torus(major_mm: f64, minor_mm: f64, around: usize, tube: usize) -> TriMes
         }
     }
     TriMesh::new(positions, triangles)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::topology::Topology;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn icosphere_is_closed_outward_and_converges_to_the_sphere_volume() {
+        let mesh = icosphere(10.0, 5);
+        let topology = Topology::new(&mesh);
+        assert_eq!(topology.boundary_edge_count, 0);
+        assert_eq!(topology.inconsistent_edge_count, 0);
+        // An inscribed polyhedron: volume slightly below 4/3 pi r^3; at 20480 faces the
+        // relative deficit is about 3e-4, bounded here by 1e-3.
+        let exact = 4.0 / 3.0 * PI * 1000.0;
+        let volume = mesh.signed_volume();
+        assert!(
+            volume < exact && volume > exact * (1.0 - 1e-3),
+            "{volume} vs {exact}"
+        );
+    }
+
+    #[test]
+    fn cylinder_area_converges() {
+        let mesh = cylinder(5.0, 20.0, 256, 8);
+        let exact = 2.0 * PI * 5.0 * 20.0;
+        // Chord deficit of a 256-gon: 1 - sin(2pi/256)/(2pi/256) ~ 1e-4.
+        assert!((mesh.area() - exact).abs() / exact < 2e-4);
+    }
 }
