@@ -119,9 +119,8 @@
 //! and 5 ms after, V-cycle 9-10 ms (six block SOR sweeps and a residual on the two finer
 //! levels, about 1.2 ms per finest sweep: half arithmetic, half traffic of the 11.5 MB
 //! finest matrix), Cholesky 1.5 ms. Still far from the 45 ms / 12 ms for five
-//! cycles. Not done yet: f32 blocks for the smoother (needs the correction form to keep
-//! stand-alone cycles converging to the f64 solution), unknowns renumbered by colour, a
-//! coarsest level small enough that its Cholesky is negligible.
+//! cycles. Not done yet: unknowns renumbered by colour, a coarsest level small enough
+//! that its Cholesky is negligible (single-precision smoothing: tried, see below).
 //!
 //! The block row product ([`BlockCsr::row_mul`], used by the smoother and the residual)
 //! runs on four-lane AVX2/FMA registers where the processor has them: instructions per
@@ -149,7 +148,14 @@
 //! blocks as the finest and its colours (about 90 rows each) are relaxed serially, so
 //! the V-cycle hardly gains from a second thread (8.1 ms on one, 8.7 on two, load 5).
 //! One sweep per smoothing step on the coarse levels instead of two cut the residual
-//! reduction per cycle from 4.05 to 3.15; three gave 4.20.
+//! reduction per cycle from 4.05 to 3.15; three gave 4.20. Smoothing with every
+//! operator rounded to single precision (the V-cycle in correction form, so repeated
+//! cycles still reached the double-precision solution to 7e-15) made the V-cycle 17%
+//! faster on one thread (7.0-7.7 to 5.9-6.1 ms, box 60,984), but writing the rounded
+//! copy, even from the row gather's cache and the mirror pass, cost the finest assembly
+//! as much (13.0-14.3 to 14.4-15.1 ms): no gain per cycle, not kept. Two sets of
+//! accumulators in the block row product (for the latency of its sums) made the V-cycle
+//! slower (7.3-8.3 to 8.6-9.8 ms).
 //!
 //! The barycentric Galerkin products are fused per fine row (`FusedProduct`): the row
 //! `Q_f` of `A P`, from the lowest coarse column of `P`'s row `f` on, is formed in a
