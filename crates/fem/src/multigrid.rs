@@ -1668,6 +1668,23 @@ impl Multigrid {
         self.finest_mut().set_prescribed(vertex, d)
     }
 
+    /// Changes the corotated tangent the assemblies compute ([`MultigridOptions::tangent`]),
+    /// e.g. from the warped stiffness of the interactive cycles to the full tangent of a
+    /// linearised correction. The hierarchy is kept: the patterns hold either tangent
+    /// (the twist terms lie within each element's blocks). Call [`Multigrid::assemble`]
+    /// (or [`Multigrid::cycle`]) afterwards.
+    pub fn set_tangent(&mut self, tangent: Tangent) {
+        if self.options.tangent != tangent {
+            self.options.tangent = tangent;
+            self.assembled = false;
+        }
+    }
+
+    /// The corotated tangent the assemblies compute.
+    pub fn tangent(&self) -> Tangent {
+        self.options.tangent
+    }
+
     /// Replaces the changeable constraints of the finest level (prescribed displacements
     /// in mm; the permanent ones given at construction stay) without rebuilding the
     /// hierarchy: O(vertices + prolongation entries), about a millisecond at 60,000

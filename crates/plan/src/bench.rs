@@ -60,11 +60,11 @@ pub struct BenchRow {
     /// (`Session::scan_positions`: the finest field at every scan vertex, smoothed;
     /// median, ms).
     pub scan_update_ms: f64,
-    /// Switching to the gravity correction the first time: its forces, and building its
-    /// own hierarchy (ms; later switches only swap constraints).
+    /// Switching to the gravity correction: its forces, and the session's hierarchy
+    /// given the stage's constraints and tangent (ms; nothing is built).
     pub gravity_start_ms: f64,
     /// The first cycle after moving both implants during the gravity correction: back to
-    /// the implant stage on its kept hierarchy, and one cycle (ms).
+    /// the implant stage on the same hierarchy, and one cycle (ms).
     pub change_after_gravity_cycle_ms: f64,
     /// Where a timed cycle's time goes: the median of each phase over the timed cycles
     /// (ms; the medians need not add up to the median cycle).

@@ -49,13 +49,13 @@
 //! and drops back to stage 1. The next cycle swaps the new constraints into the existing
 //! multigrid ([`Multigrid::set_constraints`]: a fixed pattern over all vertices,
 //! symmetric elimination, about 0.2 ms at 60,000 elements) and softens the new implant
-//! elements in place. Each stage keeps its own hierarchy for the whole session (they
-//! assemble different tangents, see [`SimulationOptions::gravity_tangent`]): stage 1's is
-//! built at the session's first cycle, stage 2's when the gravity correction first
-//! starts (0.3-0.5 s each at 60,000 elements); every later change of implant and every
-//! later switch between the stages only swaps constraints and materials, so a change
-//! after the gravity correction costs one ordinary cycle. The displacement is kept as
-//! the warm start.
+//! elements in place. One hierarchy serves the whole session: it is built at the
+//! session's first cycle (0.3-0.5 s at 60,000 elements), and every later change of
+//! implant and every switch between the stages only swaps its constraints, materials
+//! and assembled tangent ([`Multigrid::set_tangent`]; the stages assemble different
+//! tangents, see [`SimulationOptions::gravity_tangent`]), so neither the start of the
+//! gravity correction nor a change after it costs more than an ordinary cycle. The
+//! displacement is kept as the warm start.
 
 use crate::bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 use crate::error::SimulationError;
@@ -359,11 +359,12 @@ struct SideData {
     default_uv: DVec2,
 }
 
-/// A multigrid hierarchy kept for one stage, and the elements its finest model
-/// currently treats as implant (soft).
+/// The session's multigrid hierarchy, the elements its finest model currently treats as
+/// implant (soft), and the stage whose constraints and tangent it holds.
 struct StageMultigrid {
     multigrid: Multigrid,
     soft_elements: Vec<u32>,
+    stage: Stage,
 }
 
 /// Maps of the breast meshes, computed on first use.
@@ -403,10 +404,8 @@ pub struct Simulation {
     neighbours: Vec<u32>,
     implants: [Option<PlacedImplant>; 2],
     stage: Stage,
-    /// The hierarchy of stage 1, once its first cycle built it.
-    implant_multigrid: Option<StageMultigrid>,
-    /// The hierarchy of stage 2, once the gravity correction first started.
-    gravity_multigrid: Option<StageMultigrid>,
+    /// The hierarchy of both stages, once the first cycle built it.
+    multigrid: Option<StageMultigrid>,
     /// Hierarchies built so far.
     multigrid_builds: usize,
     /// The constraints changed since stage 1's multigrid last received them.
@@ -727,8 +726,7 @@ impl Simulation {
             on_wall,
             implants: [None, None],
             stage: Stage::Implant,
-            implant_multigrid: None,
-            gravity_multigrid: None,
+            multigrid: None,
             multigrid_builds: 0,
             dirty: true,
             u: vec![DVec3::ZERO; n],
@@ -1053,9 +1051,9 @@ impl Simulation {
         Ok(())
     }
 
-    /// How many multigrid hierarchies the session has built: one per stage used (stage
-    /// 1 at its first cycle, stage 2 at the first start of the gravity correction), and
-    /// again after a switch of coarse operator ([`Simulation::coarse_fallbacks`]).
+    /// How many multigrid hierarchies the session has built: one at its first cycle (or
+    /// at the first start of the gravity correction, if that comes first), and again
+    /// after a switch of coarse operator ([`Simulation::coarse_fallbacks`]).
     pub fn multigrid_builds(&self) -> usize {
         self.multigrid_builds
     }
@@ -1070,53 +1068,54 @@ impl Simulation {
     /// Brings the stage-1 multigrid up to date with the current constraints. Returns
     /// whether it had to be built.
     fn ensure_multigrid(&mut self) -> Result<bool, SimulationError> {
-        if !self.dirty && self.implant_multigrid.is_some() {
+        if !self.dirty
+            && self
+                .multigrid
+                .as_ref()
+                .is_some_and(|m| m.stage == Stage::Implant)
+        {
             return Ok(false);
         }
-        let kept = self.implant_multigrid.take();
-        let (stage, built) =
-            self.prepared_multigrid(kept, self.constraints(true), self.options.multigrid.tangent)?;
-        self.implant_multigrid = Some(stage);
+        let built = self.prepare_multigrid(Stage::Implant)?;
         self.dirty = false;
         Ok(built)
     }
 
-    /// `kept` (a stage's hierarchy) with `constraints` and the current implant elements'
-    /// material, or, without one, a new hierarchy assembling `tangent`; and whether it
-    /// was built. A new implant or position changes the constrained set: a kept
-    /// hierarchy keeps its patterns and only swaps the changeable constraints (fem's
-    /// symmetric elimination over a fixed pattern).
-    fn prepared_multigrid(
-        &mut self,
-        kept: Option<StageMultigrid>,
-        constraints: Constraints,
-        tangent: Tangent,
-    ) -> Result<(StageMultigrid, bool), SimulationError> {
-        let (mut stage, built) = match kept {
-            Some(mut stage) => {
-                stage.multigrid.set_constraints(&constraints)?;
-                (stage, false)
+    /// Gives the session's hierarchy the constraints, tangent and implant materials of
+    /// `stage`, building it if there is none yet; returns whether it was built. A new
+    /// implant or position changes the constrained set: the kept hierarchy keeps its
+    /// patterns and only swaps the changeable constraints (fem's symmetric elimination
+    /// over a fixed pattern) and the tangent it assembles.
+    fn prepare_multigrid(&mut self, stage: Stage) -> Result<bool, SimulationError> {
+        let (constraints, tangent) = match stage {
+            Stage::Implant => (self.constraints(true), self.options.multigrid.tangent),
+            Stage::Gravity => (self.constraints(false), self.options.gravity_tangent),
+        };
+        let (mut kept, built) = match self.multigrid.take() {
+            Some(mut kept) => {
+                kept.multigrid.set_constraints(&constraints)?;
+                kept.multigrid.set_tangent(tangent);
+                kept.stage = stage;
+                (kept, false)
             }
             None => {
-                let stage = StageMultigrid {
+                let kept = StageMultigrid {
                     multigrid: self.build_multigrid(constraints, tangent)?,
                     soft_elements: Vec::new(),
+                    stage,
                 };
                 self.multigrid_builds += 1;
-                (stage, true)
+                (kept, true)
             }
         };
-        self.update_implant_materials(&mut stage)?;
-        Ok((stage, built))
+        self.update_implant_materials(&mut kept)?;
+        self.multigrid = Some(kept);
+        Ok(built)
     }
 
-    /// The multigrid of the current stage, once built.
+    /// The session's multigrid, once built.
     fn stage_multigrid(&self) -> Option<&Multigrid> {
-        match self.stage {
-            Stage::Implant => self.implant_multigrid.as_ref(),
-            Stage::Gravity => self.gravity_multigrid.as_ref(),
-        }
-        .map(|stage| &stage.multigrid)
+        self.multigrid.as_ref().map(|stage| &stage.multigrid)
     }
 
     /// The load scale of the relative residual: the reaction forces at the held
@@ -1174,20 +1173,13 @@ impl Simulation {
         }
     }
 
-    /// Rebuilds the multigrid of the current stage after a change of coarse operator
-    /// (the other stage's is dropped too, and built again when next needed).
+    /// Rebuilds the multigrid for the current stage after a change of coarse operator.
     fn rebuild_current_stage(&mut self) -> Result<(), SimulationError> {
-        self.implant_multigrid = None;
-        self.gravity_multigrid = None;
+        self.multigrid = None;
         match self.stage {
             Stage::Implant => self.dirty = true,
             Stage::Gravity => {
-                let (stage, _) = self.prepared_multigrid(
-                    None,
-                    self.constraints(false),
-                    self.options.gravity_tangent,
-                )?;
-                self.gravity_multigrid = Some(stage);
+                self.prepare_multigrid(Stage::Gravity)?;
                 self.gravity = None;
             }
         }
@@ -1206,7 +1198,7 @@ impl Simulation {
             && !fresh
             && formulation == Formulation::Corotated;
         let u_old = search.then(|| self.u.clone());
-        let mg = &mut self.implant_multigrid.as_mut().expect("ensured").multigrid;
+        let mg = &mut self.multigrid.as_mut().expect("ensured").multigrid;
         let report = mg.cycle(&mut self.u, &self.f_ext, formulation)?;
         if let Some(u_old) = u_old {
             // backtracking on the potential energy (the corotated forces are conservative)
@@ -1265,7 +1257,7 @@ impl Simulation {
             .as_deref()
             .expect("stage 2 starts from stage 1's displacement");
         let mg = &mut self
-            .gravity_multigrid
+            .multigrid
             .as_mut()
             .expect("prepared when the stage started")
             .multigrid;
@@ -1332,20 +1324,15 @@ impl Simulation {
     /// Switches to stage 2 (paper V-B) from the current (stage-1) displacement: the
     /// implant vertices' holding forces and the added implant weight become loads, the
     /// implant vertices are released. Does nothing without implants or when already
-    /// there. The stage's multigrid is built the first time (0.3-0.5 s at 60,000
-    /// elements) and kept for the session: later starts only swap its constraints. Run
+    /// there. The session's multigrid only swaps its constraints and tangent (see the
+    /// module documentation). Run
     /// [`Simulation::cycle`] or [`Simulation::solve`] afterwards.
     pub fn start_gravity_correction(&mut self) -> Result<(), SimulationError> {
         if self.stage == Stage::Gravity || self.implants.iter().all(Option::is_none) {
             return Ok(());
         }
         self.ensure_multigrid()?;
-        let model = self
-            .implant_multigrid
-            .as_ref()
-            .expect("ensured")
-            .multigrid
-            .model();
+        let model = self.multigrid.as_ref().expect("ensured").multigrid.model();
         let f_int = model.internal_forces(&self.u, Formulation::Corotated)?;
         let mut f_ext = vec![DVec3::ZERO; self.u.len()];
         let g = -self.frame.up()
@@ -1371,10 +1358,7 @@ impl Simulation {
                 }
             }
         }
-        let kept = self.gravity_multigrid.take();
-        let (stage, _) =
-            self.prepared_multigrid(kept, self.constraints(false), self.options.gravity_tangent)?;
-        self.gravity_multigrid = Some(stage);
+        self.prepare_multigrid(Stage::Gravity)?;
         self.u_before_gravity = Some(self.u.clone());
         self.gravity = None;
         self.f_ext = f_ext;
@@ -1485,11 +1469,7 @@ impl Simulation {
     /// (e.g. [`Multigrid::pcg`] in checks and benchmarks). Changing its constraints or
     /// materials through it would desynchronise the session.
     pub fn multigrid_mut(&mut self) -> Option<&mut Multigrid> {
-        match self.stage {
-            Stage::Implant => self.implant_multigrid.as_mut(),
-            Stage::Gravity => self.gravity_multigrid.as_mut(),
-        }
-        .map(|stage| &mut stage.multigrid)
+        self.multigrid.as_mut().map(|stage| &mut stage.multigrid)
     }
 
     /// Finest elements whose deformed volume is not positive.
