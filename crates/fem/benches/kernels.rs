@@ -6,8 +6,10 @@
 //! operators alone (the Galerkin products of an assembly, as timed by
 //! `Multigrid::phase_times`), one V(2,1) cycle, one prolongation and restriction, one
 //! interactive cycle (`Multigrid::cycle`: rotation update, reassembly of every level, one
-//! V-cycle; `1000 / update_hz` of the issue), and `solve_ms` of the issue, five
-//! interactive cycles from the rest state. After the
+//! V-cycle; `1000 / update_hz` of the issue), `solve_ms` of the issue, five
+//! interactive cycles from the rest state, and a change of the changeable constraints
+//! (`Multigrid::set_constraints`, an implant moving: the pushed part of the top face
+//! alternates between two sizes). After the
 //! five-cycle bench the median and minimum phase times of `Multigrid::phase_times` over
 //! 50 cycles are printed (where the time of a cycle goes).
 //!
@@ -30,11 +32,16 @@ fn box_of(n: [usize; 3]) -> (TetMesh, DVec3) {
 }
 
 fn constraints(mesh: &TetMesh, size: DVec3) -> Constraints {
+    pushed_part(mesh, size, 1.0)
+}
+
+/// The bottom face fixed and the part `x < fraction · size.x` of the top face pushed.
+fn pushed_part(mesh: &TetMesh, size: DVec3, fraction: f64) -> Constraints {
     let mut c = Constraints::new();
     for (v, x) in mesh.positions.iter().enumerate() {
         if x.z == 0.0 {
             c.fix(v as u32);
-        } else if x.z == size.z {
+        } else if x.z == size.z && x.x <= fraction * size.x {
             c.prescribe(v as u32, DVec3::new(0.3 * size.z, 0.0, -0.1 * size.z));
         }
     }
@@ -170,6 +177,14 @@ fn kernels(c: &mut Criterion) {
                 let mut back = vec![DVec3::ZERO; coarse.positions.len()];
                 p.restrict(&xf, &mut back);
                 back
+            })
+        });
+        let sets = [0.4, 0.6].map(|fraction| pushed_part(&fine, size, fraction));
+        let mut k = 0;
+        c.bench_function(&format!("mg_set_constraints_{ne}"), |b| {
+            b.iter(|| {
+                k ^= 1;
+                mg.set_constraints(black_box(&sets[k])).unwrap()
             })
         });
     }
