@@ -245,6 +245,10 @@ pub struct ReducedSystem {
     /// For each unknown, the incident elements `element << 2 | a`, sorted by element.
     incident_ptr: Vec<usize>,
     incident: Vec<u32>,
+    /// For each vertex that is no unknown (held by a permanent constraint, or used by
+    /// no element), in vertex order, its incident elements like `incident`.
+    fixed_incident_ptr: Vec<usize>,
+    fixed_incident: Vec<u32>,
     /// For each incidence `(element, a)` of row `i`, and each corner `b`, the index of
     /// the block `(i, t[b])` within row `i`'s upper part (diagonal first), or
     /// [`NOT_FREE`] where `t[b]` is no unknown or left of the diagonal.
@@ -367,13 +371,20 @@ impl ReducedSystem {
             row_ptr.push(cols.len());
             incident_slots.extend_from_slice(&sl);
         }
-        let mut incident_ptr = vec![0usize];
-        let mut incident = Vec::new();
-        for &v in &free {
-            incident
-                .extend_from_slice(&vertex_inc[vertex_ptr[v as usize]..vertex_ptr[v as usize + 1]]);
-            incident_ptr.push(incident.len());
-        }
+        let incidences = |vertices: &mut dyn Iterator<Item = u32>| {
+            let mut ptr = vec![0usize];
+            let mut list = Vec::new();
+            for v in vertices {
+                list.extend_from_slice(
+                    &vertex_inc[vertex_ptr[v as usize]..vertex_ptr[v as usize + 1]],
+                );
+                ptr.push(list.len());
+            }
+            (ptr, list)
+        };
+        let (incident_ptr, incident) = incidences(&mut free.iter().copied());
+        let (fixed_incident_ptr, fixed_incident) =
+            incidences(&mut (0..n as u32).filter(|&v| reduced_of[v as usize] == NOT_FREE));
         let slots = cols.len();
         let permanent_held: Vec<bool> = table.iter().map(Option::is_some).collect();
         let held_count = permanent_held.iter().filter(|&&h| h).count();
@@ -396,6 +407,8 @@ impl ReducedSystem {
             free,
             incident_ptr,
             incident,
+            fixed_incident_ptr,
+            fixed_incident,
             incident_slots,
             cores: Vec::new(),
             twists: Vec::new(),
@@ -515,6 +528,31 @@ impl ReducedSystem {
     /// internal forces at free ones.
     pub fn nodal_forces(&self, model: &FemModel) -> Vec<DVec3> {
         model.nodal_sum(|e| self.cores[e].force)
+    }
+
+    /// `Σ |f_v|²` over the held vertices `v` (permanent and changeable constraints) of
+    /// the internal forces `f` of the latest [`ReducedSystem::assemble`], i.e. the squared
+    /// norm of the reactions that hold them (mN²); the same as summing
+    /// [`ReducedSystem::nodal_forces`] there, without forming the forces of the free
+    /// vertices.
+    pub fn reaction_norm_squared(&self) -> f64 {
+        let force_at = |incident: &[u32]| {
+            incident.iter().fold(DVec3::ZERO, |f, &k| {
+                f + self.cores[(k >> 2) as usize].force[(k & 3) as usize]
+            })
+        };
+        fn ranges(ptr: &[usize]) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+            ptr.windows(2).map(|w| w[0]..w[1])
+        }
+        let permanent: f64 = ranges(&self.fixed_incident_ptr)
+            .map(|r| force_at(&self.fixed_incident[r]).length_squared())
+            .sum();
+        let changeable: f64 = ranges(&self.incident_ptr)
+            .zip(&self.eliminated)
+            .filter(|&(_, &held)| held)
+            .map(|(r, _)| force_at(&self.incident[r]).length_squared())
+            .sum();
+        permanent + changeable
     }
 
     /// Assembles `K'_ff` (with the chosen [`Tangent`]) for the rotations of displacement

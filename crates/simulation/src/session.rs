@@ -70,7 +70,7 @@ use anatomy::closed_surface::ClosedSurface;
 use anatomy::fill_in::{FillInParams, fill_hole};
 use anatomy::{AnatomicalFrame, LandmarkName, Landmarks};
 use fem::multigrid::{CoarseOperator, Multigrid, MultigridOptions, PcgIteration};
-use fem::{Constraints, FemModel, Formulation, InversionBarrier, Material, NOT_FREE, Tangent};
+use fem::{Constraints, FemModel, Formulation, InversionBarrier, Material, Tangent};
 use glam::{DVec2, DVec3};
 use implant::ImplantShape;
 use mesh::TriMesh;
@@ -1122,14 +1122,7 @@ impl Simulation {
     /// vertices (from the latest assembly) plus the external loads (mN).
     fn load_scale(&self) -> f64 {
         let mg = self.stage_multigrid().expect("assembled");
-        let sys = mg.system();
-        let f = sys.nodal_forces(mg.model());
-        let reaction: f64 = f
-            .iter()
-            .enumerate()
-            .filter(|&(v, _)| sys.is_held(v as u32) || sys.reduced_of[v] == NOT_FREE)
-            .map(|(_, x)| x.length_squared())
-            .sum::<f64>();
+        let reaction = mg.system().reaction_norm_squared();
         let external: f64 = self.f_ext.iter().map(|x| x.length_squared()).sum();
         (reaction + external).sqrt().max(1e-12)
     }
