@@ -2,8 +2,13 @@
 //! sends it the implants it wants (every frame in which they changed) and never waits.
 //! The worker applies the newest set when several are queued (a slider being dragged),
 //! runs one cycle at a time ([`Session::advance`]: the implant stage, then the gravity
-//! correction) and after each cycle sends back the scan as simulated so far, ready to
-//! draw, with the landmarks moved with it and the solver's figures. Measuring and
+//! correction) and after a cycle sends back the scan as simulated so far, ready to
+//! draw, with the landmarks moved with it and the solver's figures: after every cycle
+//! that the window is ready for (it has taken the frame sent before), and after the
+//! last one of a solve. Cycles that end while the window has not yet taken the previous
+//! frame (it draws fewer frames per second than the solver cycles) send nothing: their
+//! frame would never be drawn, and carrying the displacement to the scan and its normals
+//! would only take processor time from the window and the solver. Measuring and
 //! exporting the prediction run on the worker too, between cycles, and so does writing
 //! the folders a report is made from (the report itself is then written on a thread of
 //! its own, from those files). Once the solver has
@@ -26,6 +31,7 @@ use plan::simulate::{
 use plan::{Scan, Silent};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
 
@@ -184,6 +190,8 @@ pub struct LiveSimulation {
     pub failure: Option<String>,
     /// Simulated frames received so far.
     pub frames_received: u64,
+    /// The number of the latest frame taken (shared with the worker).
+    taken: Arc<AtomicU64>,
     /// The latest settled frame, prepared ([`LiveSimulation::poll`] starts the work).
     pub settled: Option<Arc<SettledSimulation>>,
     /// The preparation under way, and its frame's number.
@@ -207,8 +215,10 @@ impl LiveSimulation {
         let wake: Wake = Arc::new(wake);
         let pre_operative = Arc::clone(&session.marked.scan);
         let worker_wake = Arc::clone(&wake);
+        let taken = Arc::new(AtomicU64::new(0));
+        let worker_taken = Arc::clone(&taken);
         std::thread::spawn(move || {
-            Worker::new(session, scene, outbox, move || worker_wake()).run(&inbox)
+            Worker::new(session, scene, outbox, worker_taken, move || worker_wake()).run(&inbox)
         });
         LiveSimulation {
             commands,
@@ -224,6 +234,7 @@ impl LiveSimulation {
             report: ReportState::NotYet,
             failure: None,
             frames_received: 0,
+            taken,
             settled: None,
             settling: None,
             pre_operative,
@@ -287,6 +298,7 @@ impl LiveSimulation {
                     self.failure = None;
                 }
                 Update::Cycle(frame, solver) => {
+                    self.taken.store(frame.number, Ordering::Relaxed);
                     self.frame = Some(frame);
                     self.solver = Some(solver);
                     self.frames_received += 1;
@@ -393,6 +405,8 @@ struct Worker<W> {
     /// The scan with the simulated positions (for normals).
     moved: mesh::TriMesh,
     outbox: Sender<Update>,
+    /// The number of the latest frame the window has taken.
+    taken: Arc<AtomicU64>,
     wake: W,
     /// The set last applied (some sides may have been refused).
     applied: Option<ImplantSet>,
@@ -402,17 +416,26 @@ struct Worker<W> {
     /// The solve since the implants last changed, as a simulation folder records it.
     solve: SolverReport,
     frame: u64,
+    /// The number of the latest frame sent.
+    sent_frame: u64,
     /// The number of the implant set last applied.
     set_number: u64,
 }
 
 impl<W: Fn()> Worker<W> {
-    fn new(session: Session, scene: Arc<SceneMesh>, outbox: Sender<Update>, wake: W) -> Self {
+    fn new(
+        session: Session,
+        scene: Arc<SceneMesh>,
+        outbox: Sender<Update>,
+        taken: Arc<AtomicU64>,
+        wake: W,
+    ) -> Self {
         Worker {
             moved: session.marked.scan.mesh.clone(),
             session,
             scene,
             outbox,
+            taken,
             wake,
             applied: None,
             sides: PerSide::default(),
@@ -420,6 +443,7 @@ impl<W: Fn()> Worker<W> {
             cycles: 0,
             solve: new_solve(),
             frame: 0,
+            sent_frame: 0,
             set_number: 0,
         }
     }
@@ -523,7 +547,13 @@ impl<W: Fn()> Worker<W> {
         restart
     }
 
-    /// One cycle and its frame; `false` once the window is gone.
+    /// Whether the window has yet to take the last frame sent.
+    fn window_behind(&self) -> bool {
+        self.taken.load(Ordering::Relaxed) < self.sent_frame
+    }
+
+    /// One cycle and, unless the window has yet to take the frame before and the solve
+    /// goes on, its frame; `false` once the window is gone.
     fn cycle(&mut self) -> bool {
         let gravity = self.applied.as_ref().is_some_and(|a| a.gravity);
         let update = match self.session.advance(!gravity) {
@@ -532,6 +562,10 @@ impl<W: Fn()> Worker<W> {
                 self.frame += 1;
                 self.running = advance.state == SolveState::Running;
                 self.tally(&advance);
+                if self.running && self.window_behind() {
+                    return true;
+                }
+                self.sent_frame = self.frame;
                 let start = Instant::now();
                 let simulation = &self.session.simulation;
                 let displacements = simulation.scan_displacements();

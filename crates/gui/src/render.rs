@@ -3,7 +3,10 @@
 //! `prepare` draws the lit meshes into the viewport's own colour and depth textures
 //! (multisampled when the adapter allows), so the 3D scene has a real depth buffer
 //! whatever egui's render pass has; `paint` then copies the resolved colour into egui's
-//! pass with a full-viewport triangle. Up to [`MAX_LAYERS`] meshes are drawn in order:
+//! pass with a full-viewport triangle. The scene is drawn again only when it changed
+//! (meshes, camera or size): a window frame for the panels alone (a hover, a solver
+//! status) only copies it, which matters with a software renderer, where drawing the
+//! 290,000 triangles of a scan costs tens of milliseconds. Up to [`MAX_LAYERS`] meshes are drawn in order:
 //! opaque ones, then a translucent one blended over them (the simulated scan over the
 //! pre-operative one). A simulated scan shares its triangles with the scan it moves, so
 //! its updates rewrite the vertex buffer only. Shading: per-vertex normals, a light slightly
@@ -211,7 +214,7 @@ impl SceneMesh {
 }
 
 #[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 struct Uniforms {
     view_proj: [[f32; 4]; 4],
     eye: [f32; 4],
@@ -246,6 +249,17 @@ struct ViewportResources {
     samples: u32,
     meshes: [Option<GpuMesh>; MAX_LAYERS],
     target: Option<Target>,
+    /// What the target holds.
+    drawn: Option<DrawnScene>,
+}
+
+/// What a scene drawn into the offscreen target was made of: when a frame asks for the
+/// same, the target is reused as it is.
+#[derive(PartialEq)]
+struct DrawnScene {
+    size: [u32; 2],
+    /// Each layer's mesh generation, style and uniforms (camera, light, tint).
+    layers: Vec<(u64, LayerStyle, Uniforms)>,
 }
 
 struct GpuMesh {
@@ -468,6 +482,7 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
             samples,
             meshes: [None, None],
             target: None,
+            drawn: None,
         });
 }
 
@@ -531,12 +546,21 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
             (pixels.y.round() as u32).max(1),
         ];
         let layers = &self.layers[..self.layers.len().min(MAX_LAYERS)];
-        for (k, layer) in layers.iter().enumerate() {
+        let scene = DrawnScene {
+            size,
+            layers: (layers.iter())
+                .map(|layer| (layer.scene.generation, layer.style, self.uniforms(layer)))
+                .collect(),
+        };
+        if viewport.drawn.as_ref() == Some(&scene) {
+            return Vec::new();
+        }
+        for (k, (layer, (_, _, uniforms))) in layers.iter().zip(&scene.layers).enumerate() {
             upload_mesh(&mut viewport.meshes[k], device, queue, &layer.scene);
-            let uniforms = self.uniforms(layer);
-            queue.write_buffer(&viewport.uniforms[k].0, 0, bytemuck::bytes_of(&uniforms));
+            queue.write_buffer(&viewport.uniforms[k].0, 0, bytemuck::bytes_of(uniforms));
         }
         viewport.resize(device, size);
+        viewport.drawn = Some(scene);
         let Some(target) = &viewport.target else {
             return Vec::new();
         };
