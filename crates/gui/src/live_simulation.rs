@@ -3,12 +3,13 @@
 //! The worker applies the newest set when several are queued (a slider being dragged),
 //! runs one cycle at a time ([`Session::advance`]: the implant stage, then the gravity
 //! correction) and after a cycle sends back the scan as simulated so far, ready to
-//! draw, with the landmarks moved with it and the solver's figures: after every cycle
-//! that the window is ready for (it has taken the frame sent before), and after the
-//! last one of a solve. Cycles that end while the window has not yet taken the previous
-//! frame (it draws fewer frames per second than the solver cycles) send nothing: their
-//! frame would never be drawn, and carrying the displacement to the scan and its normals
-//! would only take processor time from the window and the solver. Measuring and
+//! draw, with the landmarks moved with it and the solver's figures. The solver keeps at
+//! most one cycle ahead of the window: a cycle that ends while the window has not yet
+//! taken the frame sent before waits (at most [`WINDOW_WAIT`]) and sends its frame once
+//! the window has taken it. So when the window draws fewer frames per second than the
+//! solver could cycle (a software renderer on two cores), the solver does not take the
+//! processor from the window for cycles and frames that would never be drawn, and every
+//! window frame still finds a newer frame ready; the window itself never waits. Measuring and
 //! exporting the prediction run on the worker too, between cycles, and so does writing
 //! the folders a report is made from (the report itself is then written on a thread of
 //! its own, from those files). Once the solver has
@@ -33,10 +34,15 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Points of an implant's footprint outline drawn on the scan.
 const OUTLINE_SEGMENTS: usize = 64;
+/// The longest the solver waits for the window to take its last frame (a window that
+/// draws nothing, minimised say, holds the solve back no longer than this per cycle).
+const WINDOW_WAIT: Duration = Duration::from_millis(250);
+/// How often the waiting solver looks whether the window has taken its frame.
+const WINDOW_POLL: Duration = Duration::from_millis(2);
 
 /// The implants wanted on both sides, and whether the gravity correction follows.
 #[derive(Debug, Clone, PartialEq)]
@@ -418,6 +424,9 @@ struct Worker<W> {
     frame: u64,
     /// The number of the latest frame sent.
     sent_frame: u64,
+    /// The last cycle, if its frame has not been sent (the window had yet to take the
+    /// one before).
+    unsent: Option<Advance>,
     /// The number of the implant set last applied.
     set_number: u64,
 }
@@ -444,6 +453,7 @@ impl<W: Fn()> Worker<W> {
             solve: new_solve(),
             frame: 0,
             sent_frame: 0,
+            unsent: None,
             set_number: 0,
         }
     }
@@ -451,6 +461,15 @@ impl<W: Fn()> Worker<W> {
     /// Serves commands until the window drops its handle.
     fn run(mut self, inbox: &Receiver<Command>) {
         loop {
+            if let Some(advance) = self.unsent.take() {
+                let start = Instant::now();
+                while self.window_behind() && start.elapsed() < WINDOW_WAIT {
+                    std::thread::sleep(WINDOW_POLL);
+                }
+                if !self.send_frame(advance) {
+                    return;
+                }
+            }
             let mut commands = Vec::new();
             if !self.running {
                 match inbox.recv() {
@@ -552,47 +571,59 @@ impl<W: Fn()> Worker<W> {
         self.taken.load(Ordering::Relaxed) < self.sent_frame
     }
 
-    /// One cycle and, unless the window has yet to take the frame before and the solve
-    /// goes on, its frame; `false` once the window is gone.
+    /// One cycle, and its frame unless the window has yet to take the frame before and
+    /// the solve goes on (then the frame waits in `unsent`); `false` once the window is
+    /// gone.
     fn cycle(&mut self) -> bool {
         let gravity = self.applied.as_ref().is_some_and(|a| a.gravity);
-        let update = match self.session.advance(!gravity) {
+        match self.session.advance(!gravity) {
             Ok(advance) => {
                 self.cycles += 1;
                 self.frame += 1;
                 self.running = advance.state == SolveState::Running;
                 self.tally(&advance);
                 if self.running && self.window_behind() {
-                    return true;
+                    self.unsent = Some(advance);
+                    true
+                } else {
+                    self.send_frame(advance)
                 }
-                self.sent_frame = self.frame;
-                let start = Instant::now();
-                let simulation = &self.session.simulation;
-                let displacements = simulation.scan_displacements();
-                let positions: Vec<DVec3> = (self.session.marked.scan.mesh.positions.iter())
-                    .zip(&displacements)
-                    .map(|(p, d)| *p + *d)
-                    .collect();
-                self.moved.positions.clone_from(&positions);
-                let frame = SimulatedFrame {
-                    positions: Arc::new(positions),
-                    scene: Arc::new(self.scene.moved(&self.moved)),
-                    landmarks: Arc::new(simulation.landmarks_moved_by(&displacements)),
-                    number: self.frame,
-                };
-                let status = SolverStatus {
-                    set_number: self.set_number,
-                    cycles: self.cycles,
-                    advance,
-                    frame_ms: start.elapsed().as_secs_f64() * 1e3,
-                };
-                Update::Cycle(frame, status)
             }
             Err(error) => {
                 self.running = false;
-                Update::Failed(format!("the simulation failed: {error:#}"))
+                let failed = Update::Failed(format!("the simulation failed: {error:#}"));
+                let sent = self.outbox.send(failed).is_ok();
+                (self.wake)();
+                sent
             }
+        }
+    }
+
+    /// Sends the simulated scan as it is after the cycle `advance`; `false` once the
+    /// window is gone.
+    fn send_frame(&mut self, advance: Advance) -> bool {
+        self.sent_frame = self.frame;
+        let start = Instant::now();
+        let simulation = &self.session.simulation;
+        let displacements = simulation.scan_displacements();
+        let positions: Vec<DVec3> = (self.session.marked.scan.mesh.positions.iter())
+            .zip(&displacements)
+            .map(|(p, d)| *p + *d)
+            .collect();
+        self.moved.positions.clone_from(&positions);
+        let frame = SimulatedFrame {
+            positions: Arc::new(positions),
+            scene: Arc::new(self.scene.moved(&self.moved)),
+            landmarks: Arc::new(simulation.landmarks_moved_by(&displacements)),
+            number: self.frame,
         };
+        let status = SolverStatus {
+            set_number: self.set_number,
+            cycles: self.cycles,
+            advance,
+            frame_ms: start.elapsed().as_secs_f64() * 1e3,
+        };
+        let update = Update::Cycle(frame, status);
         let sent = self.outbox.send(update).is_ok();
         (self.wake)();
         sent

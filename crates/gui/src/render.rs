@@ -11,7 +11,8 @@
 //! pre-operative one). A simulated scan shares its triangles with the scan it moves, so
 //! its updates rewrite the vertex buffer only. Shading: per-vertex normals, a light slightly
 //! above and to the left of the eye, Lambert diffuse plus a weak Blinn-Phong highlight;
-//! back faces (the inside of an open scan) are lit from their own side and tinted.
+//! back faces (the inside of an open scan) are lit from their own side and tinted (not
+//! drawn at all with a software renderer, see [`install`]).
 //! Colours are the scan's vertex colours when it has them, a neutral skin tone otherwise.
 
 use crate::camera::Camera;
@@ -289,9 +290,13 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
     let depth_features = render_state
         .adapter
         .get_texture_format_features(DEPTH_FORMAT);
-    // A software renderer (Mesa's llvmpipe) pays for multisampling with every sample:
-    // there, one sample keeps the live view fluid.
+    // A software renderer (Mesa's llvmpipe) pays for multisampling with every sample, and
+    // for every triangle, even one hidden or facing away: there, one sample and drawing
+    // front faces only keep the live view fluid (at 60,000 elements on two cores, culling
+    // the back faces raised the view updates from about 8.7 to 9.7 per second). The
+    // inside of an open scan, seen through its openings, is then not drawn.
     let software = render_state.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
+    let cull_mode = software.then_some(wgpu::Face::Back);
     let samples = if !software
         && features.flags.sample_count_supported(MSAA_SAMPLES)
         && depth_features.flags.sample_count_supported(MSAA_SAMPLES)
@@ -355,7 +360,7 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
         primitive: wgpu::PrimitiveState {
             topology: wgpu::PrimitiveTopology::TriangleList,
             front_face: wgpu::FrontFace::Ccw,
-            cull_mode: None,
+            cull_mode,
             ..wgpu::PrimitiveState::default()
         },
         // A translucent layer hides nothing behind it, and where it coincides with an
