@@ -65,6 +65,9 @@ pub struct GuiApp {
     /// Whether the wgpu pipelines are installed (false in tests without a GPU: everything
     /// but the shaded surface still works).
     gpu: bool,
+    /// Whether the scene is drawn on the processor (a software renderer): the solver
+    /// then keeps to the window's pace (see [`LiveSimulation::start`]).
+    software_renderer: bool,
     path_text: String,
     extra_name: String,
     status: Status,
@@ -104,15 +107,14 @@ impl GuiApp {
         render_state: Option<&egui_wgpu::RenderState>,
         document: Option<Document>,
     ) -> GuiApp {
-        if let Some(render_state) = render_state {
-            render::install(render_state);
-        }
+        let software_renderer = render_state.is_some_and(render::install);
         let mut app = GuiApp {
             document: None,
             scene: None,
             distances: None,
             camera: Camera::framing(DMat3::IDENTITY, DVec3::ZERO, 100.0),
             gpu: render_state.is_some(),
+            software_renderer,
             path_text: String::new(),
             extra_name: String::new(),
             status: Status::Info(

@@ -3,13 +3,15 @@
 //! The worker applies the newest set when several are queued (a slider being dragged),
 //! runs one cycle at a time ([`Session::advance`]: the implant stage, then the gravity
 //! correction) and after a cycle sends back the scan as simulated so far, ready to
-//! draw, with the landmarks moved with it and the solver's figures. The solver keeps at
-//! most one cycle ahead of the window: a cycle that ends while the window has not yet
-//! taken the frame sent before waits (at most [`WINDOW_WAIT`]) and sends its frame once
-//! the window has taken it. So when the window draws fewer frames per second than the
-//! solver could cycle (a software renderer on two cores), the solver does not take the
-//! processor from the window for cycles and frames that would never be drawn, and every
-//! window frame still finds a newer frame ready; the window itself never waits. Measuring and
+//! draw, with the landmarks moved with it and the solver's figures; the window takes the
+//! newest when it draws and never waits. A cycle that ends while the window has not yet
+//! taken the frame sent before sends nothing: its frame would never be drawn. When the
+//! window draws on the processor too (a software renderer, on two cores here), the solver
+//! also keeps at most one cycle ahead of the window: such a cycle waits (at most
+//! [`WINDOW_WAIT`]) and sends its frame once the window has taken the one before, so the
+//! solver does not take the processor from the window for cycles that would never be
+//! drawn, and every window frame still finds a newer frame ready. With a GPU the solver
+//! cycles freely (its cores are not the window's). Measuring and
 //! exporting the prediction run on the worker too, between cycles, and so does writing
 //! the folders a report is made from (the report itself is then written on a thread of
 //! its own, from those files). Once the solver has
@@ -209,11 +211,14 @@ pub struct LiveSimulation {
 
 impl LiveSimulation {
     /// Hands the session to a new worker; `scene` is the scan as drawn (the simulated
-    /// frames reuse its triangles and colours); `wake` is called after every update (the
-    /// window asks for a repaint there).
+    /// frames reuse its triangles and colours); with `keep_to_window` the solver keeps at
+    /// most one cycle ahead of the frames the window has taken (for a window that draws
+    /// on the processor, see the module's documentation); `wake` is called after every
+    /// update (the window asks for a repaint there).
     pub fn start(
         session: Session,
         scene: Arc<SceneMesh>,
+        keep_to_window: bool,
         wake: impl Fn() + Send + Sync + 'static,
     ) -> LiveSimulation {
         let (commands, inbox) = channel();
@@ -224,7 +229,8 @@ impl LiveSimulation {
         let taken = Arc::new(AtomicU64::new(0));
         let worker_taken = Arc::clone(&taken);
         std::thread::spawn(move || {
-            Worker::new(session, scene, outbox, worker_taken, move || worker_wake()).run(&inbox)
+            let wake = move || worker_wake();
+            Worker::new(session, scene, outbox, worker_taken, keep_to_window, wake).run(&inbox)
         });
         LiveSimulation {
             commands,
@@ -425,8 +431,10 @@ struct Worker<W> {
     /// The number of the latest frame sent.
     sent_frame: u64,
     /// The last cycle, if its frame has not been sent (the window had yet to take the
-    /// one before).
+    /// one before) and is to be sent once the window has.
     unsent: Option<Advance>,
+    /// Whether the solver keeps at most one cycle ahead of the window.
+    keep_to_window: bool,
     /// The number of the implant set last applied.
     set_number: u64,
 }
@@ -437,6 +445,7 @@ impl<W: Fn()> Worker<W> {
         scene: Arc<SceneMesh>,
         outbox: Sender<Update>,
         taken: Arc<AtomicU64>,
+        keep_to_window: bool,
         wake: W,
     ) -> Self {
         Worker {
@@ -454,6 +463,7 @@ impl<W: Fn()> Worker<W> {
             frame: 0,
             sent_frame: 0,
             unsent: None,
+            keep_to_window,
             set_number: 0,
         }
     }
@@ -583,7 +593,9 @@ impl<W: Fn()> Worker<W> {
                 self.running = advance.state == SolveState::Running;
                 self.tally(&advance);
                 if self.running && self.window_behind() {
-                    self.unsent = Some(advance);
+                    if self.keep_to_window {
+                        self.unsent = Some(advance);
+                    }
                     true
                 } else {
                     self.send_frame(advance)

@@ -281,8 +281,9 @@ struct Target {
 }
 
 /// Creates the pipelines and stores them in the renderer's callback resources; call
-/// once with the app's wgpu state.
-pub fn install(render_state: &egui_wgpu::RenderState) {
+/// once with the app's wgpu state. Returns whether the renderer is a software one
+/// (drawing on the processor).
+pub fn install(render_state: &egui_wgpu::RenderState) -> bool {
     let device = &render_state.device;
     let features = render_state
         .adapter
@@ -489,6 +490,7 @@ pub fn install(render_state: &egui_wgpu::RenderState) {
             target: None,
             drawn: None,
         });
+    software
 }
 
 /// A pipeline layout with one bind group.
