@@ -47,7 +47,7 @@ fn main() -> anyhow::Result<()> {
         start.elapsed().as_secs_f64()
     );
 
-    let mut live = LiveSimulation::start(session, scene, || {});
+    let mut live = LiveSimulation::start(session, scene, false, || {});
     let set = |projection_mm: f64| ImplantSet {
         implants: PerSide::from_fn(|_| {
             Some(ImplantRequest::new(format!(

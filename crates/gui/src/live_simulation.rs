@@ -2,8 +2,16 @@
 //! sends it the implants it wants (every frame in which they changed) and never waits.
 //! The worker applies the newest set when several are queued (a slider being dragged),
 //! runs one cycle at a time ([`Session::advance`]: the implant stage, then the gravity
-//! correction) and after each cycle sends back the scan as simulated so far, ready to
-//! draw, with the landmarks moved with it and the solver's figures. Measuring and
+//! correction) and after a cycle sends back the scan as simulated so far, ready to
+//! draw, with the landmarks moved with it and the solver's figures; the window takes the
+//! newest when it draws and never waits. A cycle that ends while the window has not yet
+//! taken the frame sent before sends nothing: its frame would never be drawn. When the
+//! window draws on the processor too (a software renderer, on two cores here), the solver
+//! also keeps at most one cycle ahead of the window: such a cycle waits (at most
+//! [`WINDOW_WAIT`]) and sends its frame once the window has taken the one before, so the
+//! solver does not take the processor from the window for cycles that would never be
+//! drawn, and every window frame still finds a newer frame ready. With a GPU the solver
+//! cycles freely (its cores are not the window's). Measuring and
 //! exporting the prediction run on the worker too, between cycles, and so does writing
 //! the folders a report is made from (the report itself is then written on a thread of
 //! its own, from those files). Once the solver has
@@ -26,11 +34,17 @@ use plan::simulate::{
 use plan::{Scan, Silent};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, Sender, channel};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Points of an implant's footprint outline drawn on the scan.
 const OUTLINE_SEGMENTS: usize = 64;
+/// The longest the solver waits for the window to take its last frame (a window that
+/// draws nothing, minimised say, holds the solve back no longer than this per cycle).
+const WINDOW_WAIT: Duration = Duration::from_millis(250);
+/// How often the waiting solver looks whether the window has taken its frame.
+const WINDOW_POLL: Duration = Duration::from_millis(2);
 
 /// The implants wanted on both sides, and whether the gravity correction follows.
 #[derive(Debug, Clone, PartialEq)]
@@ -184,6 +198,8 @@ pub struct LiveSimulation {
     pub failure: Option<String>,
     /// Simulated frames received so far.
     pub frames_received: u64,
+    /// The number of the latest frame taken (shared with the worker).
+    taken: Arc<AtomicU64>,
     /// The latest settled frame, prepared ([`LiveSimulation::poll`] starts the work).
     pub settled: Option<Arc<SettledSimulation>>,
     /// The preparation under way, and its frame's number.
@@ -195,11 +211,14 @@ pub struct LiveSimulation {
 
 impl LiveSimulation {
     /// Hands the session to a new worker; `scene` is the scan as drawn (the simulated
-    /// frames reuse its triangles and colours); `wake` is called after every update (the
-    /// window asks for a repaint there).
+    /// frames reuse its triangles and colours); with `keep_to_window` the solver keeps at
+    /// most one cycle ahead of the frames the window has taken (for a window that draws
+    /// on the processor, see the module's documentation); `wake` is called after every
+    /// update (the window asks for a repaint there).
     pub fn start(
         session: Session,
         scene: Arc<SceneMesh>,
+        keep_to_window: bool,
         wake: impl Fn() + Send + Sync + 'static,
     ) -> LiveSimulation {
         let (commands, inbox) = channel();
@@ -207,8 +226,11 @@ impl LiveSimulation {
         let wake: Wake = Arc::new(wake);
         let pre_operative = Arc::clone(&session.marked.scan);
         let worker_wake = Arc::clone(&wake);
+        let taken = Arc::new(AtomicU64::new(0));
+        let worker_taken = Arc::clone(&taken);
         std::thread::spawn(move || {
-            Worker::new(session, scene, outbox, move || worker_wake()).run(&inbox)
+            let wake = move || worker_wake();
+            Worker::new(session, scene, outbox, worker_taken, keep_to_window, wake).run(&inbox)
         });
         LiveSimulation {
             commands,
@@ -224,6 +246,7 @@ impl LiveSimulation {
             report: ReportState::NotYet,
             failure: None,
             frames_received: 0,
+            taken,
             settled: None,
             settling: None,
             pre_operative,
@@ -287,6 +310,7 @@ impl LiveSimulation {
                     self.failure = None;
                 }
                 Update::Cycle(frame, solver) => {
+                    self.taken.store(frame.number, Ordering::Relaxed);
                     self.frame = Some(frame);
                     self.solver = Some(solver);
                     self.frames_received += 1;
@@ -393,6 +417,8 @@ struct Worker<W> {
     /// The scan with the simulated positions (for normals).
     moved: mesh::TriMesh,
     outbox: Sender<Update>,
+    /// The number of the latest frame the window has taken.
+    taken: Arc<AtomicU64>,
     wake: W,
     /// The set last applied (some sides may have been refused).
     applied: Option<ImplantSet>,
@@ -402,17 +428,32 @@ struct Worker<W> {
     /// The solve since the implants last changed, as a simulation folder records it.
     solve: SolverReport,
     frame: u64,
+    /// The number of the latest frame sent.
+    sent_frame: u64,
+    /// The last cycle, if its frame has not been sent (the window had yet to take the
+    /// one before) and is to be sent once the window has.
+    unsent: Option<Advance>,
+    /// Whether the solver keeps at most one cycle ahead of the window.
+    keep_to_window: bool,
     /// The number of the implant set last applied.
     set_number: u64,
 }
 
 impl<W: Fn()> Worker<W> {
-    fn new(session: Session, scene: Arc<SceneMesh>, outbox: Sender<Update>, wake: W) -> Self {
+    fn new(
+        session: Session,
+        scene: Arc<SceneMesh>,
+        outbox: Sender<Update>,
+        taken: Arc<AtomicU64>,
+        keep_to_window: bool,
+        wake: W,
+    ) -> Self {
         Worker {
             moved: session.marked.scan.mesh.clone(),
             session,
             scene,
             outbox,
+            taken,
             wake,
             applied: None,
             sides: PerSide::default(),
@@ -420,6 +461,9 @@ impl<W: Fn()> Worker<W> {
             cycles: 0,
             solve: new_solve(),
             frame: 0,
+            sent_frame: 0,
+            unsent: None,
+            keep_to_window,
             set_number: 0,
         }
     }
@@ -427,6 +471,15 @@ impl<W: Fn()> Worker<W> {
     /// Serves commands until the window drops its handle.
     fn run(mut self, inbox: &Receiver<Command>) {
         loop {
+            if let Some(advance) = self.unsent.take() {
+                let start = Instant::now();
+                while self.window_behind() && start.elapsed() < WINDOW_WAIT {
+                    std::thread::sleep(WINDOW_POLL);
+                }
+                if !self.send_frame(advance) {
+                    return;
+                }
+            }
             let mut commands = Vec::new();
             if !self.running {
                 match inbox.recv() {
@@ -523,42 +576,66 @@ impl<W: Fn()> Worker<W> {
         restart
     }
 
-    /// One cycle and its frame; `false` once the window is gone.
+    /// Whether the window has yet to take the last frame sent.
+    fn window_behind(&self) -> bool {
+        self.taken.load(Ordering::Relaxed) < self.sent_frame
+    }
+
+    /// One cycle, and its frame unless the window has yet to take the frame before and
+    /// the solve goes on (then the frame waits in `unsent`); `false` once the window is
+    /// gone.
     fn cycle(&mut self) -> bool {
         let gravity = self.applied.as_ref().is_some_and(|a| a.gravity);
-        let update = match self.session.advance(!gravity) {
+        match self.session.advance(!gravity) {
             Ok(advance) => {
                 self.cycles += 1;
                 self.frame += 1;
                 self.running = advance.state == SolveState::Running;
                 self.tally(&advance);
-                let start = Instant::now();
-                let simulation = &self.session.simulation;
-                let displacements = simulation.scan_displacements();
-                let positions: Vec<DVec3> = (self.session.marked.scan.mesh.positions.iter())
-                    .zip(&displacements)
-                    .map(|(p, d)| *p + *d)
-                    .collect();
-                self.moved.positions.clone_from(&positions);
-                let frame = SimulatedFrame {
-                    positions: Arc::new(positions),
-                    scene: Arc::new(self.scene.moved(&self.moved)),
-                    landmarks: Arc::new(simulation.landmarks_moved_by(&displacements)),
-                    number: self.frame,
-                };
-                let status = SolverStatus {
-                    set_number: self.set_number,
-                    cycles: self.cycles,
-                    advance,
-                    frame_ms: start.elapsed().as_secs_f64() * 1e3,
-                };
-                Update::Cycle(frame, status)
+                if self.running && self.window_behind() {
+                    if self.keep_to_window {
+                        self.unsent = Some(advance);
+                    }
+                    true
+                } else {
+                    self.send_frame(advance)
+                }
             }
             Err(error) => {
                 self.running = false;
-                Update::Failed(format!("the simulation failed: {error:#}"))
+                let failed = Update::Failed(format!("the simulation failed: {error:#}"));
+                let sent = self.outbox.send(failed).is_ok();
+                (self.wake)();
+                sent
             }
+        }
+    }
+
+    /// Sends the simulated scan as it is after the cycle `advance`; `false` once the
+    /// window is gone.
+    fn send_frame(&mut self, advance: Advance) -> bool {
+        self.sent_frame = self.frame;
+        let start = Instant::now();
+        let simulation = &self.session.simulation;
+        let displacements = simulation.scan_displacements();
+        let positions: Vec<DVec3> = (self.session.marked.scan.mesh.positions.iter())
+            .zip(&displacements)
+            .map(|(p, d)| *p + *d)
+            .collect();
+        self.moved.positions.clone_from(&positions);
+        let frame = SimulatedFrame {
+            positions: Arc::new(positions),
+            scene: Arc::new(self.scene.moved(&self.moved)),
+            landmarks: Arc::new(simulation.landmarks_moved_by(&displacements)),
+            number: self.frame,
         };
+        let status = SolverStatus {
+            set_number: self.set_number,
+            cycles: self.cycles,
+            advance,
+            frame_ms: start.elapsed().as_secs_f64() * 1e3,
+        };
+        let update = Update::Cycle(frame, status);
         let sent = self.outbox.send(update).is_ok();
         (self.wake)();
         sent

@@ -22,7 +22,9 @@
 //!                                 post-operative
 //! view NAME                       front, left-oblique, left, right-oblique, right
 //! stats                           from now on, once a second on stderr: window frames
-//!                                 per second and simulated frames received per second
+//!                                 per second, view updates per second (window frames
+//!                                 that drew a newer simulated frame) and simulated
+//!                                 frames received per second
 //! screenshot FILE                 the window as PNG
 //! save-case FILE
 //! quit

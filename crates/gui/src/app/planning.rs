@@ -239,6 +239,7 @@ impl GuiApp {
                     self.live = Some(LiveSimulation::start(
                         *session,
                         Arc::clone(scene),
+                        self.software_renderer,
                         self.waker(),
                     ));
                     self.display = DisplayMode::Simulated;

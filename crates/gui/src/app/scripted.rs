@@ -33,7 +33,23 @@ pub(super) struct ScriptRun {
 struct RateLog {
     since: Instant,
     frames: u64,
+    /// Window frames that drew a newer simulated frame than the window frame before.
+    view_updates: u64,
+    /// The simulated frame the last window frame drew, if it drew one.
+    last_shown: Option<u64>,
     simulated_frames: u64,
+}
+
+impl RateLog {
+    fn new(simulated_frames: u64, shown: Option<u64>) -> RateLog {
+        RateLog {
+            since: Instant::now(),
+            frames: 0,
+            view_updates: 0,
+            last_shown: shown,
+            simulated_frames,
+        }
+    }
 }
 
 /// What an action did this frame.
@@ -61,7 +77,14 @@ impl GuiApp {
             return;
         };
         if let Some(log) = &mut run.stats {
+            // The simulation has not been polled yet this frame: its frame is the one the
+            // previous window frame drew.
+            let shown = self.shown_frame_number();
             log.frames += 1;
+            if shown > log.last_shown {
+                log.view_updates += 1;
+            }
+            log.last_shown = shown;
             // Frames as fast as the window can draw them, to measure it.
             ctx.request_repaint();
             let elapsed = log.since.elapsed();
@@ -70,8 +93,9 @@ impl GuiApp {
                 let seconds = elapsed.as_secs_f64();
                 let solver = self.live.as_ref().and_then(|l| l.solver);
                 eprintln!(
-                    "stats: {:.1} window frames/s, {:.1} simulated frames/s{}",
+                    "stats: {:.1} window frames/s, {:.1} view updates/s, {:.1} simulated frames/s{}",
                     log.frames as f64 / seconds,
+                    log.view_updates as f64 / seconds,
                     (received - log.simulated_frames) as f64 / seconds,
                     solver.map_or(String::new(), |s| format!(
                         " (last cycle {:.0} ms + {:.0} ms to the scan, {:?}, {} cycles since the \
@@ -79,11 +103,7 @@ impl GuiApp {
                         s.advance.cycle.time_ms, s.frame_ms, s.advance.state, s.cycles
                     ))
                 );
-                *log = RateLog {
-                    since: Instant::now(),
-                    frames: 0,
-                    simulated_frames: received,
-                };
+                *log = RateLog::new(received, shown);
             }
         }
         while let Some((line, action)) = run.script.actions.get(run.next).cloned() {
@@ -235,11 +255,10 @@ impl GuiApp {
                 Step::Done
             }
             Action::Stats => {
-                run.stats = Some(RateLog {
-                    since: Instant::now(),
-                    frames: 0,
-                    simulated_frames: self.live.as_ref().map_or(0, |l| l.frames_received),
-                });
+                run.stats = Some(RateLog::new(
+                    self.live.as_ref().map_or(0, |l| l.frames_received),
+                    self.shown_frame_number(),
+                ));
                 Step::Done
             }
             Action::Screenshot(path) => match &run.screenshot {

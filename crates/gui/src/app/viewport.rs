@@ -506,6 +506,14 @@ impl GuiApp {
         }
     }
 
+    /// The number of the live simulation's latest frame if the viewport draws it.
+    pub(super) fn shown_frame_number(&self) -> Option<u64> {
+        let frame = self.live.as_ref()?.frame.as_ref()?;
+        (self.layers().iter())
+            .any(|layer| Arc::ptr_eq(&layer.scene, &frame.scene))
+            .then_some(frame.number)
+    }
+
     /// The deviation map of the settled prediction, if there is one.
     fn simulated_deviation(&self) -> Option<&DeviationMap> {
         let settled = self.live.as_ref()?.settled.as_ref()?;
