@@ -146,7 +146,9 @@
 //! (`mammaplan bench`: 10,656 / 2,254 / 208 / 30 unknowns, 12.5 / 37.2 / 42.0 / 20.9
 //! blocks per row, 8 / 25 / 28 / 15 colours) the first coarse level holds 63% as many
 //! blocks as the finest and its colours (about 90 rows each) are relaxed serially, so
-//! the V-cycle hardly gains from a second thread (8.1 ms on one, 8.7 on two, load 5).
+//! the V-cycle gained little from a second thread under load (8.1 ms on one, 8.7 on two,
+//! load 5); with the second core free, the box's V-cycle (a first coarse level of 1,584
+//! unknowns) took 3.9-4.7 ms on two threads against 7.1-7.7 ms on one (load 0.2).
 //! One sweep per smoothing step on the coarse levels instead of two cut the residual
 //! reduction per cycle from 4.05 to 3.15; three gave 4.20. Smoothing with every
 //! operator rounded to single precision (the V-cycle in correction form, so repeated
