@@ -12,7 +12,9 @@
 //! its updates rewrite the vertex buffer only. Shading: per-vertex normals, a light slightly
 //! above and to the left of the eye, Lambert diffuse plus a weak Blinn-Phong highlight;
 //! back faces (the inside of an open scan) are lit from their own side and tinted (not
-//! drawn at all with a software renderer, see [`install`]).
+//! drawn at all with a software renderer, see [`install`]). With a software renderer the
+//! live simulation's frames are drawn on an [`InteractionMesh`] (a quarter of the
+//! triangles) while the solver runs.
 //! Colours are the scan's vertex colours when it has them, a neutral skin tone otherwise.
 
 use crate::camera::Camera;
@@ -141,6 +143,27 @@ pub struct SceneMesh {
     origin: DVec3,
     vertices: Vec<Vertex>,
     indices: Arc<Vec<u32>>,
+    /// The scan vertex each vertex shows, when they are not the scan's own in order (an
+    /// [`InteractionMesh`]'s frames).
+    scan_vertices: Option<Arc<Vec<u32>>>,
+}
+
+/// A coarser triangulation of a scan on a subset of its vertices, drawn for the live
+/// simulation's frames while the solver runs when the window draws on the processor: a
+/// software renderer's cost is per triangle, and at the viewport's size a quarter of a
+/// 290,000-triangle scan's triangles shows the same shape. Its vertices are scan
+/// vertices, moved by their own simulated displacements; once the solver settles, the
+/// full scan is drawn again.
+pub struct InteractionMesh {
+    /// Tells its frames' triangle lists apart from the scan's.
+    topology: u64,
+    /// The scan vertex of each of its vertices (ascending).
+    scan_vertices: Arc<Vec<u32>>,
+    /// Its triangles, over its own vertices.
+    triangles: Vec<[u32; 3]>,
+    /// The simplifier's estimate of the largest distance between its surface and the
+    /// scan's (mm).
+    pub error_mm: f64,
 }
 
 /// Numbers for [`SceneMesh::generation`] and [`SceneMesh::topology`].
@@ -163,6 +186,7 @@ impl SceneMesh {
             origin: 0.5 * (low + high),
             vertices: Vec::new(),
             indices: Arc::new(mesh.triangles.iter().flatten().copied().collect()),
+            scan_vertices: None,
         }
         .with_vertices(mesh, colors)
     }
@@ -176,24 +200,44 @@ impl SceneMesh {
             origin: self.origin,
             vertices: Vec::new(),
             indices: Arc::clone(&self.indices),
+            scan_vertices: self.scan_vertices.clone(),
         }
         .with_vertices(moved, |i| self.vertices[i].color)
     }
 
-    /// The same mesh drawn in other colours (display RGB, one per vertex; a colour map).
+    /// The interaction mesh `coarse` of this scan (built from it) with its vertices at
+    /// `moved` (its own vertices' positions, mm, in its order; normals from its own
+    /// triangles; the scan's colours).
+    pub fn coarse_moved(&self, coarse: &InteractionMesh, moved: &TriMesh) -> SceneMesh {
+        SceneMesh {
+            generation: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+            topology: coarse.topology,
+            origin: self.origin,
+            vertices: Vec::new(),
+            indices: Arc::new(coarse.triangles.iter().flatten().copied().collect()),
+            scan_vertices: Some(Arc::clone(&coarse.scan_vertices)),
+        }
+        .with_vertices(moved, |i| {
+            self.vertices[coarse.scan_vertices[i] as usize].color
+        })
+    }
+
+    /// The same mesh drawn in other colours (display RGB, one per scan vertex; a colour
+    /// map).
     pub fn recoloured(&self, colors: &[[u8; 3]]) -> SceneMesh {
+        let scan_vertex = |i: usize| self.scan_vertices.as_ref().map_or(i, |s| s[i] as usize);
         SceneMesh {
             generation: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             topology: self.topology,
             origin: self.origin,
-            vertices: (self.vertices.iter())
-                .zip(colors)
-                .map(|(vertex, color)| Vertex {
-                    color: color.map(|c| f32::from(c) / 255.0),
+            vertices: (self.vertices.iter().enumerate())
+                .map(|(i, vertex)| Vertex {
+                    color: colors[scan_vertex(i)].map(|c| f32::from(c) / 255.0),
                     ..*vertex
                 })
                 .collect(),
             indices: Arc::clone(&self.indices),
+            scan_vertices: self.scan_vertices.clone(),
         }
     }
 
@@ -211,6 +255,58 @@ impl SceneMesh {
             })
             .collect();
         self
+    }
+}
+
+impl InteractionMesh {
+    /// Simplifies the scan drawn as `scene` (a full scan, from [`SceneMesh::new`]) to
+    /// about `triangle_share` of its triangles, or fewer triangles if that stays within
+    /// `error_mm` of the scan, by meshoptimizer's quadric edge collapses (borders kept,
+    /// vertices kept where they are). Written by meshoptimizer's authors, not by hand:
+    /// its simplifier is the field's standard and keeps the original vertices, which is
+    /// what lets each frame move them by their own displacements.
+    pub fn simplify(scene: &SceneMesh, triangle_share: f64, error_mm: f64) -> InteractionMesh {
+        let bytes: &[u8] = bytemuck::cast_slice(&scene.vertices);
+        let mut reached_error_mm = 0.0f32;
+        let simplified = match meshopt::VertexDataAdapter::new(bytes, size_of::<Vertex>(), 0) {
+            Ok(adapter) => meshopt::simplify(
+                &scene.indices,
+                &adapter,
+                (scene.indices.len() as f64 * triangle_share) as usize / 3 * 3,
+                error_mm as f32,
+                meshopt::SimplifyOptions::LockBorder | meshopt::SimplifyOptions::ErrorAbsolute,
+                Some(&mut reached_error_mm),
+            ),
+            // Cannot happen (the stride is the vertex's size): draw the scan itself.
+            Err(_) => scene.indices.to_vec(),
+        };
+        let mut own = vec![u32::MAX; scene.vertices.len()];
+        let mut scan_vertices: Vec<u32> = simplified.clone();
+        scan_vertices.sort_unstable();
+        scan_vertices.dedup();
+        for (k, &v) in scan_vertices.iter().enumerate() {
+            own[v as usize] = k as u32;
+        }
+        let triangles = simplified
+            .chunks_exact(3)
+            .map(|t| [own[t[0] as usize], own[t[1] as usize], own[t[2] as usize]])
+            .collect();
+        InteractionMesh {
+            topology: NEXT_ID.fetch_add(1, Ordering::Relaxed),
+            scan_vertices: Arc::new(scan_vertices),
+            triangles,
+            error_mm: f64::from(reached_error_mm),
+        }
+    }
+
+    /// The scan vertex of each of its vertices.
+    pub fn scan_vertices(&self) -> &[u32] {
+        &self.scan_vertices
+    }
+
+    /// Its triangles (over its own vertices), for a [`TriMesh`] of its frames.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
     }
 }
 
