@@ -87,8 +87,9 @@
 //! - Parallelism: [`Multigrid::assemble`] and [`Multigrid::vcycle`] run on a worker of
 //!   rayon's pool (a parallel loop started from outside the pool hands its work over and
 //!   sleeps on a lock, tens of microseconds each, and a V-cycle starts about a hundred
-//!   of them); colours of fewer than 1024 rows are relaxed serially in place. Neither
-//!   changes the arithmetic: the iterates are the same as with every colour in parallel.
+//!   of them); colours of fewer than `SERIAL_COLOUR_BLOCKS` blocks are relaxed
+//!   serially in place. Neither changes the arithmetic: the iterates are the same as
+//!   with every colour in parallel.
 //! - Cycle: V(ν₁, ν₂), default V(2, 1).
 //! - Step: the interactive cycle adds `α z`, the V-cycle's correction `z` scaled to the
 //!   minimum of the assembled quadratic energy along it, `α = (b·z) / (zᵀ A z)`. The
@@ -145,10 +146,11 @@
 //! shared scan's hierarchy 2.25 against 2.92 in cycle 8). On the phantom's 60k hierarchy
 //! (`mammaplan bench`: 10,656 / 2,254 / 208 / 30 unknowns, 12.5 / 37.2 / 42.0 / 20.9
 //! blocks per row, 8 / 25 / 28 / 15 colours) the first coarse level holds 63% as many
-//! blocks as the finest and its colours (about 90 rows each) are relaxed serially, so
-//! the V-cycle gained little from a second thread under load (8.1 ms on one, 8.7 on two,
-//! load 5); with the second core free, the box's V-cycle (a first coarse level of 1,584
-//! unknowns) took 3.9-4.7 ms on two threads against 7.1-7.7 ms on one (load 0.2).
+//! blocks as the finest. Its colours (about 90 rows each) were relaxed serially, so the
+//! V-cycle gained little from a second thread (8.1 ms on one, 8.7 on two, load 5); now
+//! they are relaxed in parallel (see `SERIAL_COLOUR_BLOCKS`): V-cycle 7.8-8.0 to
+//! 5.1-5.5 ms, `solve_ms` 100-110 to 80-86 ms at a load of about 1.5. On a busy machine
+//! the gain shrinks (the live view's update rate under llvmpipe did not change).
 //! One sweep per smoothing step on the coarse levels instead of two cut the residual
 //! reduction per cycle from 4.05 to 3.15; three gave 4.20. Smoothing with every
 //! operator rounded to single precision (the V-cycle in correction form, so repeated
@@ -1352,9 +1354,15 @@ fn residual(a: &BlockCsr, x: &[DVec3], b: &[DVec3], r: &mut [DVec3]) {
         .for_each(|(i, ri)| *ri = b[i] - a.row_mul(i, x));
 }
 
-/// Colours with fewer rows than this are relaxed serially: below it the fork-join of a
-/// parallel loop costs more than the work.
-const SERIAL_COLOUR_ROWS: usize = 1024;
+/// Colours with fewer blocks than this (rows times the level's mean blocks per row) are
+/// relaxed serially: below it the fork-join of a parallel loop costs more than the work.
+/// The first coarse level's colours have about 90 rows of 37 blocks on the phantom's
+/// 60k hierarchy; relaxing them in parallel made the V-cycle a third faster (7.8-8.0 to
+/// 5.1-5.5 ms at a load of about 1.5, `mammaplan bench`; the former limit of 1024 rows
+/// kept them serial). Limits of 600 to 3000 blocks measured alike.
+const SERIAL_COLOUR_BLOCKS: usize = 2000;
+/// Blocks per task of a colour relaxed in parallel (350 to 700 measured alike).
+const TASK_BLOCKS: usize = 500;
 
 /// One block SOR pass over the rows of one colour, in place: `xᵢ += ω Dᵢ⁻¹ (b - A x)ᵢ`.
 /// Rows of one colour share no block, so the order does not matter and large colours
@@ -1369,7 +1377,8 @@ fn sor_colour(
 ) {
     assert_eq!(x.len(), a.block_rows(), "iterate length");
     let relax = |i: usize, xi: DVec3, ax: DVec3| xi + inv_diag[i] * ((b[i] - ax) * omega);
-    if rows.len() < SERIAL_COLOUR_ROWS {
+    let mean_row_blocks = (a.cols.len() / a.block_rows().max(1)).max(1);
+    if rows.len() * mean_row_blocks < SERIAL_COLOUR_BLOCKS {
         for &i in rows {
             let i = i as usize;
             x[i] = relax(i, x[i], a.row_mul(i, x));
@@ -1377,17 +1386,19 @@ fn sor_colour(
         return;
     }
     let x = DisjointWrites::new(x);
-    rows.par_iter().with_min_len(256).for_each(|&i| {
-        let i = i as usize;
-        // SAFETY: row `i` is written by this task alone, and the rows it reads (its
-        // block columns) are `i` itself or rows of other colours, which no task writes
-        // while this colour is relaxed; the parallel loop ends before the next colour.
-        unsafe {
-            let (x_ptr, len) = x.raw_parts();
-            let ax = a.row_mul_raw(i, x_ptr, len);
-            x.write(i, relax(i, x.read(i), ax));
-        }
-    });
+    rows.par_iter()
+        .with_min_len(TASK_BLOCKS.div_ceil(mean_row_blocks))
+        .for_each(|&i| {
+            let i = i as usize;
+            // SAFETY: row `i` is written by this task alone, and the rows it reads (its
+            // block columns) are `i` itself or rows of other colours, which no task writes
+            // while this colour is relaxed; the parallel loop ends before the next colour.
+            unsafe {
+                let (x_ptr, len) = x.raw_parts();
+                let ax = a.row_mul_raw(i, x_ptr, len);
+                x.write(i, relax(i, x.read(i), ax));
+            }
+        });
 }
 
 /// One multicolour block SOR sweep, colours in order (`forward`) or reversed.
