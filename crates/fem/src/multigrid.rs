@@ -159,7 +159,14 @@
 //! copy, even from the row gather's cache and the mirror pass, cost the finest assembly
 //! as much (13.0-14.3 to 14.4-15.1 ms): no gain per cycle, not kept. Two sets of
 //! accumulators in the block row product (for the latency of its sums) made the V-cycle
-//! slower (7.3-8.3 to 8.6-9.8 ms).
+//! slower (7.3-8.3 to 8.6-9.8 ms). Anderson acceleration of the interactive cycles (each step
+//! mixed from the last one to five corrections so as to minimise the mixed correction's
+//! norm, the history dropped when the residual grew) raised `mammaplan bench`'s reduction
+//! per cycle at 15k elements from 3.41 to 4.36, 4.85, 4.92, 4.94 (depth 1, 2, 3, 5) but
+//! not at 60k (4.05 to 3.87, 4.00, 4.09, 4.13), and on the shared scan `v02_average`
+//! (60k, R-MOD-120 on both sides, no gravity) it converged in 14 cycles instead of 16:
+//! the corotated cycles' residual is not monotone (it grows in some cycles as the
+//! rotations settle), which spoils a secant history. Not kept.
 //!
 //! The barycentric Galerkin products are fused per fine row (`FusedProduct`): the row
 //! `Q_f` of `A P`, from the lowest coarse column of `P`'s row `f` on, is formed in a
