@@ -157,7 +157,11 @@
 //! cycles still reached the double-precision solution to 7e-15) made the V-cycle 17%
 //! faster on one thread (7.0-7.7 to 5.9-6.1 ms, box 60,984), but writing the rounded
 //! copy, even from the row gather's cache and the mirror pass, cost the finest assembly
-//! as much (13.0-14.3 to 14.4-15.1 ms): no gain per cycle, not kept. Two sets of
+//! as much (13.0-14.3 to 14.4-15.1 ms): no gain per cycle, not kept. Measured again on
+//! two threads once the coarse colours ran in parallel (phantom 60k, `mammaplan bench`,
+//! four alternating runs): V-cycle 5.3-5.9 to 4.6-4.7 ms, but finest assembly 7.9-8.3 to
+//! 8.1-8.8 and coarse operators 3.3-3.5 to 3.5-4.0 ms; `solve_ms` 91-102 to 89-95 ms,
+//! within the machine's spread. Two sets of
 //! accumulators in the block row product (for the latency of its sums) made the V-cycle
 //! slower (7.3-8.3 to 8.6-9.8 ms). Anderson acceleration of the interactive cycles (each step
 //! mixed from the last one to five corrections so as to minimise the mixed correction's
