@@ -148,8 +148,8 @@
 //! blocks per row, 8 / 25 / 28 / 15 colours) the first coarse level holds 63% as many
 //! blocks as the finest. Its colours (about 90 rows each) were relaxed serially, so the
 //! V-cycle gained little from a second thread (8.1 ms on one, 8.7 on two, load 5); now
-//! they are relaxed in parallel (see `SERIAL_COLOUR_BLOCKS`): V-cycle 7.8-8.0 to
-//! 5.1-5.5 ms, `solve_ms` 100-110 to 80-86 ms at a load of about 1.5. On a busy machine
+//! they are relaxed in parallel (see `SERIAL_COLOUR_BLOCKS`): V-cycle 7.8-9.4 to
+//! 5.1-5.5 ms, `solve_ms` 104-121 to 85-92 ms at a load of about 1.5. On a busy machine
 //! the gain shrinks (the live view's update rate under llvmpipe did not change).
 //! One sweep per smoothing step on the coarse levels instead of two cut the residual
 //! reduction per cycle from 4.05 to 3.15; three gave 4.20. Smoothing with every
@@ -622,6 +622,14 @@ fn colour_rows(a: &BlockCsr) -> Vec<Vec<u32>> {
             }
         }
     }
+    // The parallel relaxation (`sor_colour`) writes the rows of a colour while reading
+    // their columns: it is sound only if no row's column is another row of its colour.
+    // The greedy passes look at each row's own columns, which suffices for the
+    // structurally symmetric patterns built here; checked, as it is cheap.
+    assert!(
+        (0..n).all(|i| neighbours(i).all(|j| j == i || colour[j] != colour[i])),
+        "a colour class holds two coupled rows (pattern not symmetric)"
+    );
     let mut classes: Vec<Vec<u32>> = sizes.iter().map(|&s| Vec::with_capacity(s)).collect();
     for (i, &c) in colour.iter().enumerate() {
         classes[c as usize].push(i as u32);
@@ -1368,9 +1376,10 @@ fn residual(a: &BlockCsr, x: &[DVec3], b: &[DVec3], r: &mut [DVec3]) {
 /// Colours with fewer blocks than this (rows times the level's mean blocks per row) are
 /// relaxed serially: below it the fork-join of a parallel loop costs more than the work.
 /// The first coarse level's colours have about 90 rows of 37 blocks on the phantom's
-/// 60k hierarchy; relaxing them in parallel made the V-cycle a third faster (7.8-8.0 to
-/// 5.1-5.5 ms at a load of about 1.5, `mammaplan bench`; the former limit of 1024 rows
-/// kept them serial). Limits of 600 to 3000 blocks measured alike.
+/// 60k hierarchy; relaxing them in parallel made the V-cycle a third faster (7.8-9.4 to
+/// 5.1-5.5 ms, `solve_ms` 104-121 to 85-92 ms; `mammaplan bench`, four runs of each
+/// binary in turn at a load of about 1.5; the former limit of 1024 rows kept them
+/// serial). Limits of 600 to 3000 blocks measured alike.
 const SERIAL_COLOUR_BLOCKS: usize = 2000;
 /// Blocks per task of a colour relaxed in parallel (350 to 700 measured alike).
 const TASK_BLOCKS: usize = 500;

@@ -48,10 +48,12 @@ const WINDOW_POLL: Duration = Duration::from_millis(2);
 /// Share of the scan's triangles in the [`InteractionMesh`] drawn while the solver runs
 /// with a software renderer.
 const INTERACTION_TRIANGLE_SHARE: f64 = 0.25;
-/// The simplifier's bound on how far the interaction mesh's surface may lie from the
-/// scan's (mm): about half a pixel of the viewport at its default zoom, half the
-/// smallest implant move (1 mm). Measured on the scan's vertices: at most 0.27 mm on the
-/// phantom and 0.68 mm on the shared scan `v02_average`, 0.02 and 0.09 mm on average
+/// The limit on the simplifier's own estimate of how far the interaction mesh's surface
+/// lies from the scan's (mm): it stops short of [`INTERACTION_TRIANGLE_SHARE`] rather than
+/// exceed it (on the phantom and the shared scans the share decides: estimates of
+/// 0.06 mm and 0.37 mm). Measured on the scan's vertices: at most 0.27 mm from its
+/// surface on the phantom and 0.68 mm on the shared scan `v02_average`, 0.02 and
+/// 0.09 mm on average, about a pixel at the viewport's default zoom at most
 /// (`tests/interaction_mesh.rs`).
 const INTERACTION_ERROR_MM: f64 = 0.5;
 
@@ -143,6 +145,10 @@ pub struct SimulatedFrame {
     /// Every scan vertex (mm, file frame, the scan's order).
     pub positions: Arc<Vec<DVec3>>,
     pub scene: Arc<SceneMesh>,
+    /// For a frame drawn on the interaction mesh (a running solve's, with a software
+    /// renderer): the pre-operative scan drawn on the same mesh, so that an overlay of
+    /// the two lies on the same triangles where the skin did not move.
+    pub pre_operative: Option<Arc<SceneMesh>>,
     /// The landmarks (required and extra) moved with the tissue.
     pub landmarks: Arc<Landmarks>,
     /// Counts the frames of this session, from 1.
@@ -425,9 +431,8 @@ struct Worker<W> {
     scene: Arc<SceneMesh>,
     /// The scan with the simulated positions (for normals).
     moved: mesh::TriMesh,
-    /// With a software renderer: the coarser mesh drawn while the solver runs, and a
-    /// mesh of its triangles with its vertices' simulated positions (for normals).
-    interaction: Option<(InteractionMesh, mesh::TriMesh)>,
+    /// With a software renderer: what a running solve's frames are drawn on.
+    preview: Option<Preview>,
     outbox: Sender<Update>,
     /// The number of the latest frame the window has taken.
     taken: Arc<AtomicU64>,
@@ -447,6 +452,9 @@ struct Worker<W> {
     unsent: Option<Advance>,
     /// Whether the solver keeps at most one cycle ahead of the window.
     keep_to_window: bool,
+    /// The cycle of the last frame sent if that frame was a preview (drawn on the
+    /// interaction mesh): a solve that fails then sends that cycle's full frame.
+    preview_shown: Option<Advance>,
     /// The number of the implant set last applied.
     set_number: u64,
 }
@@ -460,16 +468,10 @@ impl<W: Fn()> Worker<W> {
         keep_to_window: bool,
         wake: W,
     ) -> Self {
-        let interaction = keep_to_window.then(|| {
-            let coarse =
-                InteractionMesh::simplify(&scene, INTERACTION_TRIANGLE_SHARE, INTERACTION_ERROR_MM);
-            let triangles = coarse.triangles().to_vec();
-            let positions = vec![DVec3::ZERO; coarse.scan_vertices().len()];
-            (coarse, mesh::TriMesh::new(positions, triangles))
-        });
+        let preview = keep_to_window.then(|| Preview::new(&session.marked.scan.mesh, &scene));
         Worker {
             moved: session.marked.scan.mesh.clone(),
-            interaction,
+            preview,
             session,
             scene,
             outbox,
@@ -484,6 +486,7 @@ impl<W: Fn()> Worker<W> {
             sent_frame: 0,
             unsent: None,
             keep_to_window,
+            preview_shown: None,
             set_number: 0,
         }
     }
@@ -623,6 +626,12 @@ impl<W: Fn()> Worker<W> {
             }
             Err(error) => {
                 self.running = false;
+                // the window keeps the last frame: the full scan, not a preview
+                if let Some(advance) = self.preview_shown.take()
+                    && !self.send_full_frame_after(advance)
+                {
+                    return false;
+                }
                 let failed = Update::Failed(format!("the simulation failed: {error:#}"));
                 let sent = self.outbox.send(failed).is_ok();
                 (self.wake)();
@@ -631,8 +640,19 @@ impl<W: Fn()> Worker<W> {
         }
     }
 
-    /// Sends the simulated scan as it is after the cycle `advance`; `false` once the
-    /// window is gone.
+    /// Sends the full frame of the cycle `advance`, whose preview was the last frame
+    /// sent, as a frame of its own; `false` once the window is gone.
+    fn send_full_frame_after(&mut self, advance: Advance) -> bool {
+        self.frame += 1;
+        self.send_frame(Advance {
+            state: SolveState::Stopped,
+            ..advance
+        })
+    }
+
+    /// Sends the simulated scan as it is after the cycle `advance` (drawn on the
+    /// interaction mesh while the solve runs, if there is one); `false` once the window
+    /// is gone.
     fn send_frame(&mut self, advance: Advance) -> bool {
         self.sent_frame = self.frame;
         let start = Instant::now();
@@ -642,21 +662,22 @@ impl<W: Fn()> Worker<W> {
             .zip(&displacements)
             .map(|(p, d)| *p + *d)
             .collect();
-        let scene = match &mut self.interaction {
-            Some((coarse, moved)) if advance.state == SolveState::Running => {
-                for (p, &v) in moved.positions.iter_mut().zip(coarse.scan_vertices()) {
-                    *p = positions[v as usize];
-                }
-                self.scene.coarse_moved(coarse, moved)
-            }
-            _ => {
+        let preview = (self.preview.as_mut()).filter(|_| advance.state == SolveState::Running);
+        self.preview_shown = preview.is_some().then_some(advance);
+        let (scene, pre_operative) = match preview {
+            Some(preview) => (
+                preview.frame(&self.scene, &positions),
+                Some(Arc::clone(&preview.pre_operative)),
+            ),
+            None => {
                 self.moved.positions.clone_from(&positions);
-                self.scene.moved(&self.moved)
+                (self.scene.moved(&self.moved), None)
             }
         };
         let frame = SimulatedFrame {
             positions: Arc::new(positions),
             scene: Arc::new(scene),
+            pre_operative,
             landmarks: Arc::new(simulation.landmarks_moved_by(&displacements)),
             number: self.frame,
         };
@@ -739,6 +760,40 @@ impl<W: Fn()> Worker<W> {
             .outbox
             .send(Update::Measured(Ok((measurements, self.frame))));
         Ok(())
+    }
+}
+
+/// What a running solve's frames are drawn on with a software renderer.
+struct Preview {
+    coarse: InteractionMesh,
+    /// The interaction mesh at the frame's positions (for normals).
+    moved: mesh::TriMesh,
+    /// The pre-operative scan drawn on the interaction mesh.
+    pre_operative: Arc<SceneMesh>,
+}
+
+impl Preview {
+    fn new(scan: &mesh::TriMesh, scene: &SceneMesh) -> Preview {
+        let coarse =
+            InteractionMesh::simplify(scene, INTERACTION_TRIANGLE_SHARE, INTERACTION_ERROR_MM);
+        let positions = (coarse.scan_vertices().iter())
+            .map(|&v| scan.positions[v as usize])
+            .collect();
+        let moved = mesh::TriMesh::new(positions, coarse.triangles());
+        let pre_operative = Arc::new(scene.coarse_moved(&coarse, &moved));
+        Preview {
+            coarse,
+            moved,
+            pre_operative,
+        }
+    }
+
+    /// The frame of the scan at `positions` (mm, every scan vertex).
+    fn frame(&mut self, scene: &SceneMesh, positions: &[DVec3]) -> SceneMesh {
+        for (p, &v) in (self.moved.positions.iter_mut()).zip(self.coarse.scan_vertices()) {
+            *p = positions[v as usize];
+        }
+        scene.coarse_moved(&self.coarse, &self.moved)
     }
 }
 

@@ -159,11 +159,11 @@ pub struct InteractionMesh {
     topology: u64,
     /// The scan vertex of each of its vertices (ascending).
     scan_vertices: Arc<Vec<u32>>,
-    /// Its triangles, over its own vertices.
-    triangles: Vec<[u32; 3]>,
+    /// Its triangles' corners, three per triangle, over its own vertices.
+    indices: Arc<Vec<u32>>,
     /// The simplifier's estimate of the largest distance between its surface and the
     /// scan's (mm).
-    pub error_mm: f64,
+    error_mm: f64,
 }
 
 /// Numbers for [`SceneMesh::generation`] and [`SceneMesh::topology`].
@@ -191,9 +191,15 @@ impl SceneMesh {
         .with_vertices(mesh, colors)
     }
 
+    /// The number of triangles drawn.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
     /// The same scan with its vertices moved to those of `moved` (the scan's triangles
     /// and vertex order; new normals, the same colours and origin).
     pub fn moved(&self, moved: &TriMesh) -> SceneMesh {
+        debug_assert_eq!(moved.positions.len(), self.vertices.len());
         SceneMesh {
             generation: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             topology: self.topology,
@@ -209,12 +215,14 @@ impl SceneMesh {
     /// `moved` (its own vertices' positions, mm, in its order; normals from its own
     /// triangles; the scan's colours).
     pub fn coarse_moved(&self, coarse: &InteractionMesh, moved: &TriMesh) -> SceneMesh {
+        debug_assert!(self.scan_vertices.is_none(), "a full scan's scene");
+        debug_assert_eq!(moved.positions.len(), coarse.scan_vertices.len());
         SceneMesh {
             generation: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             topology: coarse.topology,
             origin: self.origin,
             vertices: Vec::new(),
-            indices: Arc::new(coarse.triangles.iter().flatten().copied().collect()),
+            indices: Arc::clone(&coarse.indices),
             scan_vertices: Some(Arc::clone(&coarse.scan_vertices)),
         }
         .with_vertices(moved, |i| {
@@ -260,12 +268,14 @@ impl SceneMesh {
 
 impl InteractionMesh {
     /// Simplifies the scan drawn as `scene` (a full scan, from [`SceneMesh::new`]) to
-    /// about `triangle_share` of its triangles, or fewer triangles if that stays within
-    /// `error_mm` of the scan, by meshoptimizer's quadric edge collapses (borders kept,
-    /// vertices kept where they are). Written by meshoptimizer's authors, not by hand:
+    /// `triangle_share` of its triangles by meshoptimizer's quadric edge collapses
+    /// (borders kept, vertices kept where they are), or to more triangles where fewer
+    /// would take its surface further than `error_mm` from the scan's (the simplifier's
+    /// own estimate). Written by meshoptimizer's authors, not by hand:
     /// its simplifier is the field's standard and keeps the original vertices, which is
     /// what lets each frame move them by their own displacements.
     pub fn simplify(scene: &SceneMesh, triangle_share: f64, error_mm: f64) -> InteractionMesh {
+        debug_assert!(scene.scan_vertices.is_none(), "a full scan's scene");
         let bytes: &[u8] = bytemuck::cast_slice(&scene.vertices);
         let mut reached_error_mm = 0.0f32;
         let simplified = match meshopt::VertexDataAdapter::new(bytes, size_of::<Vertex>(), 0) {
@@ -287,16 +297,19 @@ impl InteractionMesh {
         for (k, &v) in scan_vertices.iter().enumerate() {
             own[v as usize] = k as u32;
         }
-        let triangles = simplified
-            .chunks_exact(3)
-            .map(|t| [own[t[0] as usize], own[t[1] as usize], own[t[2] as usize]])
-            .collect();
+        let indices = simplified.iter().map(|&v| own[v as usize]).collect();
         InteractionMesh {
             topology: NEXT_ID.fetch_add(1, Ordering::Relaxed),
             scan_vertices: Arc::new(scan_vertices),
-            triangles,
+            indices: Arc::new(indices),
             error_mm: f64::from(reached_error_mm),
         }
+    }
+
+    /// The simplifier's estimate of the largest distance between its surface and the
+    /// scan's (mm).
+    pub fn error_mm(&self) -> f64 {
+        self.error_mm
     }
 
     /// The scan vertex of each of its vertices.
@@ -305,8 +318,10 @@ impl InteractionMesh {
     }
 
     /// Its triangles (over its own vertices), for a [`TriMesh`] of its frames.
-    pub fn triangles(&self) -> &[[u32; 3]] {
-        &self.triangles
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        (self.indices.chunks_exact(3))
+            .map(|t| [t[0], t[1], t[2]])
+            .collect()
     }
 }
 

@@ -484,15 +484,18 @@ impl GuiApp {
         };
         match self.shown() {
             Shown::PreOperative => {
-                let mut layers = vec![opaque(scene)];
                 let frame = self.live.as_ref().and_then(|live| live.frame.as_ref());
-                if let (DisplayMode::Overlay, Some(frame)) = (self.display, frame) {
-                    layers.push(Layer {
-                        scene: Arc::clone(&frame.scene),
-                        style: LayerStyle::Translucent,
-                    });
+                match (self.display, frame) {
+                    (DisplayMode::Overlay, Some(frame)) => vec![
+                        // a preview's veil lies on the pre-operative scan's same triangles
+                        opaque(frame.pre_operative.as_ref().unwrap_or(scene)),
+                        Layer {
+                            scene: Arc::clone(&frame.scene),
+                            style: LayerStyle::Translucent,
+                        },
+                    ],
+                    _ => vec![opaque(scene)],
                 }
-                layers
             }
             // The map of the settled prediction; the prediction itself until there is one.
             Shown::Simulated(frame) => match self.simulated_deviation() {
