@@ -12,7 +12,7 @@ use anyhow::Context;
 use gui::live_simulation::{ImplantSet, LiveSimulation};
 use gui::render::SceneMesh;
 use plan::catalog::Catalog;
-use plan::model::{ModelOptions, PerSide};
+use plan::model::ModelOptions;
 use plan::simulate::{ImplantRequest, Session, SimulationOptions, SolveState};
 use plan::{MarkedScan, PhantomParams, Silent};
 use std::sync::Arc;
@@ -48,13 +48,9 @@ fn main() -> anyhow::Result<()> {
     );
 
     let mut live = LiveSimulation::start(session, scene, false, || {});
-    let set = |projection_mm: f64| ImplantSet {
-        implants: PerSide::from_fn(|_| {
-            Some(ImplantRequest::new(format!(
-                "round:diameter=120,projection={projection_mm:.2}"
-            )))
-        }),
-        gravity: true,
+    let set = |projection_mm: f64| {
+        let spec = format!("round:diameter=120,projection={projection_mm:.2}");
+        ImplantSet::both_sides(&ImplantRequest::new(spec), true)
     };
     let start = Instant::now();
     live.set_implants(&set(33.5));

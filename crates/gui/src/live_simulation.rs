@@ -64,6 +64,16 @@ pub struct ImplantSet {
     pub gravity: bool,
 }
 
+impl ImplantSet {
+    /// `request` on both sides.
+    pub fn both_sides(request: &ImplantRequest, gravity: bool) -> ImplantSet {
+        ImplantSet {
+            implants: PerSide::from_fn(|_| Some(request.clone())),
+            gravity,
+        }
+    }
+}
+
 /// Where [`LiveSimulation::export`] writes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExportPaths {

@@ -6,7 +6,7 @@
 use gui::live_simulation::{ImplantSet, LiveSimulation};
 use gui::render::SceneMesh;
 use plan::catalog::Catalog;
-use plan::model::{ModelOptions, PerSide};
+use plan::model::ModelOptions;
 use plan::simulate::{ImplantRequest, Session, SimulationOptions};
 use plan::{MarkedScan, PhantomParams, Silent};
 use std::sync::Arc;
@@ -34,13 +34,9 @@ fn previews_while_running_and_the_full_scan_once_settled() {
     )
     .unwrap();
     let mut live = LiveSimulation::start(session, scene, true, || {});
-    let set = |projection_mm: f64| ImplantSet {
-        implants: PerSide::from_fn(|_| {
-            Some(ImplantRequest::new(format!(
-                "round:diameter=120,projection={projection_mm}"
-            )))
-        }),
-        gravity: false,
+    let set = |projection_mm: f64| {
+        let spec = format!("round:diameter=120,projection={projection_mm}");
+        ImplantSet::both_sides(&ImplantRequest::new(spec), false)
     };
     let start = Instant::now();
     let mut previews = 0;
