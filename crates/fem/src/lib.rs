@@ -17,7 +17,7 @@
 //! - [`Prolongation`]: barycentric transfer between non-nested levels.
 //! - [`multigrid`]: geometric multigrid on non-nested levels (Galerkin or rediscretised
 //!   coarse operators, multicolour block Gauss-Seidel, Cholesky on the coarsest level),
-//!   one V(2,1) cycle per call or as the preconditioner of (flexible) CG. Measured: PCG
+//!   one V(2,1) cycle per call, or a symmetric V(2,2) cycle as the preconditioner of CG. Measured: PCG
 //!   matches the direct solver to 1e-10; a bare cycle reduces the residual only about
 //!   1.7x at ν = 0.45, short of the target of 5.
 //!

@@ -42,7 +42,9 @@
 //!    linear response of the deformed state is accurate, and the tangent system is
 //!    symmetric positive definite. Bare V-cycles converge slowly on it (the soft implant
 //!    region is a coefficient jump of 100 that the coarse levels do not see); conjugate
-//!    gradients reach a relative residual of 1e-3 in 7-32 cycles.
+//!    gradients with a symmetric V(2,2) preconditioner reach a relative residual of 1e-3
+//!    in 6-21 cycles at 60k elements (phantom 6, `pair1_pre` 10, `v02_average` 21; with
+//!    the interactive V(2,1) cycle `v02_average` stalled at 2.4e-3 after 40).
 //!
 //! # Changing the implant
 //! [`Simulation::set_implant`] rebuilds that side's template from scratch (milliseconds)
@@ -1242,7 +1244,7 @@ impl Simulation {
     }
 
     /// One cycle of stage 2: one iteration of conjugate gradients preconditioned by a
-    /// V-cycle on the tangent system of the stage-1 state (assembled at the stage's first
+    /// symmetric V-cycle on the tangent system of the stage-1 state (assembled at the stage's first
     /// cycle); the displacement is stage 1's plus the correction so far.
     fn gravity_cycle(&mut self, start: Instant) -> Result<CycleInfo, SimulationError> {
         let u1 = self
