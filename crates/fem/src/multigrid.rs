@@ -170,7 +170,12 @@
 //! not at 60k (4.05 to 3.87, 4.00, 4.09, 4.13), and on the shared scan `v02_average`
 //! (60k, R-MOD-120 on both sides, no gravity) it converged in 14 cycles instead of 16:
 //! the corotated cycles' residual is not monotone (it grows in some cycles as the
-//! rotations settle), which spoils a secant history. Not kept.
+//! rotations settle), which spoils a secant history. Not kept. The processor here has
+//! AVX-512: the polar iteration on eight lanes under `avx512f` made the warped assembly
+//! slower (criterion `assemble_warped_60984` 7.10-7.22 to 7.49-7.63 ms, two runs of each
+//! in turn), and compiling everything for this processor (`-C target-cpu=native`) changed
+//! neither `mg_one_cycle_60984` (14.7-15.6 ms against 15.6-16.8) nor its phases beyond
+//! the machine's spread: neither kept.
 //!
 //! The barycentric Galerkin products are fused per fine row (`FusedProduct`): the row
 //! `Q_f` of `A P`, from the lowest coarse column of `P`'s row `f` on, is formed in a
