@@ -19,10 +19,10 @@
 //! Inverted, nearly flat or non-converging cases go through the rotation-variant SVD.
 //!
 //! [`polar_rotations`] runs the Newton path on [`POLAR_LANES`] matrices at once, one per
-//! lane of a vector register (AVX2 when the processor has it, chosen at run time), with
-//! the same operations in the same order as [`polar_rotation`], so both give the same
-//! bits; this is most of the time of a corotated assembly, and the scalar iteration is
-//! bound by the latency of its divisions, which the lanes overlap.
+//! lane of an AVX register (written with intrinsics, chosen at run time; elsewhere a
+//! lane-wise type), with the same operations in the same order as [`polar_rotation`], so
+//! both give the same bits; this is most of the time of a corotated assembly, and the
+//! scalar iteration is bound by the latency of its divisions, which the lanes overlap.
 
 use glam::{DMat3, DVec3};
 
@@ -198,82 +198,262 @@ pub fn rotation_variant_svd(f: DMat3) -> (DMat3, DMat3, [f64; 3]) {
 /// Matrices whose rotations [`polar_rotations`] computes together.
 pub const POLAR_LANES: usize = 4;
 
-/// One scalar per lane, with lane-wise arithmetic written so that the compiler packs it
-/// into one vector instruction per operation (in [`polar_rotations_avx2`], one AVX2
-/// register); each lane rounds exactly as the scalar operation does.
+/// [`POLAR_LANES`] scalars with the operations of the lanes' Newton iteration, each lane
+/// rounding exactly as the scalar operation does (no fused multiply-adds): [`Lanes`]
+/// anywhere, [`Avx`] registers where the processor has AVX2. One iteration,
+/// [`newton_rotations`], serves both.
+trait LaneVector: Copy {
+    /// Per-lane flags.
+    type Mask: Copy;
+    fn splat(v: f64) -> Self;
+    fn from_lanes(v: [f64; POLAR_LANES]) -> Self;
+    fn to_lanes(self) -> [f64; POLAR_LANES];
+    fn add(self, o: Self) -> Self;
+    fn sub(self, o: Self) -> Self;
+    fn mul(self, o: Self) -> Self;
+    fn div(self, o: Self) -> Self;
+    fn sqrt(self) -> Self;
+    /// Lanes that are neither infinite nor NaN.
+    fn finite(self) -> Self::Mask;
+    fn less(self, o: Self) -> Self::Mask;
+    fn greater(self, o: Self) -> Self::Mask;
+    /// `if_true` in the lanes of `mask`, `self` elsewhere.
+    fn blend(self, if_true: Self, mask: Self::Mask) -> Self;
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// `a` and not `b`.
+    fn and_not(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    fn none() -> Self::Mask;
+    /// Bit `l` set for lane `l` of `mask`.
+    fn bits(mask: Self::Mask) -> u32;
+}
+
+/// The portable [`LaneVector`]: an array the compiler may pack as it can.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Lanes([f64; POLAR_LANES]);
 
 impl Lanes {
     #[inline(always)]
-    fn splat(v: f64) -> Lanes {
-        Lanes([v; POLAR_LANES])
+    fn zip(self, o: Lanes, f: impl Fn(f64, f64) -> f64) -> Lanes {
+        Lanes(std::array::from_fn(|l| f(self.0[l], o.0[l])))
     }
 
     #[inline(always)]
-    fn map(self, f: impl Fn(f64) -> f64) -> Lanes {
-        Lanes(self.0.map(f))
+    fn test(self, o: Lanes, f: impl Fn(f64, f64) -> bool) -> [bool; POLAR_LANES] {
+        std::array::from_fn(|l| f(self.0[l], o.0[l]))
     }
 }
 
-macro_rules! lane_op {
-    ($trait:ident, $method:ident, $op:tt) => {
-        impl std::ops::$trait for Lanes {
-            type Output = Lanes;
-            #[inline(always)]
-            fn $method(self, other: Lanes) -> Lanes {
-                Lanes(std::array::from_fn(|l| self.0[l] $op other.0[l]))
-            }
-        }
-    };
+impl LaneVector for Lanes {
+    type Mask = [bool; POLAR_LANES];
+    #[inline(always)]
+    fn splat(v: f64) -> Self {
+        Lanes([v; POLAR_LANES])
+    }
+    #[inline(always)]
+    fn from_lanes(v: [f64; POLAR_LANES]) -> Self {
+        Lanes(v)
+    }
+    #[inline(always)]
+    fn to_lanes(self) -> [f64; POLAR_LANES] {
+        self.0
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        self.zip(o, |a, b| a + b)
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        self.zip(o, |a, b| a - b)
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        self.zip(o, |a, b| a * b)
+    }
+    #[inline(always)]
+    fn div(self, o: Self) -> Self {
+        self.zip(o, |a, b| a / b)
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        Lanes(self.0.map(f64::sqrt))
+    }
+    #[inline(always)]
+    fn finite(self) -> Self::Mask {
+        self.0.map(f64::is_finite)
+    }
+    #[inline(always)]
+    fn less(self, o: Self) -> Self::Mask {
+        self.test(o, |a, b| a < b)
+    }
+    #[inline(always)]
+    fn greater(self, o: Self) -> Self::Mask {
+        self.test(o, |a, b| a > b)
+    }
+    #[inline(always)]
+    fn blend(self, if_true: Self, mask: Self::Mask) -> Self {
+        Lanes(std::array::from_fn(|l| {
+            if mask[l] { if_true.0[l] } else { self.0[l] }
+        }))
+    }
+    #[inline(always)]
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        std::array::from_fn(|l| a[l] && b[l])
+    }
+    #[inline(always)]
+    fn and_not(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        std::array::from_fn(|l| a[l] && !b[l])
+    }
+    #[inline(always)]
+    fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        std::array::from_fn(|l| a[l] || b[l])
+    }
+    #[inline(always)]
+    fn none() -> Self::Mask {
+        [false; POLAR_LANES]
+    }
+    #[inline(always)]
+    fn bits(mask: Self::Mask) -> u32 {
+        (0..POLAR_LANES).fold(0, |b, l| b | (u32::from(mask[l]) << l))
+    }
 }
-lane_op!(Add, add, +);
-lane_op!(Sub, sub, -);
-lane_op!(Mul, mul, *);
-lane_op!(Div, div, /);
+
+/// The AVX [`LaneVector`], written with intrinsics: the compiler packed [`Lanes`] only
+/// in part (scalar divisions, square roots and lane selects in every Newton step;
+/// criterion `assemble_warped_60984` on one thread 15.8-19.1 ms with [`Lanes`], 12.6-14.6
+/// ms with this, alternating runs on a busy host). Its methods must be inlined into a
+/// function compiled for AVX2 ([`polar_rotations_avx2`], the only place that makes them),
+/// hence `#[inline(always)]` on them and on every helper they pass through.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct Avx(std::arch::x86_64::__m256d);
+
+#[cfg(target_arch = "x86_64")]
+impl LaneVector for Avx {
+    type Mask = std::arch::x86_64::__m256d;
+    // SAFETY (every method): an `Avx` exists only inside `polar_rotations_avx2`, which
+    // runs only where the processor has AVX2 (checked by `polar_rotations`).
+    #[inline(always)]
+    fn splat(v: f64) -> Self {
+        Avx(unsafe { std::arch::x86_64::_mm256_set1_pd(v) })
+    }
+    #[inline(always)]
+    fn from_lanes(v: [f64; POLAR_LANES]) -> Self {
+        Avx(unsafe { std::arch::x86_64::_mm256_loadu_pd(v.as_ptr()) })
+    }
+    #[inline(always)]
+    fn to_lanes(self) -> [f64; POLAR_LANES] {
+        let mut v = [0.0; POLAR_LANES];
+        unsafe { std::arch::x86_64::_mm256_storeu_pd(v.as_mut_ptr(), self.0) };
+        v
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Avx(unsafe { std::arch::x86_64::_mm256_add_pd(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Avx(unsafe { std::arch::x86_64::_mm256_sub_pd(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        Avx(unsafe { std::arch::x86_64::_mm256_mul_pd(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn div(self, o: Self) -> Self {
+        Avx(unsafe { std::arch::x86_64::_mm256_div_pd(self.0, o.0) })
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        Avx(unsafe { std::arch::x86_64::_mm256_sqrt_pd(self.0) })
+    }
+    #[inline(always)]
+    fn finite(self) -> Self::Mask {
+        use std::arch::x86_64::*;
+        unsafe {
+            let magnitude = _mm256_andnot_pd(_mm256_set1_pd(-0.0), self.0);
+            _mm256_cmp_pd::<_CMP_LT_OQ>(magnitude, _mm256_set1_pd(f64::INFINITY))
+        }
+    }
+    #[inline(always)]
+    fn less(self, o: Self) -> Self::Mask {
+        use std::arch::x86_64::*;
+        unsafe { _mm256_cmp_pd::<_CMP_LT_OQ>(self.0, o.0) }
+    }
+    #[inline(always)]
+    fn greater(self, o: Self) -> Self::Mask {
+        use std::arch::x86_64::*;
+        unsafe { _mm256_cmp_pd::<_CMP_GT_OQ>(self.0, o.0) }
+    }
+    #[inline(always)]
+    fn blend(self, if_true: Self, mask: Self::Mask) -> Self {
+        Avx(unsafe { std::arch::x86_64::_mm256_blendv_pd(self.0, if_true.0, mask) })
+    }
+    #[inline(always)]
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        unsafe { std::arch::x86_64::_mm256_and_pd(a, b) }
+    }
+    #[inline(always)]
+    fn and_not(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        unsafe { std::arch::x86_64::_mm256_andnot_pd(b, a) }
+    }
+    #[inline(always)]
+    fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        unsafe { std::arch::x86_64::_mm256_or_pd(a, b) }
+    }
+    #[inline(always)]
+    fn none() -> Self::Mask {
+        unsafe { std::arch::x86_64::_mm256_setzero_pd() }
+    }
+    #[inline(always)]
+    fn bits(mask: Self::Mask) -> u32 {
+        unsafe { std::arch::x86_64::_mm256_movemask_pd(mask) as u32 }
+    }
+}
 
 /// [`POLAR_LANES`] 3x3 matrices, entry by entry: entry `3 c + r` (column `c`, row `r`)
-/// of lane `l` is `m[3 c + r].0[l]`.
-type Mat3Lanes = [Lanes; 9];
+/// of lane `l` is lane `l` of `m[3 c + r]`.
+type Mat3Lanes<V> = [V; 9];
 
-#[inline(always)]
-fn to_lanes(m: &[DMat3; POLAR_LANES]) -> Mat3Lanes {
-    let cols = m.map(|m| m.to_cols_array());
-    std::array::from_fn(|k| Lanes(std::array::from_fn(|l| cols[l][k])))
-}
+// The helpers below are functions marked `#[inline(always)]`, not closures: a closure is
+// compiled on its own without AVX, and the intrinsics in it then stay calls.
 
+/// `‖column c‖²` per lane, as `length_squared` sums it.
 #[inline(always)]
-fn lane_mat(m: &Mat3Lanes, l: usize) -> DMat3 {
-    DMat3::from_cols_array(&std::array::from_fn(|k| m[k].0[l]))
+fn column_norm2<V: LaneVector>(x: &Mat3Lanes<V>, c: usize) -> V {
+    let (a, b, d) = (x[3 * c], x[3 * c + 1], x[3 * c + 2]);
+    a.mul(a).add(b.mul(b)).add(d.mul(d))
 }
 
 /// `‖X‖²_F` per lane, summed as [`frobenius2`] does.
 #[inline(always)]
-fn frobenius2_lanes(x: &Mat3Lanes) -> Lanes {
-    let col =
-        |c: usize| x[3 * c] * x[3 * c] + x[3 * c + 1] * x[3 * c + 1] + x[3 * c + 2] * x[3 * c + 2];
-    col(0) + col(1) + col(2)
+fn frobenius2_lanes<V: LaneVector>(x: &Mat3Lanes<V>) -> V {
+    column_norm2(x, 0)
+        .add(column_norm2(x, 1))
+        .add(column_norm2(x, 2))
 }
 
-/// `(a k_a + b k_b) / 2` entry by entry (`k` per lane), as the Newton step computes it.
+/// Column `a` cross column `b` per lane (entry indices of their first rows), as glam's
+/// `cross` computes it.
 #[inline(always)]
-fn newton_mix(a: &Mat3Lanes, ka: Lanes, b: &Mat3Lanes, kb: Lanes) -> Mat3Lanes {
-    std::array::from_fn(|k| (a[k] * ka + b[k] * kb) * Lanes::splat(0.5))
+fn cross_lanes<V: LaneVector>(x: &Mat3Lanes<V>, a: usize, b: usize) -> [V; 3] {
+    [
+        x[a + 1].mul(x[b + 2]).sub(x[b + 1].mul(x[a + 2])),
+        x[a + 2].mul(x[b]).sub(x[b + 2].mul(x[a])),
+        x[a].mul(x[b + 1]).sub(x[b].mul(x[a + 1])),
+    ]
 }
 
 /// The cofactor matrix and determinant per lane, as [`cofactor`] computes them.
 #[inline(always)]
-fn cofactor_lanes(x: &Mat3Lanes) -> (Mat3Lanes, Lanes) {
+fn cofactor_lanes<V: LaneVector>(x: &Mat3Lanes<V>) -> (Mat3Lanes<V>, V) {
     // columns: x = (e0, e1, e2), y = (e3, e4, e5), z = (e6, e7, e8)
-    let cross = |a: usize, b: usize| {
-        [
-            x[a + 1] * x[b + 2] - x[b + 1] * x[a + 2],
-            x[a + 2] * x[b] - x[b + 2] * x[a],
-            x[a] * x[b + 1] - x[b] * x[a + 1],
-        ]
-    };
-    let (c0, c1, c2) = (cross(3, 6), cross(6, 0), cross(0, 3));
-    let det = x[0] * c0[0] + x[1] * c0[1] + x[2] * c0[2];
+    let (c0, c1, c2) = (
+        cross_lanes(x, 3, 6),
+        cross_lanes(x, 6, 0),
+        cross_lanes(x, 0, 3),
+    );
+    let det = x[0].mul(c0[0]).add(x[1].mul(c0[1])).add(x[2].mul(c0[2]));
     (
         [
             c0[0], c0[1], c0[2], c1[0], c1[1], c1[2], c2[0], c2[1], c2[2],
@@ -290,60 +470,64 @@ pub fn polar_rotations(f: &[DMat3; POLAR_LANES]) -> [DMat3; POLAR_LANES] {
         // SAFETY: the processor supports AVX2 (checked just above).
         return unsafe { polar_rotations_avx2(f) };
     }
-    polar_rotations_lanes(f)
+    newton_rotations::<Lanes>(f)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn polar_rotations_avx2(f: &[DMat3; POLAR_LANES]) -> [DMat3; POLAR_LANES] {
-    polar_rotations_lanes(f)
+    newton_rotations::<Avx>(f)
 }
 
-/// The lanes' Newton iteration of [`newton_polar`]; lanes it cannot take go to
-/// [`polar_rotation`]'s SVD path.
+/// The lanes' Newton iteration of [`newton_polar`], the same operations in the same
+/// order; lanes it cannot take go to [`polar_rotation`]'s SVD path.
 #[inline(always)]
-fn polar_rotations_lanes(f: &[DMat3; POLAR_LANES]) -> [DMat3; POLAR_LANES] {
-    let fl = to_lanes(f);
+fn newton_rotations<V: LaneVector>(f: &[DMat3; POLAR_LANES]) -> [DMat3; POLAR_LANES] {
+    let entries = f.map(|m| m.to_cols_array());
+    let fl: Mat3Lanes<V> =
+        std::array::from_fn(|k| V::from_lanes(std::array::from_fn(|l| entries[l][k])));
     let n2 = frobenius2_lanes(&fl);
     let (c, det) = cofactor_lanes(&fl);
-    let newton: [bool; POLAR_LANES] = std::array::from_fn(|l| {
-        det.0[l].is_finite()
-            && det.0[l] > NEWTON_MIN_CONDITION * n2.0[l] * n2.0[l].sqrt() / 5.196_152_422_706_632
-    });
-    let inv_det = Lanes::splat(1.0) / det;
-    let inv_t: Mat3Lanes = c.map(|c| c * inv_det);
-    let gamma = (frobenius2_lanes(&inv_t) / n2).map(|q| q.sqrt().sqrt());
-    let mut x = newton_mix(&fl, gamma, &inv_t, Lanes::splat(1.0) / gamma);
-    let mut done = newton.map(|n| !n);
-    let mut converged = [false; POLAR_LANES];
+    // det / (‖F‖/√3)³ = det · 3√3 / ‖F‖³, as in `newton_polar`
+    let threshold = V::splat(NEWTON_MIN_CONDITION)
+        .mul(n2)
+        .mul(n2.sqrt())
+        .div(V::splat(5.196_152_422_706_632));
+    let newton = V::and(det.finite(), det.greater(threshold));
+    let inv_det = V::splat(1.0).div(det);
+    let inv_t: Mat3Lanes<V> = c.map(|c| c.mul(inv_det));
+    let gamma = frobenius2_lanes(&inv_t).div(n2).sqrt().sqrt();
+    let inv_gamma = V::splat(1.0).div(gamma);
+    let half = V::splat(0.5);
+    let mut x: Mat3Lanes<V> =
+        std::array::from_fn(|k| fl[k].mul(gamma).add(inv_t[k].mul(inv_gamma)).mul(half));
+    let mut running = newton;
+    let mut converged = V::none();
+    let tolerance = V::splat(1e-14);
     for _ in 0..NEWTON_MAX_ITERATIONS {
         let (c, det) = cofactor_lanes(&x);
-        let next = newton_mix(&x, Lanes::splat(1.0), &c, Lanes::splat(1.0) / det);
-        let diff: Mat3Lanes = std::array::from_fn(|k| next[k] - x[k]);
+        let inv_det = V::splat(1.0).div(det);
+        let next: Mat3Lanes<V> = std::array::from_fn(|k| x[k].add(c[k].mul(inv_det)).mul(half));
+        let diff: Mat3Lanes<V> = std::array::from_fn(|k| next[k].sub(x[k]));
         let delta2 = frobenius2_lanes(&diff);
+        // lanes already done keep their matrix
         for k in 0..9 {
-            // lanes already done keep their matrix
-            x[k] = Lanes(std::array::from_fn(|l| {
-                if done[l] { x[k].0[l] } else { next[k].0[l] }
-            }));
+            x[k] = x[k].blend(next[k], running);
         }
-        for l in 0..POLAR_LANES {
-            if !done[l] {
-                if delta2.0[l] < 1e-14 {
-                    converged[l] = true;
-                    done[l] = true;
-                } else if !delta2.0[l].is_finite() {
-                    done[l] = true;
-                }
-            }
-        }
-        if done.iter().all(|&d| d) {
+        // the error of `next` is about delta² / 2
+        let small = V::and(running, delta2.less(tolerance));
+        converged = V::or(converged, small);
+        // a lane stops once converged or once its step is no longer finite
+        running = V::and_not(V::and(running, delta2.finite()), small);
+        if V::bits(running) == 0 {
             break;
         }
     }
+    let converged = V::bits(converged);
+    let lanes = x.map(V::to_lanes);
     std::array::from_fn(|l| {
-        if converged[l] {
-            lane_mat(&x, l)
+        if converged & (1 << l) != 0 {
+            DMat3::from_cols_array(&std::array::from_fn(|k| lanes[k][l]))
         } else {
             rotation_variant_svd(f[l]).0
         }
@@ -376,7 +560,7 @@ mod tests {
                 }
             });
             let batch = polar_rotations(&f);
-            let lanes = polar_rotations_lanes(&f);
+            let lanes = newton_rotations::<Lanes>(&f);
             for l in 0..POLAR_LANES {
                 let one = polar_rotation(f[l]).to_cols_array().map(f64::to_bits);
                 assert_eq!(
