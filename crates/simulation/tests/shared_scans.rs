@@ -1,4 +1,4 @@
-//! The simulation on the shared scans (`/work/shared/scans` or `$MAMMAPLAN_SCANS`;
+//! The simulation on the shared scans (`shared/scans` beside the checkout or `$MAMMAPLAN_SCANS`;
 //! skipped when absent): both breasts with a moderate-profile round implant sized to the
 //! breast base, no gravity, then the gravity correction. Prints the volume figures;
 //! checks the 15% volume criterion, convergence of both stages, no inverted

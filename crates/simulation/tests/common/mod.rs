@@ -66,10 +66,13 @@ pub fn phantom() -> &'static Patient {
     })
 }
 
-/// A shared scan's model (`/work/shared/scans` or `$MAMMAPLAN_SCANS`), if present.
+/// A shared scan's model (`shared/scans` beside the checkout, as the other crates' tests
+/// find it, or `$MAMMAPLAN_SCANS`), if present.
 pub fn shared_scan(name: &str) -> Option<Patient> {
-    let dir = std::env::var("MAMMAPLAN_SCANS").unwrap_or_else(|_| "/work/shared/scans".into());
-    let dir = Path::new(&dir);
+    let dir = std::env::var_os("MAMMAPLAN_SCANS")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scans"));
+    let dir = dir.as_path();
     let scan = dir.join(format!("{name}.ply"));
     let landmarks = dir.join(format!("{name}_landmarks.json"));
     if !scan.exists() || !landmarks.exists() {
