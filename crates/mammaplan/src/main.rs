@@ -173,6 +173,15 @@ enum Command {
         /// Points farther than this from the other scan are outside the overlap (mm).
         #[arg(long, value_name = "MM", default_value_t = plan::compare::DEFAULT_MAX_DISTANCE_MM, value_parser = positive)]
         max_distance_mm: f64,
+        /// Cut the reference's breasts along these control points (as `model
+        /// --control-points`) instead of the defaults from its landmarks.
+        #[arg(long, value_name = "JSON")]
+        reference_control_points: Option<PathBuf>,
+        /// Cut the test's breasts along these control points; for a simulated scan, its
+        /// simulation folder's simulated_control_points.json (the model's carried with
+        /// the tissue).
+        #[arg(long, value_name = "JSON")]
+        test_control_points: Option<PathBuf>,
         #[arg(long)]
         json: bool,
     },
@@ -448,6 +457,8 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             register,
             out,
             max_distance_mm,
+            reference_control_points,
+            test_control_points,
             json,
         } => {
             let reference = plan::MarkedScan::load(&reference, &reference_landmarks, progress)?;
@@ -456,6 +467,8 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 register,
                 max_distance_mm,
                 out,
+                reference_control_points,
+                test_control_points,
             };
             let report = plan::compare::compare(&reference, &test, &options, progress)?;
             progress.finish();

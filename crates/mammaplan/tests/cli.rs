@@ -402,6 +402,26 @@ fn bad_compare_input_fails_cleanly() {
         &["--max-distance-mm", "0"],
     );
     assert_clean_failure(&output, "expected a number > 0");
+
+    let missing = dir.path().join("missing_control_points.json");
+    let output = compare(
+        (&scan, &landmarks),
+        (&scan, &landmarks),
+        &["--test-control-points", missing.to_str().unwrap()],
+    );
+    assert_clean_failure(&output, "missing_control_points.json");
+    let two_points = dir.path().join("two_points.json");
+    std::fs::write(
+        &two_points,
+        r#"{"units":"mm","left":[[0,0,0],[1,0,0]],"right":[[0,0,0],[1,0,0],[0,1,0]]}"#,
+    )
+    .unwrap();
+    let output = compare(
+        (&scan, &landmarks),
+        (&scan, &landmarks),
+        &["--reference-control-points", two_points.to_str().unwrap()],
+    );
+    assert_clean_failure(&output, "two_points.json");
 }
 
 /// The files `model` writes into its folder.
@@ -604,6 +624,7 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     for file in [
         "simulated_scan.ply",
         "simulated_landmarks.json",
+        "simulated_control_points.json",
         "fe_result.vtu",
         "result.json",
     ] {

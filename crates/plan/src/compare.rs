@@ -20,7 +20,7 @@ use crate::register::{RegisterReport, register};
 use crate::{MarkedScan, Progress};
 use anatomy::BreastOptions;
 use anatomy::Side;
-use anatomy::breast::{BreastModel, QuadrantVolumes};
+use anatomy::breast::{BreastModel, ControlPoints, QuadrantVolumes};
 use anatomy::measure::Distance;
 use anyhow::{Context, Result, bail};
 use assess::{
@@ -43,6 +43,11 @@ pub struct CompareOptions {
     pub max_distance_mm: f64,
     /// Where to write the test mesh with the deviation map (a `.ply` file).
     pub out: Option<PathBuf>,
+    /// Control-point files (`mammaplan model --control-points`) for the reference's and
+    /// the test's breast models, instead of the defaults from their landmarks; e.g. a
+    /// simulation folder's `simulated_control_points.json` for a simulated scan.
+    pub reference_control_points: Option<PathBuf>,
+    pub test_control_points: Option<PathBuf>,
 }
 
 impl Default for CompareOptions {
@@ -51,6 +56,8 @@ impl Default for CompareOptions {
             register: false,
             max_distance_mm: DEFAULT_MAX_DISTANCE_MM,
             out: None,
+            reference_control_points: None,
+            test_control_points: None,
         }
     }
 }
@@ -249,6 +256,16 @@ pub fn compare(
             );
         }
     }
+    // A control-point file the user named must be readable: checked before the work.
+    for path in [
+        &options.reference_control_points,
+        &options.test_control_points,
+    ]
+    .into_iter()
+    .flatten()
+    {
+        ControlPoints::read(path)?;
+    }
     progress.stage("compare", 8);
     let (transform, registration) = if options.register {
         let (transform, report) = register(reference, test, true)?;
@@ -268,8 +285,20 @@ pub fn compare(
         warnings.push(message);
     };
     let breasts = Paired {
-        reference: breast_model(reference, "reference", &mut warn, progress),
-        test: breast_model(test, "test", &mut warn, progress),
+        reference: breast_model(
+            reference,
+            options.reference_control_points.as_deref(),
+            "reference",
+            &mut warn,
+            progress,
+        ),
+        test: breast_model(
+            test,
+            options.test_control_points.as_deref(),
+            "test",
+            &mut warn,
+            progress,
+        ),
     };
     progress.step();
 
@@ -396,11 +425,17 @@ pub fn compare(
 /// comparison goes on without that scan's volumes and symmetry.
 fn breast_model(
     marked: &MarkedScan,
+    control_points_file: Option<&Path>,
     role: &str,
     warn: &mut impl FnMut(String),
     progress: &dyn Progress,
 ) -> Option<BreastModel> {
-    build_breasts(marked, &BreastOptions::default(), None, progress)
+    build_breasts(
+        marked,
+        &BreastOptions::default(),
+        control_points_file,
+        progress,
+    )
         .map(|(breasts, _)| breasts)
         .map_err(|error| {
             warn(format!(

@@ -376,8 +376,20 @@ pub fn build_breasts(
         &options,
     )
     .with_context(|| {
+        // A simulated scan's fold landmarks ride forward on the implant, so the default
+        // curves below them can fold; its folder holds the model's curves carried along.
+        let carried = (scan.path.parent())
+            .map(|dir| dir.join(crate::simulate::SIMULATED_CONTROL_POINTS))
+            .filter(|path| control_points_file.is_none() && path.is_file());
+        let hint = carried.map_or(String::new(), |path| {
+            format!(
+                " (a simulated scan? {} holds the model's cut curves carried along: pass it \
+                 with --control-points, or to compare with --test-control-points)",
+                path.display()
+            )
+        });
         format!(
-            "{} with {}",
+            "{} with {}{hint}",
             scan.path.display(),
             marked.landmarks_path.display()
         )

@@ -17,7 +17,9 @@
 use crate::compare::{CompareOptions, compare};
 use crate::measure::measure;
 use crate::model::{PerSide, build_breasts, read_folder_json, read_model_record, write_model};
-use crate::simulate::{MaterialsReport, Session, SimulationState, write_simulation};
+use crate::simulate::{
+    MaterialsReport, SIMULATED_CONTROL_POINTS, Session, SimulationState, write_simulation,
+};
 use crate::views::{RenderedView, ViewContent, standard_views};
 use crate::{Distance, MarkedScan, Progress};
 use anatomy::breast::{BreastModel, QuadrantVolumes};
@@ -224,13 +226,18 @@ fn deviation_scale(label: &str) -> report::ColourScale {
 /// The surface deviation of the simulated scan from the post-operative scan (RMS, mean
 /// and symmetric Hausdorff distance over the whole overlap and over the breasts), the
 /// post-operative scan registered onto the simulated one first ([`crate::compare`]).
+/// The simulated breasts are cut along `simulated_control_points` (a file of control
+/// points carried with the tissue) when given, else along the defaults from the
+/// simulated landmarks.
 pub fn compare_with_postoperative(
     simulated: &ShownScan,
+    simulated_control_points: Option<&Path>,
     postoperative: &ShownScan,
     progress: &dyn Progress,
 ) -> Result<Option<report::Comparison>> {
     let options = CompareOptions {
         register: true,
+        test_control_points: simulated_control_points.map(Path::to_path_buf),
         ..Default::default()
     };
     let compared = compare(&postoperative.marked, &simulated.marked, &options, progress)
@@ -380,7 +387,9 @@ pub fn report_content(
     };
     let comparison = match &scans.postoperative {
         Some(postoperative) => {
-            compare_with_postoperative(&scans.simulated, postoperative, progress)?
+            let carried = simulation_dir.join(SIMULATED_CONTROL_POINTS);
+            let carried = carried.is_file().then_some(carried.as_path());
+            compare_with_postoperative(&scans.simulated, carried, postoperative, progress)?
         }
         None => None,
     };
@@ -399,8 +408,14 @@ pub fn report_content(
             ),
         },
         simulated: Some(report::PerSide {
-            left: breast_volumes(simulation.breast_volume_ml.left, None),
-            right: breast_volumes(simulation.breast_volume_ml.right, None),
+            left: breast_volumes(
+                simulation.breast_volume_ml.left,
+                simulation.quadrant_volume_ml.left,
+            ),
+            right: breast_volumes(
+                simulation.breast_volume_ml.right,
+                simulation.quadrant_volume_ml.right,
+            ),
         }),
         postoperative: scans
             .postoperative
@@ -483,6 +498,9 @@ struct SimulationRecord {
     model: PathBuf,
     implants: PerSide<Option<ImplantRecord>>,
     breast_volume_ml: PerSide<f64>,
+    /// Absent from folders written before it existed.
+    #[serde(default)]
+    quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,
     distances: Vec<Distance>,
     solver: SolverRecord,
     no_gravity: bool,

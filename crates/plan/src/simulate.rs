@@ -8,6 +8,9 @@
 //! - `simulated_scan.ply`: the scan with every vertex moved (same vertex order and count,
 //!   colours and texture coordinates kept);
 //! - `simulated_landmarks.json`: the landmarks moved the same way;
+//! - `simulated_control_points.json`: the model's cut-curve control points moved the same
+//!   way, for a breast model of the simulated scan (`mammaplan model --control-points`,
+//!   `compare --test-control-points`) that cuts the same breasts as the model did;
 //! - `fe_result.vtu`: the finest tetrahedral level with point data `displacement` (mm) and
 //!   `constrained` (0/1) and cell data `implant` (1 for implant elements);
 //! - `result.json`: the figures ([`SimulateReport`]), written last.
@@ -15,7 +18,7 @@
 use crate::measure::measure;
 use crate::model::{ModelOptions, PatientModel, PerSide, build_model, load_model};
 use crate::{Distance, MarkedScan, Progress, check_cancelled};
-use anatomy::breast::Side;
+use anatomy::breast::{ControlPoints, QuadrantVolumes, Side};
 use anyhow::{Context, Result};
 use glam::DVec3;
 use implant::{Catalog, ImplantShape, ImplantSpec};
@@ -113,10 +116,27 @@ pub struct SimulatedMeasurements {
     pub breast_volume_before_ml: PerSide<f64>,
     /// The breast volumes measured on the simulated scan as on a real one (ml).
     pub breast_volume_ml: PerSide<f64>,
+    /// The quadrant volumes of the simulated breasts (ml; `None` where the moved
+    /// landmarks no longer bound quadrants, see [`simulation::BreastVolume`]).
+    pub quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,
     /// The implants' volumes (ml; 0 on a side without implant).
     pub implant_volume_ml: PerSide<f64>,
     /// The clinical distances on the scan before and on the simulated scan.
     pub distances: Vec<DistanceChange>,
+}
+
+/// The file name of the carried control points in a simulation folder.
+pub const SIMULATED_CONTROL_POINTS: &str = "simulated_control_points.json";
+
+/// The breasts after a simulation (see [`Session::breast_volumes`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimulatedBreasts {
+    /// The model's breast volumes (ml).
+    pub volume_before_ml: PerSide<f64>,
+    /// Measured on the simulated scan as on a real one (ml).
+    pub volume_ml: PerSide<f64>,
+    /// The quadrants of `volume_ml` (ml; `None` where undefined).
+    pub quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,
 }
 
 /// One clinical distance before and after (mm).
@@ -304,12 +324,21 @@ impl Session {
 
     /// The breast volumes before (the model's) and after (measured on the simulated
     /// scan as on a real one), ml.
-    pub fn breast_volumes(&mut self) -> Result<(PerSide<f64>, PerSide<f64>)> {
+    pub fn breast_volumes(&mut self) -> Result<SimulatedBreasts> {
         let volumes = self.simulation.breast_volumes()?;
-        Ok((
-            PerSide::from_fn(|side| volumes[side as usize].volume_before_ml),
-            PerSide::from_fn(|side| volumes[side as usize].volume_ml),
-        ))
+        Ok(SimulatedBreasts {
+            volume_before_ml: PerSide::from_fn(|side| volumes[side as usize].volume_before_ml),
+            volume_ml: PerSide::from_fn(|side| volumes[side as usize].volume_ml),
+            quadrant_volume_ml: PerSide::from_fn(|side| volumes[side as usize].quadrant_volume_ml),
+        })
+    }
+
+    /// The model's cut-curve control points carried with the tissue onto the simulated
+    /// scan: a breast model of the simulated scan with them
+    /// ([`crate::model::build_breasts`]) cuts the same breasts as the model did.
+    pub fn simulated_control_points(&self) -> ControlPoints {
+        self.simulation
+            .control_points_moved_by(&self.simulation.scan_displacements())
     }
 
     /// The implants' volumes (ml; 0 on a side without implant).
@@ -330,7 +359,7 @@ impl Session {
         }
         let simulated = self.simulated_scan(Path::new("simulated scan"))?;
         let after = measure(&simulated, &[], progress)?.distances;
-        let (breast_volume_before_ml, breast_volume_ml) = self.breast_volumes()?;
+        let breasts = self.breast_volumes()?;
         let before = self.distances_before.as_deref().unwrap_or_default();
         let distances = before
             .iter()
@@ -344,8 +373,9 @@ impl Session {
             })
             .collect();
         Ok(SimulatedMeasurements {
-            breast_volume_before_ml,
-            breast_volume_ml,
+            breast_volume_before_ml: breasts.volume_before_ml,
+            breast_volume_ml: breasts.volume_ml,
+            quadrant_volume_ml: breasts.quadrant_volume_ml,
             implant_volume_ml: self.implant_volumes_ml(),
             distances,
         })
@@ -526,6 +556,9 @@ pub struct SimulateReport {
     pub breast_volume_ml: PerSide<f64>,
     /// Breast volumes of the model before (ml).
     pub breast_volume_before_ml: PerSide<f64>,
+    /// Quadrant volumes of the simulated breasts (ml; `null` where the moved landmarks
+    /// no longer bound quadrants).
+    pub quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,
     /// The implants' volumes (ml; 0 on a side without implant).
     pub implant_volume_ml: PerSide<f64>,
     /// Clinical distances on the simulated scan.
@@ -631,8 +664,9 @@ pub fn write_simulation(
     out_dir: &Path,
     progress: &dyn Progress,
 ) -> Result<SimulateReport> {
-    let (breast_volume_before_ml, breast_volume_ml) = session.breast_volumes()?;
+    let breasts = session.breast_volumes()?;
     let simulated = session.simulated_scan(&out_dir.join("simulated_scan.ply"))?;
+    let control_points = session.simulated_control_points();
     let distances = measure(&simulated, &[], progress)?.distances;
 
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
@@ -651,6 +685,8 @@ pub fn write_simulation(
         Default::default(),
     )?;
     files.push("simulated_landmarks.json".to_string());
+    control_points.write(&out_dir.join(SIMULATED_CONTROL_POINTS))?;
+    files.push(SIMULATED_CONTROL_POINTS.to_string());
     write_fe_result(&out_dir.join("fe_result.vtu"), &session.simulation)?;
     files.push("fe_result.vtu".to_string());
     files.push("result.json".to_string());
@@ -658,8 +694,9 @@ pub fn write_simulation(
         model: model_dir.to_path_buf(),
         implant_volume_ml: session.implant_volumes_ml(),
         implants: state.implants.clone(),
-        breast_volume_ml,
-        breast_volume_before_ml,
+        breast_volume_ml: breasts.volume_ml,
+        breast_volume_before_ml: breasts.volume_before_ml,
+        quadrant_volume_ml: breasts.quadrant_volume_ml,
         distances,
         solver: state.solver.clone(),
         no_gravity: state.no_gravity,

@@ -51,7 +51,7 @@ pub use error::SimulationError;
 pub use field::{DEFAULT_FALLOFF_MM, PointMap};
 pub use placement::{Anchor, AnchorRule, Placement};
 pub use session::{
-    BreastVolume, CycleInfo, PatientInput, PlacedImplant, RunReport, Simulation, SimulationOptions,
-    SolveReport, Stage,
+    BreastVolume, CARRIED_CONTROL_POINT_SPACING_MM, CycleInfo, PatientInput, PlacedImplant,
+    RunReport, Simulation, SimulationOptions, SolveReport, Stage,
 };
 pub use template::ImplantTemplate;

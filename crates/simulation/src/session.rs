@@ -67,7 +67,9 @@ use crate::template::{
     BedFeet, ImplantTemplate, SmoothedThickness, TemplateIndex, TemplateRules, build_template,
     check_footprint, fit_footprint,
 };
-use anatomy::breast::{BreastModel, Side};
+use anatomy::breast::{
+    BreastModel, ControlPoints, QuadrantLines, QuadrantVolumes, Side, quadrant_volumes_ml,
+};
 use anatomy::closed_surface::ClosedSurface;
 use anatomy::fill_in::{FillInParams, fill_hole};
 use anatomy::{AnatomicalFrame, LandmarkName, Landmarks};
@@ -346,6 +348,11 @@ pub struct BreastVolume {
     /// `volume_before_ml` and `volume_ml`.
     pub centre_before_mm: DVec3,
     pub centre_mm: DVec3,
+    /// The quadrants of the closed surface of `volume_ml` (ml; they add up to it),
+    /// bounded by the lines from the moved nipple to the moved clavicle and fold
+    /// landmarks as on a real scan; `None` where those lines no longer run around the
+    /// nipple in order.
+    pub quadrant_volume_ml: Option<QuadrantVolumes>,
 }
 
 /// Per-side data of the session.
@@ -435,11 +442,81 @@ pub struct Simulation {
     scan_map: PointMap,
     scan_smoother: SurfaceSmoother,
     landmarks: Landmarks,
-    /// Where each landmark (required, then extra) sits on the scan: the vertices of its
-    /// closest triangle and the barycentric weights of its foot there.
-    landmark_feet: Vec<([u32; 3], [f64; 3])>,
+    /// Where each landmark (required, then extra) sits on the scan.
+    landmark_feet: ScanFeet,
+    /// Points along the breast model's cut curves per side (mm, every
+    /// [`CARRIED_CONTROL_POINT_SPACING_MM`]) and where they sit on the scan.
+    control_points: [Vec<DVec3>; 2],
+    control_point_feet: [ScanFeet; 2],
     base: TriMesh,
     mesh_maps: Option<MeshMaps>,
+}
+
+/// Spacing (mm) of the points along a cut curve that [`Simulation::control_points_moved_by`]
+/// carries: the spline through them follows the carried curve closely, and a curve of
+/// some 450 mm gets about 45 points.
+pub const CARRIED_CONTROL_POINT_SPACING_MM: f64 = 10.0;
+
+/// Points about `spacing_mm` apart along the closed polyline `loop_points` (mm), by arc
+/// length from its first point: `round(length / spacing_mm)` of them, at least three.
+fn points_along_loop(loop_points: &[DVec3], spacing_mm: f64) -> Vec<DVec3> {
+    let n = loop_points.len();
+    let edge = |k: usize| (loop_points[k], loop_points[(k + 1) % n]);
+    let length: f64 = (0..n).map(|k| edge(k).0.distance(edge(k).1)).sum();
+    let count = ((length / spacing_mm).round() as usize).max(3);
+    let step = length / count as f64;
+    let mut points = Vec::with_capacity(count);
+    let mut walked = 0.0;
+    for k in 0..n {
+        let (a, b) = edge(k);
+        let edge_length = a.distance(b);
+        while points.len() < count && walked + edge_length >= points.len() as f64 * step {
+            let t = (points.len() as f64 * step - walked) / edge_length.max(f64::MIN_POSITIVE);
+            points.push(a.lerp(b, t.clamp(0.0, 1.0)));
+        }
+        walked += edge_length;
+    }
+    points
+}
+
+/// Points located on the scan, carried by the scan's displacement: each point's foot
+/// on its closest scan triangle (the triangle's vertices and the foot's barycentric
+/// weights), so a point on the scan stays on the simulated scan.
+#[derive(Debug, Clone)]
+struct ScanFeet(Vec<([u32; 3], [f64; 3])>);
+
+impl ScanFeet {
+    fn locate(
+        scan: &TriMesh,
+        index: &mesh::SurfaceIndex,
+        points: impl IntoIterator<Item = DVec3>,
+    ) -> ScanFeet {
+        ScanFeet(
+            points
+                .into_iter()
+                .map(|p| {
+                    let foot = index.closest_point(p);
+                    (scan.triangles[foot.triangle], foot.barycentric)
+                })
+                .collect(),
+        )
+    }
+
+    /// The displacement (mm) of the `k`-th point: the scan displacement
+    /// `scan_displacements` interpolated at its foot.
+    fn displacement(&self, k: usize, scan_displacements: &[DVec3]) -> DVec3 {
+        let (vertices, weights) = self.0[k];
+        (0..3)
+            .map(|c| scan_displacements[vertices[c] as usize] * weights[c])
+            .sum()
+    }
+
+    /// `points` (the located ones, in order) moved by `scan_displacements`.
+    fn moved(&self, points: &[DVec3], scan_displacements: &[DVec3]) -> Vec<DVec3> {
+        (points.iter().enumerate())
+            .map(|(k, &p)| p + self.displacement(k, scan_displacements))
+            .collect()
+    }
 }
 
 /// `Σ (a - o)·((b - o) × (c - o)) / 6` and the first moment about `o` of a triangle soup
@@ -464,6 +541,27 @@ fn closed_volume(patch: &TriMesh, fill: &TriMesh) -> (f64, DVec3) {
     let (vf, mf) = volume_and_moment(fill, origin);
     let v = vp - vf;
     (v / 1000.0, origin + (mp - mf) / v)
+}
+
+/// The breast closed by a fill-in as one outward triangle soup: `patch` and the reversed
+/// `fill` (as in [`closed_volume`]); the loop vertices appear twice, which the divergence
+/// theorem does not mind.
+fn closed_soup(patch: &TriMesh, fill: &TriMesh) -> TriMesh {
+    let offset = patch.positions.len() as u32;
+    let positions = patch
+        .positions
+        .iter()
+        .chain(&fill.positions)
+        .copied()
+        .collect();
+    let triangles = (patch.triangles.iter().copied())
+        .chain(
+            fill.triangles
+                .iter()
+                .map(|&[a, b, c]| [a, c, b].map(|v| v + offset)),
+        )
+        .collect();
+    TriMesh::new(positions, triangles)
 }
 
 fn elapsed_ms(since: Instant) -> f64 {
@@ -699,14 +797,19 @@ impl Simulation {
         );
         let scan_index = mesh::SurfaceIndex::new(input.scan)
             .ok_or_else(|| SimulationError::BadModel("the scan has no triangles".into()))?;
-        let landmark_feet = input
-            .landmarks
-            .iter()
-            .map(|(_, p)| {
-                let foot = scan_index.closest_point(p);
-                (input.scan.triangles[foot.triangle], foot.barycentric)
-            })
-            .collect();
+        let landmark_feet = ScanFeet::locate(
+            input.scan,
+            &scan_index,
+            input.landmarks.iter().map(|(_, p)| p),
+        );
+        let control_points = Side::BOTH.map(|side| {
+            let curve = &input.breasts.breast(side).curve;
+            let positions: Vec<DVec3> = curve.points.iter().map(|p| p.position).collect();
+            points_along_loop(&positions, CARRIED_CONTROL_POINT_SPACING_MM)
+        });
+        let control_point_feet = control_points
+            .each_ref()
+            .map(|points| ScanFeet::locate(input.scan, &scan_index, points.iter().copied()));
         let n = finest.positions.len();
         let (neighbour_ptr, neighbours) = vertex_neighbours(&finest);
         Ok(Simulation {
@@ -747,6 +850,8 @@ impl Simulation {
             scan_smoother,
             landmarks: input.landmarks.clone(),
             landmark_feet,
+            control_points,
+            control_point_feet,
             base: input.breasts.base.mesh.clone(),
             mesh_maps: None,
             finest,
@@ -1435,12 +1540,7 @@ impl Simulation {
     /// The landmarks moved by the scan displacement `scan_displacements` (mm, one per
     /// scan vertex, as [`Simulation::scan_displacements`] returns).
     pub fn landmarks_moved_by(&self, scan_displacements: &[DVec3]) -> Landmarks {
-        let at_foot = |k: usize| {
-            let (vertices, weights) = self.landmark_feet[k];
-            (0..3)
-                .map(|c| scan_displacements[vertices[c] as usize] * weights[c])
-                .sum::<DVec3>()
-        };
+        let at_foot = |k: usize| self.landmark_feet.displacement(k, scan_displacements);
         let mut out = self.landmarks.clone();
         let mut k = 0;
         for name in LandmarkName::ALL {
@@ -1452,6 +1552,23 @@ impl Simulation {
             k += 1;
         }
         out
+    }
+
+    /// Control points of the breast model's cut curves on the simulated scan: points
+    /// along the curves every [`CARRIED_CONTROL_POINT_SPACING_MM`], moved by the scan
+    /// displacement `scan_displacements` (as [`Simulation::landmarks_moved_by`]). A
+    /// breast model of the simulated scan along them cuts the same breasts. The fold
+    /// landmarks move with the tissue in front of the implant, so default control points
+    /// derived afresh from the moved landmarks would cut the simulated breast elsewhere;
+    /// and the model's own few control points, carried, would leave the spline between
+    /// them to cut across the reshaped breast (on `pair1_pre` with R-MOD-90 the six
+    /// carried points measured the right breast 4.8% below the carried curve).
+    pub fn control_points_moved_by(&self, scan_displacements: &[DVec3]) -> ControlPoints {
+        let [left, right] = Side::BOTH.map(|side| {
+            let s = side as usize;
+            self.control_point_feet[s].moved(&self.control_points[s], scan_displacements)
+        });
+        ControlPoints { left, right }
     }
 
     /// The current stage's multigrid (its system, phase timings), once built: stage 1's
@@ -1508,6 +1625,7 @@ impl Simulation {
             TriMesh::new(map.moved(&mesh.positions, u), mesh.triangles.clone())
         };
         let base = moved(&self.base, &maps.base);
+        let landmarks = self.landmarks();
         let params = FillInParams {
             cylinder_axis: self.options.fill_in.cylinder_axis.or(Some(self.frame.up())),
             ..self.options.fill_in
@@ -1524,6 +1642,12 @@ impl Simulation {
                 }
             })?;
             let (volume_ml, centre_mm) = closed_volume(&patch, &fill.mesh);
+            let quadrant_volume_ml = quadrant_volumes_ml(
+                &closed_soup(&patch, &fill.mesh),
+                &QuadrantLines::of_breast(side, &landmarks),
+                self.frame.anterior(),
+            )
+            .ok();
             let moved_fill = moved(&data.fill, &maps.fills[s]);
             let (volume_moved_fill_ml, _) = closed_volume(&patch, &moved_fill);
             out.push(BreastVolume {
@@ -1532,6 +1656,7 @@ impl Simulation {
                 volume_moved_fill_ml,
                 centre_before_mm: data.centre_before_mm,
                 centre_mm,
+                quadrant_volume_ml,
             });
         }
         Ok([out[0], out[1]])
@@ -1598,4 +1723,39 @@ fn wall_vertices(
         ));
     }
     Ok(wall)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A circle of radius 70 mm drawn as 1,000 chords (unevenly spaced, as a cut curve's
+    /// points are): the points come out on the circle, as many as the length asks, and
+    /// evenly spaced in arc length (chord 2R sin(π/n)), to the polyline's own deviation
+    /// from the circle (R (1 - cos(π/1000)) ≈ 3.5e-4 mm): bound 1e-3 mm.
+    #[test]
+    fn points_along_a_loop_are_evenly_spaced_by_arc_length() {
+        let radius_mm = 70.0;
+        let loop_points: Vec<DVec3> = (0..1000)
+            .map(|k| {
+                let t = k as f64 / 1000.0;
+                // a non-uniform parameter along the circle
+                let angle = std::f64::consts::TAU * (t + 0.05 * (std::f64::consts::TAU * t).sin());
+                DVec3::new(radius_mm * angle.cos(), radius_mm * angle.sin(), 5.0)
+            })
+            .collect();
+        let points = points_along_loop(&loop_points, 10.0);
+        let circumference = std::f64::consts::TAU * radius_mm;
+        assert_eq!(points.len(), (circumference / 10.0).round() as usize);
+        assert_eq!(points[0], loop_points[0]);
+        let n = points.len();
+        let chord = 2.0 * radius_mm * (std::f64::consts::PI / n as f64).sin();
+        for k in 0..n {
+            let p = points[k];
+            assert!((p.truncate().length() - radius_mm).abs() < 1e-3, "{p}");
+            let gap = p.distance(points[(k + 1) % n]);
+            assert!((gap - chord).abs() < 1e-3, "{k}: {gap} against {chord}");
+        }
+        assert_eq!(points_along_loop(&loop_points[..3], 100.0).len(), 3);
+    }
 }

@@ -122,6 +122,21 @@ impl Side {
     }
 }
 
+impl QuadrantLines {
+    /// The lines of one breast from its landmarks (nipple, clavicle point, the fold's
+    /// lateral end, lowest point and medial end).
+    pub fn of_breast(side: Side, landmarks: &Landmarks) -> QuadrantLines {
+        let names = side.landmark_names();
+        QuadrantLines {
+            nipple: landmarks.get(names.nipple),
+            upper: landmarks.get(names.clavicle),
+            lateral: landmarks.get(names.fold_lateral),
+            lower: landmarks.get(names.fold_lowest),
+            medial: landmarks.get(names.fold_medial),
+        }
+    }
+}
+
 impl std::fmt::Display for Side {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
@@ -425,14 +440,7 @@ pub fn build_breast_model(
         if !encloses {
             return Err(BreastError::NotEnclosed { side, volume_ml });
         }
-        let names = side.landmark_names();
-        let lines = QuadrantLines {
-            nipple: landmarks.get(names.nipple),
-            upper: landmarks.get(names.clavicle),
-            lateral: landmarks.get(names.fold_lateral),
-            lower: landmarks.get(names.fold_lowest),
-            medial: landmarks.get(names.fold_medial),
-        };
+        let lines = QuadrantLines::of_breast(side, landmarks);
         let quadrant_volume_ml = quadrant_volumes_ml(&closed, &lines, frame.anterior())
             .map_err(|source| BreastError::Quadrants { side, source })?;
         Ok(Breast {
