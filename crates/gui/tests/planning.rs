@@ -234,7 +234,15 @@ fn an_implant_slider_changes_the_simulated_scan() {
             added > 0.3 * implant && added < implant,
             "{side}: +{added} ml, implant {implant} ml"
         );
+        // The simulated quadrants partition the simulated breast (round-off).
+        let quadrants = measured.quadrant_volume_ml.get(side).unwrap();
+        let after = *measured.breast_volume_ml.get(side);
+        assert!((quadrants.total() - after).abs() < 1e-6 * after);
     }
+    // The upper and lower halves, before and simulated, are in the panel.
+    harness.run();
+    harness.get_by_label("left upper half (ml)");
+    harness.get_by_label("right lower half (ml)");
 }
 
 #[test]

@@ -116,6 +116,8 @@ pub struct SimulatedMeasurements {
     pub breast_volume_before_ml: PerSide<f64>,
     /// The breast volumes measured on the simulated scan as on a real one (ml).
     pub breast_volume_ml: PerSide<f64>,
+    /// The quadrant volumes of the model's breasts, before (ml).
+    pub quadrant_volume_before_ml: PerSide<QuadrantVolumes>,
     /// The quadrant volumes of the simulated breasts (ml; `None` where the moved
     /// landmarks no longer bound quadrants, see [`simulation::BreastVolume`]).
     pub quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,
@@ -375,6 +377,9 @@ impl Session {
         Ok(SimulatedMeasurements {
             breast_volume_before_ml: breasts.volume_before_ml,
             breast_volume_ml: breasts.volume_ml,
+            quadrant_volume_before_ml: PerSide::from_fn(|side| {
+                self.model.breasts.breast(side).quadrant_volume_ml
+            }),
             quadrant_volume_ml: breasts.quadrant_volume_ml,
             implant_volume_ml: self.implant_volumes_ml(),
             distances,

@@ -841,6 +841,27 @@ impl GuiApp {
                             ui.label(format!("{:+.1}", after - before));
                             ui.end_row();
                         }
+                        // The breast's halves above and below the lines from the
+                        // nipple to the fold's ends: the upper pole's fullness.
+                        type Half = fn(&QuadrantVolumes) -> f64;
+                        let halves: [(&str, Half); 2] = [
+                            ("upper half", |q| q.upper_outer + q.upper_inner),
+                            ("lower half", |q| q.lower_outer + q.lower_inner),
+                        ];
+                        for side in Side::BOTH {
+                            for (name, half) in halves {
+                                let before = half(measured.quadrant_volume_before_ml.get(side));
+                                let after =
+                                    measured.quadrant_volume_ml.get(side).as_ref().map(half);
+                                ui.label(format!("{side} {name} (ml)"));
+                                ui.label(format!("{before:.1}"));
+                                ui.label(super::format_optional(after));
+                                ui.label(
+                                    after.map_or("–".into(), |a| format!("{:+.1}", a - before)),
+                                );
+                                ui.end_row();
+                            }
+                        }
                         for side in Side::BOTH {
                             ui.label(format!("{side} implant (ml)"));
                             ui.label("");
