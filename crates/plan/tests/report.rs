@@ -170,8 +170,8 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
     }
     // The model's control points carried onto the simulated scan cut the same breast:
     // a breast model of the simulated scan along them measures the simulation's volume,
-    // up to the difference between the spline re-projected through the carried points
-    // and the carried cut loop itself (2-3% on pair1_pre): bound 5%.
+    // up to the smoothing of the displacement over the scan and the spline re-projected
+    // through the carried points (-2% to -3% on pair1_pre): bound 5%.
     let simulated_scan = MarkedScan::load(
         &path("simulation/simulated_scan.ply"),
         &path("simulation/simulated_landmarks.json"),
