@@ -251,6 +251,11 @@ enum Command {
         /// A CSV catalog for catalog:ID specs instead of the built-in one.
         #[arg(long, value_name = "CSV")]
         catalog: Option<PathBuf>,
+        /// Default implant position, which the moves start from: footprint-centre (centred
+        /// on the breast's base) or behind-nipple (straight behind the nipple); either is
+        /// moved along the chest wall until the implant fits on the breast's base.
+        #[arg(long, value_name = "RULE", default_value = "footprint-centre")]
+        anchor: plan::simulate::AnchorRule,
         /// The simulation folder (created if needed).
         #[arg(long, value_name = "SIM_DIR")]
         out: PathBuf,
@@ -510,6 +515,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             rotate_right,
             no_gravity,
             catalog,
+            anchor,
             out,
             json,
         } => {
@@ -526,6 +532,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 right: request(right, move_right, rotate_right),
                 no_gravity,
                 catalog,
+                anchor,
             };
             let report = plan::simulate::simulate(&model, &out, &options, progress)?;
             progress.finish();

@@ -684,7 +684,44 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
         ]),
         "angle",
     );
+    assert_clean_failure(
+        &mammaplan(&[
+            "simulate",
+            "--model",
+            model.to_str().unwrap(),
+            "--left",
+            "catalog:R-MOD-120",
+            "--anchor",
+            "armpit",
+            "--out",
+            out.to_str().unwrap(),
+        ]),
+        "unknown anchor \"armpit\"",
+    );
     assert!(!out.exists());
+    // The other default position, recorded in result.json with the demo's.
+    let behind_nipple = dir.path().join("behind_nipple");
+    let output = mammaplan(&[
+        "simulate",
+        "--model",
+        model.to_str().unwrap(),
+        "--right",
+        "catalog:R-MOD-90",
+        "--anchor",
+        "behind-nipple",
+        "--no-gravity",
+        "--out",
+        behind_nipple.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    assert_eq!(json["anchor"], "behind-nipple");
+    let demo_result: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("simulation/result.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(demo_result["anchor"], "footprint-centre");
     assert_clean_failure(
         &mammaplan(&[
             "simulate",

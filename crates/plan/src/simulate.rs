@@ -30,7 +30,7 @@ use std::time::Instant;
 use tetra::vtu::{CONSTRAINED, DISPLACEMENT, Field};
 
 pub use fem::Material;
-pub use simulation::{CycleInfo, Placement, RunReport, SimulationOptions, Stage};
+pub use simulation::{AnchorRule, CycleInfo, Placement, RunReport, SimulationOptions, Stage};
 
 /// An implant asked for on one side.
 #[derive(Debug, Clone, PartialEq)]
@@ -74,6 +74,9 @@ pub struct SimulateOptions {
     pub no_gravity: bool,
     /// A CSV catalog for `catalog:ID` specs instead of the built-in one.
     pub catalog: Option<PathBuf>,
+    /// Where an implant's default position lies (centred on the breast's footprint, or
+    /// straight behind the nipple); moves are relative to it.
+    pub anchor: AnchorRule,
 }
 
 /// A patient's model ready for interactive simulation.
@@ -570,6 +573,8 @@ pub struct SimulateReport {
     pub distances: Vec<crate::Distance>,
     pub solver: SolverReport,
     pub no_gravity: bool,
+    /// Where the implants' default positions lay (`footprint-centre`, `behind-nipple`).
+    pub anchor: AnchorRule,
     pub materials: MaterialsReport,
     pub out_dir: PathBuf,
     pub files: Vec<String>,
@@ -588,7 +593,11 @@ pub fn simulate(
     );
     let catalog = crate::catalog::load(options.catalog.as_deref())?;
     let (marked, model) = load_model(model_dir, progress)?;
-    let session = Session::new(marked, model, catalog, SimulationOptions::default())?;
+    let simulation_options = SimulationOptions {
+        anchor_rule: options.anchor,
+        ..SimulationOptions::default()
+    };
+    let session = Session::new(marked, model, catalog, simulation_options)?;
     run_session(session, model_dir, out_dir, options, progress)
 }
 
@@ -705,6 +714,7 @@ pub fn write_simulation(
         distances,
         solver: state.solver.clone(),
         no_gravity: state.no_gravity,
+        anchor: session.simulation.options().anchor_rule,
         materials: MaterialsReport::new(session.simulation.options()),
         out_dir: out_dir.to_path_buf(),
         files,

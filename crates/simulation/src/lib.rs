@@ -49,7 +49,7 @@ pub mod template;
 pub use bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 pub use error::SimulationError;
 pub use field::{DEFAULT_FALLOFF_MM, PointMap};
-pub use placement::{Anchor, AnchorRule, Placement};
+pub use placement::{Anchor, AnchorRule, ParseAnchorRuleError, Placement};
 pub use session::{
     BreastVolume, CARRIED_CONTROL_POINT_SPACING_MM, CycleInfo, PatientInput, PlacedImplant,
     RunReport, Simulation, SimulationOptions, SolveReport, Stage,

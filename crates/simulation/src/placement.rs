@@ -67,12 +67,30 @@ impl Placement {
 
 /// Where the default anchor lies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum AnchorRule {
     /// The area centroid of the bed's domain in `(u, v)` (see the module documentation).
     #[default]
     FootprintCentre,
     /// Straight behind the nipple: the nipple's `(u, v)`.
     BehindNipple,
+}
+
+/// A name that is not `footprint-centre` or `behind-nipple`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown anchor \"{0}\": expected footprint-centre or behind-nipple")]
+pub struct ParseAnchorRuleError(String);
+
+impl std::str::FromStr for AnchorRule {
+    type Err = ParseAnchorRuleError;
+
+    fn from_str(name: &str) -> Result<AnchorRule, ParseAnchorRuleError> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "footprint-centre" => Ok(AnchorRule::FootprintCentre),
+            "behind-nipple" => Ok(AnchorRule::BehindNipple),
+            _ => Err(ParseAnchorRuleError(name.to_string())),
+        }
+    }
 }
 
 /// The implant's anchor on its bed and its local frame there.

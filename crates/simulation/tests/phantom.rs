@@ -8,7 +8,7 @@ use anatomy::breast::Side;
 use anatomy::{AnatomicalFrame, LandmarkName};
 use glam::DVec3;
 use implant::{Catalog, ImplantShape, ImplantSpec, RoundImplant};
-use simulation::{Placement, Simulation, SimulationError, SimulationOptions};
+use simulation::{AnchorRule, Placement, Simulation, SimulationError, SimulationOptions};
 use std::sync::OnceLock;
 
 /// The default implant of the tests: the catalog's moderate-profile 120 mm round
@@ -436,4 +436,48 @@ fn the_scan_displacement_equals_the_smoothing_over_the_whole_scan() {
     );
     assert!(still > 0 && still < moved.len());
     assert!(bits(&moved) == bits(&expected));
+}
+
+/// `AnchorRule::BehindNipple` (`simulate --anchor behind-nipple`): the default anchor is
+/// the nipple's own bed parameters `(u, v)` (a known answer, exact), where the default
+/// rule centres the implant on the footprint, which on the phantom lies 34 mm above the
+/// nipple. The phantom's nipple sits so low that even a 90 mm implant overhangs the fold
+/// there, so the session moves it up until it fits: the placed anchor lies about the
+/// reported fit shift (mm along the bed) away from the nipple's parameters (arc lengths
+/// on the chest's cylinder, which the bed's tilt against the cylinder stretches by up to
+/// about 1/cos 35°: bound 20%), and much nearer the nipple than the footprint's centre.
+#[test]
+fn the_behind_nipple_rule_starts_from_behind_the_nipple() {
+    let p = common::phantom();
+    let mut sim = p.session(SimulationOptions {
+        anchor_rule: AnchorRule::BehindNipple,
+        ..Default::default()
+    });
+    let centred = &baseline().sim;
+    let small = *Catalog::builtin().get("R-MOD-90").unwrap().shape();
+    for side in Side::BOTH {
+        let nipple = common::nipple(p.landmarks(), side);
+        let at_nipple = sim.bed(side).cylinder.to_cylindrical(nipple).truncate();
+        assert_eq!(sim.default_anchor_uv(side), at_nipple);
+        let footprint_centre = centred.default_anchor_uv(side);
+        assert!(footprint_centre.y > at_nipple.y + 5.0);
+
+        sim.set_implant(side, small, Placement::default()).unwrap();
+        let placed = sim.implant(side).unwrap();
+        let from_nipple_mm = placed.anchor.uv.distance(at_nipple);
+        let shift_mm = placed.fit_shift_mm.length();
+        println!(
+            "{side}: footprint centre {:.1} mm from the nipple, anchor behind it {from_nipple_mm:.1} mm (fit shift {:.1?})",
+            footprint_centre.distance(at_nipple),
+            placed.fit_shift_mm
+        );
+        assert!(
+            (from_nipple_mm / shift_mm - 1.0).abs() < 0.2,
+            "{side}: {from_nipple_mm} mm for a shift of {shift_mm} mm"
+        );
+        assert!(
+            from_nipple_mm < 0.5 * footprint_centre.distance(at_nipple),
+            "{side}"
+        );
+    }
 }
