@@ -652,17 +652,14 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     // Bad implants on the demo's model: clear errors, no simulation folder.
     let model = dir.path().join("model");
     let out = dir.path().join("bad_simulation");
-    let simulate = |spec: &str| {
-        mammaplan(&[
-            "simulate",
-            "--model",
-            model.to_str().unwrap(),
-            "--left",
-            spec,
-            "--out",
-            out.to_str().unwrap(),
-        ])
+    // `simulate` on `model_dir` with the left implant `spec` and further arguments.
+    let simulate_with = |model_dir: &Path, spec: &str, extra: &[&str]| {
+        let mut args = vec!["simulate", "--model", model_dir.to_str().unwrap()];
+        args.extend(["--left", spec, "--out", out.to_str().unwrap()]);
+        args.extend(extra);
+        mammaplan(&args)
     };
+    let simulate = |spec: &str| simulate_with(&model, spec, &[]);
     assert_clean_failure(&simulate("catalog:NO-SUCH-ID"), "NO-SUCH-ID");
     assert_clean_failure(&simulate("round:diameter=0,projection=30"), "diameter");
     assert_clean_failure(
@@ -671,34 +668,18 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     );
     assert_clean_failure(&simulate("oval:width=100"), "oval");
     assert_clean_failure(
-        &mammaplan(&[
-            "simulate",
-            "--model",
-            model.to_str().unwrap(),
-            "--left",
-            "catalog:R-MOD-120",
-            "--rotate-left",
-            "400",
-            "--out",
-            out.to_str().unwrap(),
-        ]),
+        &simulate_with(&model, "catalog:R-MOD-120", &["--rotate-left", "400"]),
         "angle",
     );
     assert_clean_failure(
-        &mammaplan(&[
-            "simulate",
-            "--model",
-            model.to_str().unwrap(),
-            "--left",
-            "catalog:R-MOD-120",
-            "--anchor",
-            "armpit",
-            "--out",
-            out.to_str().unwrap(),
-        ]),
+        &simulate_with(&model, "catalog:R-MOD-120", &["--anchor", "armpit"]),
         "unknown anchor \"armpit\"",
     );
     assert!(!out.exists());
+    assert_clean_failure(
+        &simulate_with(&dir.path().join("nowhere"), "catalog:R-MOD-120", &[]),
+        "model.json",
+    );
     // The other default position, recorded in result.json with the demo's.
     let behind_nipple = dir.path().join("behind_nipple");
     let output = mammaplan(&[
@@ -722,18 +703,6 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     )
     .unwrap();
     assert_eq!(demo_result["anchor"], "footprint-centre");
-    assert_clean_failure(
-        &mammaplan(&[
-            "simulate",
-            "--model",
-            dir.path().join("nowhere").to_str().unwrap(),
-            "--left",
-            "catalog:R-MOD-120",
-            "--out",
-            out.to_str().unwrap(),
-        ]),
-        "model.json",
-    );
 
     // The demo's report, and one with the follow-up scan as the post-operative scan.
     let demo_report = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
