@@ -7,12 +7,14 @@
 //! is cut into breasts with the model's own control points (the model's cut curves, for
 //! the views; its volumes are `model.json`'s), the post-operative one with the default
 //! control points from its landmarks (its breast and quadrant volumes). The simulated
-//! breast volumes are the simulation's (`result.json`: the pre-operative
+//! breast and quadrant volumes are the simulation's (`result.json`: the pre-operative
 //! breast patch moved with the tissue, closed by a fill-in rebuilt on the moved chest);
-//! a breast model built afresh from the simulated landmarks would not measure the same
-//! breast, because the fold landmarks move with the tissue in front of the implant. The
-//! simulation has no quadrant volumes. The clinical distances are measured on the pre-
-//! and post-operative scans and read from `result.json` for the simulation.
+//! the simulated scan is cut along the model's curves carried with the tissue
+//! (`simulated_control_points.json`) for its views and the comparison: a breast model
+//! built afresh from the simulated landmarks would not measure the same breast, because
+//! the fold landmarks move with the tissue in front of the implant. The clinical
+//! distances are measured on the pre- and post-operative scans and read from
+//! `result.json` for the simulation.
 
 use crate::compare::{CompareOptions, compare};
 use crate::measure::measure;
@@ -350,12 +352,30 @@ pub fn report_content(
     })?;
     let preoperative_distances = measure(&preoperative.marked, &[], progress)?.distances;
     progress.step();
-    let simulated = ShownScan::load(
+    let mut simulated = ShownScan::load(
         &simulation_dir.join("simulated_scan.ply"),
         &simulation_dir.join("simulated_landmarks.json"),
         progress,
     )
     .with_context(|| format!("the simulated scan in {}", simulation_dir.display()))?;
+    // The simulated scan cut along the model's curves carried with the tissue (folders
+    // written before those existed have none): its views show where it was measured.
+    let carried = simulation_dir.join(SIMULATED_CONTROL_POINTS);
+    let carried = carried.is_file().then_some(carried);
+    if let Some(path) = &carried {
+        match build_breasts(
+            &simulated.marked,
+            &BreastOptions::default(),
+            Some(path),
+            progress,
+        ) {
+            Ok((breasts, _)) => simulated.breasts = Some(breasts),
+            Err(error) => progress.warn(&format!(
+                "the simulated scan's cut curves are not drawn: {}",
+                crate::one_line(&error)
+            )),
+        }
+    }
     let (scan_vertices, simulated_vertices) = (
         preoperative.marked.scan.mesh.vertex_count(),
         simulated.marked.scan.mesh.vertex_count(),
@@ -386,11 +406,12 @@ pub fn report_content(
         postoperative,
     };
     let comparison = match &scans.postoperative {
-        Some(postoperative) => {
-            let carried = simulation_dir.join(SIMULATED_CONTROL_POINTS);
-            let carried = carried.is_file().then_some(carried.as_path());
-            compare_with_postoperative(&scans.simulated, carried, postoperative, progress)?
-        }
+        Some(postoperative) => compare_with_postoperative(
+            &scans.simulated,
+            carried.as_deref(),
+            postoperative,
+            progress,
+        )?,
         None => None,
     };
     let views = report_views(&scans)?;
