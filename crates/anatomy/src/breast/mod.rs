@@ -49,11 +49,13 @@ use std::path::PathBuf;
 /// than the scan's 1.5-3 mm triangles, so the cut follows the spline closely.
 pub const DEFAULT_SAMPLE_SPACING_MM: f64 = 1.0;
 
-/// Default of [`BreastOptions::max_breast_hole_perimeter_mm`] (mm): a hole about 19 mm
-/// across. The fill-in continues the skin's curvature over it, so even a flat patch
-/// would miss a 60 mm radius breast by under 1 mm there: far below 1 ml. Realistic scans
-/// have such dropouts under the breast (one of 47 mm on the shared `v02_average`).
-pub const DEFAULT_MAX_BREAST_HOLE_PERIMETER_MM: f64 = 60.0;
+/// Default of [`BreastOptions::max_breast_hole_perimeter_mm`] (mm): a hole about 25 mm
+/// across. The fill-in continues the skin's curvature over it; even a flat patch would
+/// miss a 60 mm radius breast by 1.4 mm at its centre, a cap of 0.35 ml: far below 1 ml.
+/// Realistic scans have such dropouts under the breast (one of 47 mm on the shared
+/// `v02_average`), and an implant stretches them with the skin (that one to 63 mm on the
+/// simulated scan with R-MOD-110 on both sides), which must still be measurable.
+pub const DEFAULT_MAX_BREAST_HOLE_PERIMETER_MM: f64 = 80.0;
 
 /// Marks a vertex that a part does not contain.
 const NOT_IN_PART: u32 = u32::MAX;
