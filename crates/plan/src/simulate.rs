@@ -8,9 +8,10 @@
 //! - `simulated_scan.ply`: the scan with every vertex moved (same vertex order and count,
 //!   colours and texture coordinates kept);
 //! - `simulated_landmarks.json`: the landmarks moved the same way;
-//! - `simulated_control_points.json`: the model's cut-curve control points moved the same
-//!   way, for a breast model of the simulated scan (`mammaplan model --control-points`,
-//!   `compare --test-control-points`) that cuts the same breasts as the model did;
+//! - `simulated_control_points.json`: points every 10 mm along the model's cut curves,
+//!   moved the same way: control points for a breast model of the simulated scan
+//!   (`mammaplan model --control-points`, `compare --test-control-points`) that cuts the
+//!   same breasts as the model did;
 //! - `fe_result.vtu`: the finest tetrahedral level with point data `displacement` (mm) and
 //!   `constrained` (0/1) and cell data `implant` (1 for implant elements);
 //! - `result.json`: the figures ([`SimulateReport`]), written last.
