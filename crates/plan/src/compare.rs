@@ -106,13 +106,17 @@ pub struct CompareReport {
 pub struct ScanFiles {
     pub scan: String,
     pub landmarks: String,
+    /// The control-point file its breasts were cut along (`null`: the defaults from its
+    /// landmarks).
+    pub control_points: Option<String>,
 }
 
 impl ScanFiles {
-    fn of(marked: &MarkedScan) -> ScanFiles {
+    fn of(marked: &MarkedScan, control_points: Option<&Path>) -> ScanFiles {
         ScanFiles {
             scan: marked.scan.path.display().to_string(),
             landmarks: marked.landmarks_path.display().to_string(),
+            control_points: control_points.map(|path| path.display().to_string()),
         }
     }
 }
@@ -386,8 +390,8 @@ pub fn compare(
     };
     let overall = statistics.whole;
     Ok(CompareReport {
-        reference: ScanFiles::of(reference),
-        test: ScanFiles::of(test),
+        reference: ScanFiles::of(reference, options.reference_control_points.as_deref()),
+        test: ScanFiles::of(test, options.test_control_points.as_deref()),
         registration,
         max_distance_mm: options.max_distance_mm,
         rms_mm: overall.rms_mm,

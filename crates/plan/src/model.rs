@@ -380,11 +380,12 @@ pub fn build_breasts(
         // curves below them can fold; its folder holds the model's curves carried along.
         let carried = (scan.path.parent())
             .map(|dir| dir.join(crate::simulate::SIMULATED_CONTROL_POINTS))
-            .filter(|path| control_points_file.is_none() && path.is_file());
+            .filter(|path| options.control_points.is_none() && path.is_file());
         let hint = carried.map_or(String::new(), |path| {
             format!(
-                " (a simulated scan? {} holds the model's cut curves carried along: pass it \
-                 with --control-points, or to compare with --test-control-points)",
+                " (a simulated scan? {} holds the model's cut curves carried along: cut it \
+                 along them, with model --control-points or compare's \
+                 --test-control-points/--reference-control-points)",
                 path.display()
             )
         });

@@ -1,7 +1,8 @@
 //! `mammaplan report`: one self-contained HTML page (crate `report`) about a plan, from
 //! a model folder (`model.json`, `control_points.json`), a simulation folder
-//! (`result.json`, `simulated_scan.ply`, `simulated_landmarks.json`) and optionally the
-//! post-operative scan with its landmarks.
+//! (`result.json`, `simulated_scan.ply`, `simulated_landmarks.json`, and
+//! `simulated_control_points.json` where present) and optionally the post-operative scan
+//! with its landmarks.
 //!
 //! Every scan shown is loaded with its landmarks ([`ShownScan`]). The pre-operative one
 //! is cut into breasts with the model's own control points (the model's cut curves, for
@@ -20,7 +21,8 @@ use crate::compare::{CompareOptions, compare};
 use crate::measure::measure;
 use crate::model::{PerSide, build_breasts, read_folder_json, read_model_record, write_model};
 use crate::simulate::{
-    MaterialsReport, SIMULATED_CONTROL_POINTS, Session, SimulationState, write_simulation,
+    AnchorRule, MaterialsReport, SIMULATED_CONTROL_POINTS, Session, SimulationState,
+    write_simulation,
 };
 use crate::views::{RenderedView, ViewContent, standard_views};
 use crate::{Distance, MarkedScan, Progress};
@@ -360,8 +362,9 @@ pub fn report_content(
     .with_context(|| format!("the simulated scan in {}", simulation_dir.display()))?;
     // The simulated scan cut along the model's curves carried with the tissue (folders
     // written before those existed have none): its views show where it was measured.
-    let carried = simulation_dir.join(SIMULATED_CONTROL_POINTS);
-    let carried = carried.is_file().then_some(carried);
+    // The comparison cuts it along them too, if they served here (else it warns and
+    // takes the post-operative scan's breast regions).
+    let mut carried = Some(simulation_dir.join(SIMULATED_CONTROL_POINTS)).filter(|p| p.is_file());
     if let Some(path) = &carried {
         match build_breasts(
             &simulated.marked,
@@ -370,10 +373,13 @@ pub fn report_content(
             progress,
         ) {
             Ok((breasts, _)) => simulated.breasts = Some(breasts),
-            Err(error) => progress.warn(&format!(
-                "the simulated scan's cut curves are not drawn: {}",
-                crate::one_line(&error)
-            )),
+            Err(error) => {
+                progress.warn(&format!(
+                    "the simulated scan's cut curves are not drawn: {}",
+                    crate::one_line(&error)
+                ));
+                carried = None;
+            }
         }
     }
     let (scan_vertices, simulated_vertices) = (
@@ -498,8 +504,8 @@ pub fn report_content(
         notes: notes(&simulation, model_dir),
         case,
         implants: report::PerSide {
-            left: simulation.implants.left.map(implant_choice),
-            right: simulation.implants.right.map(implant_choice),
+            left: (simulation.implants.left).map(|i| implant_choice(i, simulation.anchor)),
+            right: (simulation.implants.right).map(|i| implant_choice(i, simulation.anchor)),
         },
         views,
         measurements: measurement_rows(
@@ -525,6 +531,9 @@ struct SimulationRecord {
     distances: Vec<Distance>,
     solver: SolverRecord,
     no_gravity: bool,
+    /// Absent from folders written before it existed: the only rule then.
+    #[serde(default)]
+    anchor: AnchorRule,
     materials: MaterialsReport,
 }
 
@@ -583,7 +592,7 @@ fn material(material: &crate::simulate::MaterialReport) -> report::MaterialParam
     }
 }
 
-fn implant_choice(implant: ImplantRecord) -> report::ImplantChoice {
+fn implant_choice(implant: ImplantRecord, anchor: AnchorRule) -> report::ImplantChoice {
     let variant = match (&implant.shape.profile, &implant.shape.taper) {
         (Some(profile), _) => format!(", {profile} profile"),
         (None, Some(taper)) => format!(", {taper} taper"),
@@ -600,6 +609,11 @@ fn implant_choice(implant: ImplantRecord) -> report::ImplantChoice {
         height_mm: implant.height_mm,
         projection_mm: implant.projection_mm,
         volume_ml: implant.volume_ml,
+        default_position: match anchor {
+            AnchorRule::FootprintCentre => "centred on the breast's base",
+            AnchorRule::BehindNipple => "behind the nipple",
+        }
+        .into(),
         offset_mm: implant.move_mm,
         rotation_deg: implant.rotation_deg,
         fit_shift_mm: implant.fit_shift_mm,

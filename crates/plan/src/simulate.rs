@@ -680,6 +680,15 @@ pub fn write_simulation(
     progress: &dyn Progress,
 ) -> Result<SimulateReport> {
     let breasts = session.breast_volumes()?;
+    for side in Side::BOTH {
+        if breasts.quadrant_volume_ml.get(side).is_none() {
+            progress.warn(&format!(
+                "{side} breast: no quadrant volumes on the simulated scan: the moved lines from \
+                 the nipple to the clavicle point and the fold's ends do not run around it in \
+                 order (or one lies on its anterior axis)"
+            ));
+        }
+    }
     let simulated = session.simulated_scan(&out_dir.join("simulated_scan.ply"))?;
     let control_points = session.simulated_control_points();
     let distances = measure(&simulated, &[], progress)?.distances;

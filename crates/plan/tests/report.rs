@@ -113,6 +113,9 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         (115.0, 110.0, 38.0)
     );
     assert_eq!(implant.offset_mm, [2.0, -3.0, 0.0]);
+    // result.json's anchor rule, the default one here.
+    assert_eq!(result["anchor"], "footprint-centre");
+    assert_eq!(implant.default_position, "centred on the breast's base");
     assert!(implant.catalog.is_none());
     assert!(implant.shape.starts_with("anatomic, "), "{}", implant.shape);
     assert!(content.implants.right.is_none());

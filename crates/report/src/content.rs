@@ -109,6 +109,8 @@ pub struct ImplantChoice {
     pub height_mm: f64,
     pub projection_mm: f64,
     pub volume_ml: f64,
+    /// Where the default position lies (e.g. "centred on the breast's base").
+    pub default_position: String,
     /// The move from the default position asked for (mm, anatomical frame: x to the
     /// patient's left, y up, z anterior).
     pub offset_mm: [f64; 3],

@@ -148,13 +148,14 @@ fn implant_section(implants: &PerSide<Option<ImplantChoice>>) -> Markup {
                     (row("Height (mm)", &|i| html! { (number(i.height_mm, 1)) }))
                     (row("Projection (mm)", &|i| html! { (number(i.projection_mm, 1)) }))
                     (row("Volume (ml)", &|i| html! { strong { (number(i.volume_ml, 0)) } }))
+                    (row("Default position", &|i| html! { (i.default_position) }))
                     (row("Offset x / y / z (mm)", &|i| html! { (i.offset_mm.map(|v| number(v, 1)).join(" / ")) }))
                     (row("Rotation (°)", &|i| html! { (number(i.rotation_deg, 0)) }))
                     (row("Shifted to fit (mm)", &|i| html! { (i.fit_shift_mm.map(|v| number(v, 1)).join(" / ")) }))
                 }
             }
             p.remark {
-                "Offset: the move from the default position, centred under the breast on the chest wall "
+                "Offset: the move from the default position on the chest wall "
                 "(x towards the patient's left, y up, z forwards). Shifted to fit: the further move along "
                 "the chest wall (towards the patient's left, up) that placed the implant within the breast's base."
             }

@@ -62,6 +62,7 @@ fn minimal_content() -> ReportContent {
         height_mm: 120.0,
         projection_mm: 33.5,
         volume_ml: 252.58,
+        default_position: "centred on the breast's base".into(),
         offset_mm: [0.0, 5.0, 0.0],
         rotation_deg: 0.0,
         fit_shift_mm: [0.0, 0.0],

@@ -37,7 +37,7 @@ use crate::bed::ImplantBed;
 use crate::error::SimulationError;
 use anatomy::AnatomicalFrame;
 use glam::{DMat2, DVec2, DVec3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Longest step of the walk along the bed (mm).
 pub const WALK_STEP_MM: f64 = 2.0;
@@ -66,7 +66,7 @@ impl Placement {
 }
 
 /// Where the default anchor lies.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AnchorRule {
     /// The area centroid of the bed's domain in `(u, v)` (see the module documentation).
@@ -80,6 +80,16 @@ pub enum AnchorRule {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("unknown anchor \"{0}\": expected footprint-centre or behind-nipple")]
 pub struct ParseAnchorRuleError(String);
+
+impl std::fmt::Display for AnchorRule {
+    /// The name `simulate --anchor` takes.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            AnchorRule::FootprintCentre => "footprint-centre",
+            AnchorRule::BehindNipple => "behind-nipple",
+        })
+    }
+}
 
 impl std::str::FromStr for AnchorRule {
     type Err = ParseAnchorRuleError;

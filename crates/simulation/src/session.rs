@@ -735,7 +735,7 @@ impl Simulation {
                 return Err(SimulationError::BadFillIn {
                     side,
                     reason: format!(
-                        "the default anchor ({:?}) does not lie on it",
+                        "the default anchor ({}) does not lie on it",
                         options.anchor_rule
                     ),
                 });
