@@ -64,7 +64,7 @@ use crate::fill_in::inside_polygon;
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks};
 use glam::{DVec2, DVec3};
-use mesh::{ManifoldReport, MeshError, Topology, TriMesh, manifold_report, self_intersections};
+use mesh::{ManifoldReport, MeshError, Topology, TriMesh, manifold_report, untangle};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 use std::collections::HashMap;
 use std::ops::Range;
@@ -923,7 +923,7 @@ pub fn build_closed_surface_in_box(
     }
     let band_range = back_range.end..triangles.len();
 
-    let mesh = TriMesh::new(
+    let mut mesh = TriMesh::new(
         positions
             .iter()
             .map(|&p| frame.to_file(clip_box.box_to_local(p)))
@@ -935,7 +935,32 @@ pub fn build_closed_surface_in_box(
     if !report.is_watertight_manifold() {
         return Err(ClosedSurfaceError::NotWatertight(report));
     }
-    let crossings = self_intersections(&mesh);
+    // Scanner noise may fold a few tiny triangles of the scan through each other; only
+    // the scan's inner vertices move, so the band and the wall stay as built.
+    let mut scan_border = vec![false; offset as usize];
+    for side in &front_sides {
+        for &v in &side.chain {
+            scan_border[v as usize] = true;
+        }
+    }
+    let mut warnings = Vec::new();
+    let crossings = match untangle(&mut mesh, |v| v < offset && !scan_border[v as usize]) {
+        Ok(None) => Vec::new(),
+        Ok(Some(done)) => {
+            warnings.push(format!(
+                "the scan folds through itself in {} places near ({:.0}, {:.0}, {:.0}) mm \
+                 (scanner noise); smoothed there, moving {} vertices by at most {:.2} mm",
+                done.pairs_found,
+                done.near.x,
+                done.near.y,
+                done.near.z,
+                done.vertices_moved,
+                done.max_displacement_mm
+            ));
+            Vec::new()
+        }
+        Err(pairs) => pairs,
+    };
     if let Some(&first) = crossings.first() {
         return Err(ClosedSurfaceError::SelfIntersecting {
             count: crossings.len(),
@@ -956,7 +981,7 @@ pub fn build_closed_surface_in_box(
         clip_box: *clip_box,
         rear_wall_offset_mm,
         lateral_room_mm: None,
-        warnings: Vec::new(),
+        warnings,
     })
 }
 
@@ -1492,6 +1517,7 @@ fn extent_limits(points: &[DVec3], across: usize, lo: f64, hi: f64, along: usize
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mesh::self_intersections;
     use glam::DMat3;
     use mesh::shapes::grid;
 

@@ -18,6 +18,7 @@ pub mod spatial;
 pub mod surface_curve;
 pub mod topology;
 pub mod trimesh;
+pub mod untangle;
 
 pub use cut::{CutError, CutMesh, MeshPart, Region, cut_along_curves};
 pub use error::MeshError;
@@ -29,3 +30,4 @@ pub use spatial::{ClosestPoint, RayHit, SurfaceIndex};
 pub use surface_curve::{CurveError, CurveLocation, CurvePoint, SurfaceCurve};
 pub use topology::Topology;
 pub use trimesh::{MaterialLayer, TriMesh, UvLayer};
+pub use untangle::{Untangled, untangle};

@@ -6,7 +6,9 @@
 //!
 //! The model folder holds:
 //! - `closed_surface.ply`: the watertight surface the finite elements will fill;
-//! - `breast_left.ply`, `breast_right.ply`: the breast patches (skin inside each curve);
+//! - `breast_left.ply`, `breast_right.ply`: the breast patches (skin inside each curve),
+//!   with a vertex property `reconstructed` (1 where the scanner saw no skin and the
+//!   model filled it in, 0 where it was measured);
 //! - `fill_left.ply`, `fill_right.ply`: the fill-ins behind the breasts (rear wall);
 //! - `filled_base.ply`: the scan without the breasts, with both fill-ins stitched in;
 //! - `cut_curve_left.obj`, `cut_curve_right.obj`: each cut curve as a closed polyline
@@ -265,6 +267,9 @@ pub struct ModelReport {
     /// noisy scan this is the scan's own roughness.
     pub max_stitch_angle_single_triangles_deg: PerSide<f64>,
     pub cut_curve_length_mm: PerSide<f64>,
+    /// How much of each breast the scanner did not see and the model reconstructed
+    /// (the vertices are flagged in `breast_*.ply`'s `reconstructed` property).
+    pub reconstructed: PerSide<ReconstructedReport>,
     /// The upper control point's ratio along Pc-Pn; `None` when the control points
     /// came from a file.
     pub pc_ratio: Option<f64>,
@@ -281,6 +286,17 @@ pub struct ModelReport {
     /// The model folder and the files written into it (names).
     pub out_dir: PathBuf,
     pub files: Vec<String>,
+}
+
+/// The skin of one breast the scanner did not see, reconstructed by the fill-in.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ReconstructedReport {
+    pub area_mm2: f64,
+    /// Of the breast's skin (0..1).
+    pub area_share: f64,
+    /// The breast volume between the reconstructed skin and flat patches over its
+    /// borders (ml): the part of the breast volume that rests on reconstruction.
+    pub volume_ml: f64,
 }
 
 /// Builds the breast model and the closed surface of a scan with its landmarks.
@@ -398,14 +414,17 @@ pub fn build_breasts(
     for hole in &breasts.holes_left_open {
         progress.warn(&format!("{}: {hole}", scan.path.display()));
     }
-    for hole in &breasts.holes_in_breasts {
-        progress.warn(&format!(
-            "{}: a scanner hole of {:.0} mm perimeter inside the {} breast near {:.0?} was closed by the fill-in",
-            scan.path.display(),
-            hole.perimeter_mm,
-            hole.side,
-            hole.centre
-        ));
+    for side in Side::BOTH {
+        let part = &breasts.breast(side).reconstructed;
+        if part.area_mm2 > 0.0 {
+            progress.warn(&format!(
+                "{}: {side} breast: {:.0}% of its skin ({:.1} cm²) was not seen by the scanner and is reconstructed; {:.1} ml of its volume rests on the reconstruction",
+                scan.path.display(),
+                100.0 * part.area_share,
+                part.area_mm2 / 100.0,
+                part.volume_ml
+            ));
+        }
     }
     Ok((breasts, options.pc_ratio))
 }
@@ -529,6 +548,14 @@ impl PatientModel {
                 model.max_stitch_angle_raw_deg(side)
             }),
             cut_curve_length_mm: PerSide::from_fn(|side| model.breast(side).curve.length_mm()),
+            reconstructed: PerSide::from_fn(|side| {
+                let part = &model.breast(side).reconstructed;
+                ReconstructedReport {
+                    area_mm2: part.area_mm2,
+                    area_share: part.area_share,
+                    volume_ml: part.volume_ml,
+                }
+            }),
             pc_ratio: self.control_points_file.is_none().then_some(self.pc_ratio),
             rear_wall_offset_mm: closed.rear_wall_offset_mm,
             clip_box: ClipBoxReport {
@@ -597,18 +624,39 @@ pub fn write_model(
     let breasts = &model.breasts;
     let meshes = [
         ("closed_surface.ply", &model.closed_surface.mesh),
-        ("breast_left.ply", &breasts.left.patch.mesh),
-        ("breast_right.ply", &breasts.right.patch.mesh),
         ("fill_left.ply", &breasts.left.fill.mesh),
         ("fill_right.ply", &breasts.right.fill.mesh),
         ("filled_base.ply", &breasts.filled_base),
     ];
     let levels = &model.tets.levels;
-    progress.stage("write", (meshes.len() + levels.len()) as u64 + 4);
+    progress.stage("write", (meshes.len() + levels.len()) as u64 + 6);
     let mut files = Vec::new();
     for (name, mesh) in meshes {
         mesh::io::write_mesh(&out_dir.join(name), mesh)?;
         files.push(name.to_string());
+        progress.step();
+    }
+    // The breast patches carry which vertices are reconstructed skin (1) and which
+    // were measured (0).
+    for side in Side::BOTH {
+        let breast = breasts.breast(side);
+        let name = format!("breast_{side}.ply");
+        let flags: Vec<f64> = breast
+            .reconstructed
+            .vertex_flags
+            .iter()
+            .map(|&f| f64::from(u8::from(f)))
+            .collect();
+        mesh::io::write_ply_with_scalars(
+            &out_dir.join(&name),
+            &breast.patch.mesh,
+            mesh::io::PlyEncoding::BinaryLittleEndian,
+            &[mesh::io::VertexScalar {
+                name: "reconstructed",
+                values: &flags,
+            }],
+        )?;
+        files.push(name);
         progress.step();
     }
     for (l, level) in levels.iter().enumerate() {

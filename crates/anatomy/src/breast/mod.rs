@@ -4,12 +4,13 @@
 //!
 //! # Steps of [`build_breast_model`]
 //! 1. Scanner holes are closed with the fill-in ([`close_scan_holes`]), so a cut curve can
-//!    run across a hole where the scanner missed the lateral fold. A hole lying entirely
-//!    inside a breast region is an error (a breast's volume cannot be measured through a
-//!    gap in its skin) unless it is a dropout no longer than
-//!    [`BreastOptions::max_breast_hole_perimeter_mm`] around, which the fill-in closes
-//!    with a negligible volume error; those are listed in
-//!    [`BreastModel::holes_in_breasts`].
+//!    run across a hole where the scanner missed the lateral fold, and the skin no camera
+//!    saw (the underside of a full or hanging breast) is reconstructed as a smooth
+//!    surface continuing the seen skin's positions and tangents. The holes lying
+//!    entirely inside a breast are listed in [`BreastModel::holes_in_breasts`]; each
+//!    breast's reconstructed part ([`Reconstructed`]: vertices, area, volume over flat
+//!    patches) is kept apart, and a breast more than
+//!    [`BreastOptions::max_reconstructed_share`] reconstructed is an error.
 //! 2. Cut curves ([`cut_curve`]): the control points (the defaults of
 //!    [`ControlPoints::from_landmarks`] or the user's) are snapped to the surface, a
 //!    periodic C2 cubic spline ([`ClosedSpline`]) is sampled through them about every
@@ -26,10 +27,12 @@
 
 mod control_points;
 mod quadrants;
+mod reconstructed;
 mod spline;
 
 pub use control_points::{ControlPoints, DEFAULT_PC_RATIO};
 pub use quadrants::{QuadrantError, QuadrantLines, QuadrantVolumes, quadrant_volumes_ml};
+pub use reconstructed::{DEFAULT_MAX_RECONSTRUCTED_SHARE, Reconstructed, reconstructed_part};
 pub use spline::{ClosedSpline, MIN_CONTROL_POINT_SPACING_MM, SplineError};
 
 use crate::fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
@@ -49,13 +52,6 @@ use std::path::PathBuf;
 /// than the scan's 1.5-3 mm triangles, so the cut follows the spline closely.
 pub const DEFAULT_SAMPLE_SPACING_MM: f64 = 1.0;
 
-/// Default of [`BreastOptions::max_breast_hole_perimeter_mm`] (mm): a hole about 25 mm
-/// across. The fill-in continues the skin's curvature over it; even a flat patch would
-/// miss a 60 mm radius breast by 1.4 mm at its centre, a cap of 0.35 ml: far below 1 ml.
-/// Realistic scans have such dropouts under the breast (one of 47 mm on the shared
-/// `v02_average`), and an implant stretches them with the skin (that one to 63 mm on the
-/// simulated scan with R-MOD-110 on both sides), which must still be measurable.
-pub const DEFAULT_MAX_BREAST_HOLE_PERIMETER_MM: f64 = 80.0;
 
 /// Marks a vertex that a part does not contain.
 const NOT_IN_PART: u32 = u32::MAX;
@@ -157,9 +153,9 @@ pub struct BreastOptions {
     pub fill_in: FillInParams,
     /// The user's control points; `None`: the defaults from the landmarks.
     pub control_points: Option<ControlPoints>,
-    /// Scanner holes inside a breast region up to this perimeter (mm) are closed; a
-    /// longer one is an error.
-    pub max_breast_hole_perimeter_mm: f64,
+    /// A breast whose skin is more than this share (0..1) reconstructed (scanner holes
+    /// closed by the fill-in) is an error: the scan lacks that breast.
+    pub max_reconstructed_share: f64,
 }
 
 impl Default for BreastOptions {
@@ -169,7 +165,7 @@ impl Default for BreastOptions {
             sample_spacing_mm: DEFAULT_SAMPLE_SPACING_MM,
             fill_in: FillInParams::default(),
             control_points: None,
-            max_breast_hole_perimeter_mm: DEFAULT_MAX_BREAST_HOLE_PERIMETER_MM,
+            max_reconstructed_share: DEFAULT_MAX_RECONSTRUCTED_SHARE,
         }
     }
 }
@@ -193,6 +189,8 @@ pub struct Breast {
     pub volume_ml: f64,
     /// The volumes of its quadrants (ml); they add up to `volume_ml`.
     pub quadrant_volume_ml: QuadrantVolumes,
+    /// The part of `patch` the scanner did not see, filled in.
+    pub reconstructed: Reconstructed,
 }
 
 /// Both breasts cut out of a scan, and the rear wall.
@@ -281,6 +279,8 @@ pub enum BreastError {
     InvalidPcRatio(f64),
     #[error("the spline sample spacing {0} mm is out of range: expected a positive length")]
     InvalidSampleSpacing(f64),
+    #[error("the largest reconstructed share of a breast {0} is out of range: expected a number between 0 and 1")]
+    InvalidReconstructedShare(f64),
     #[error("control point file {}: {message}", path.display())]
     ControlPointFile { path: PathBuf, message: String },
     #[error("{side} breast: the on-surface line from {from} to {to} failed: {source}")]
@@ -326,10 +326,15 @@ pub enum BreastError {
     #[error("cutting the scan failed (cut curve 0 is the left breast's, 1 the right's): {0}")]
     Cut(CutError),
     #[error(
-        "{} breast: the breast region has a hole (perimeter {:.0} mm near ({:.1}, {:.1}, {:.1}) mm); its volume cannot be measured",
-        .0.side, .0.perimeter_mm, .0.centre[0], .0.centre[1], .0.centre[2]
+        "{side} breast: {:.0}% of its skin ({:.0} of {:.0} cm²) was not seen by the scanner, more than the {:.0}% that can be reconstructed: the scan lacks most of this breast; rescan with the breast facing the cameras",
+        100.0 * reconstructed_area_mm2 / area_mm2, reconstructed_area_mm2 / 100.0, area_mm2 / 100.0, 100.0 * max_share
     )]
-    HoleInBreast(BreastHole),
+    MostlyUnscanned {
+        side: Side,
+        reconstructed_area_mm2: f64,
+        area_mm2: f64,
+        max_share: f64,
+    },
     #[error("{side} breast: the fill-in behind the breast failed: {source}")]
     FillIn {
         side: Side,
@@ -369,12 +374,18 @@ pub fn build_breast_model(
     let closed_scan = close_scan_holes(scan, topology);
     let closed_topology =
         (!closed_scan.closed.is_empty()).then(|| Topology::new(&closed_scan.mesh));
-    // The closed scan starts with the scan's triangles, so the scan's index locates
-    // points on it too (over a filled hole, on the hole's rim).
+    // Control points are put on the surface by rays and nearest points: over a hole
+    // the scan's own index would let a ray through to the back of the torso, so the
+    // closed scan gets its own. It starts with the scan's triangles, so points located
+    // on the scan stay valid on it.
+    let closed_index = closed_topology
+        .is_some()
+        .then(|| SurfaceIndex::new(&closed_scan.mesh))
+        .flatten();
     let surface = MeasuredSurface {
         mesh: &closed_scan.mesh,
         topology: closed_topology.as_ref().unwrap_or(topology),
-        index,
+        index: closed_index.as_ref().unwrap_or(index),
     };
     let control_points = match &options.control_points {
         Some(points) => points.clone(),
@@ -399,11 +410,10 @@ pub fn build_breast_model(
     )
     .map_err(cut_error)?;
     let holes_in_breasts = holes_in_breasts(scan, topology, &cut_mesh);
-    if let Some(hole) = holes_in_breasts
-        .iter()
-        .find(|h| h.perimeter_mm > options.max_breast_hole_perimeter_mm)
-    {
-        return Err(BreastError::HoleInBreast(hole.clone()));
+    if !(0.0..=1.0).contains(&options.max_reconstructed_share) {
+        return Err(BreastError::InvalidReconstructedShare(
+            options.max_reconstructed_share,
+        ));
     }
 
     let base = cut_mesh.part(Region::Outside);
@@ -432,6 +442,16 @@ pub fn build_breast_model(
             let position = cut_mesh.mesh.positions[v as usize].to_array();
             return Err(BreastError::CurveOnBorder { side, position });
         }
+        let reconstructed =
+            reconstructed_part(&patch.mesh, closed_index.as_ref(), scan.triangle_count());
+        if reconstructed.area_share > options.max_reconstructed_share {
+            return Err(BreastError::MostlyUnscanned {
+                side,
+                reconstructed_area_mm2: reconstructed.area_mm2,
+                area_mm2: patch.mesh.area(),
+                max_share: options.max_reconstructed_share,
+            });
+        }
         let closed = close_patch(&patch.mesh, &fill, cut_loop, &to_patch);
         let open_edges = Topology::new(&closed).boundary_edge_count;
         if open_edges > 0 {
@@ -454,6 +474,7 @@ pub fn build_breast_model(
             closed,
             volume_ml,
             quadrant_volume_ml,
+            reconstructed,
         })
     };
     let left = breast(Side::Left, left_points, left_curve)?;
@@ -506,8 +527,16 @@ pub fn cut_curve(
             BreastError::CoincidentControlPoints { side, index }
         }
     })?;
-    // The first sample is exactly the first snapped control point, on `start_triangle`.
-    let samples = spline.sample(sample_spacing_mm);
+    // Each sample is moved to its nearest surface point before the walk: the spline's
+    // chords leave the skin by centimetres where it turns sharply (a breast's lateral
+    // side), and walking towards points that far off a steep surface doubles back on
+    // itself. The first sample is exactly the first snapped control point, on
+    // `start_triangle`.
+    let samples: Vec<DVec3> = spline
+        .sample(sample_spacing_mm)
+        .into_iter()
+        .map(|sample| surface.index.closest_point(sample).point)
+        .collect();
     let curve = SurfaceCurve::project(surface.mesh, surface.topology, start_triangle, &samples)
         .map_err(|source| BreastError::Curve { side, source })?
         .snapped_to_vertices(surface.mesh, surface.topology, CUT_SNAP_FRACTION)

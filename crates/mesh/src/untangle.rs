@@ -1,0 +1,152 @@
+//! Removing a surface's small self-intersections by smoothing them out locally.
+//!
+//! Scanner noise on a sharply curved spot (a nipple, an areola's rim) can fold a few
+//! sub-millimetre triangles through their neighbours. Such a fold is not anatomy, yet a
+//! closed surface containing it cannot be meshed into tetrahedra. [`untangle`] finds the
+//! intersecting triangles ([`self_intersections`]), moves the vertices around them towards
+//! the mean of their neighbours (uniform Laplacian steps, the region growing by one ring
+//! each round) and checks again, until none is left or the rounds run out.
+
+use crate::intersect::self_intersections;
+use crate::topology::Topology;
+use crate::trimesh::TriMesh;
+use glam::DVec3;
+
+/// Rounds of [`untangle`]: each smooths the region around every remaining intersection,
+/// one ring wider than the round before.
+const UNTANGLE_ROUNDS: usize = 8;
+/// Laplacian steps per round, each moving a vertex half way to its neighbours' mean.
+const STEPS_PER_ROUND: usize = 3;
+const STEP_FRACTION: f64 = 0.5;
+
+/// What [`untangle`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Untangled {
+    /// Intersecting triangle pairs found at first.
+    pub pairs_found: usize,
+    /// Vertices moved.
+    pub vertices_moved: usize,
+    /// The largest distance a vertex moved (mm).
+    pub max_displacement_mm: f64,
+    /// The centre of the intersecting triangles found first (mm), for messages.
+    pub near: DVec3,
+}
+
+/// Smooths out the self-intersections of `mesh` by moving only vertices for which
+/// `movable` is true (e.g. not on a border that must stay where it is). Returns `None` if
+/// the mesh had none; `Some` with what moved if all were removed; the remaining pairs
+/// (as [`self_intersections`]) if some could not be.
+pub fn untangle(
+    mesh: &mut TriMesh,
+    movable: impl Fn(u32) -> bool,
+) -> Result<Option<Untangled>, Vec<(usize, usize)>> {
+    let mut pairs = self_intersections(mesh);
+    let Some(&(a, b)) = pairs.first() else {
+        return Ok(None);
+    };
+    let centre = |mesh: &TriMesh, t: usize| mesh.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
+    let near = 0.5 * (centre(mesh, a) + centre(mesh, b));
+    let pairs_found = pairs.len();
+    let original = mesh.positions.clone();
+    let topology = Topology::new(mesh);
+    let mut moved = vec![false; mesh.vertex_count()];
+    for round in 0..UNTANGLE_ROUNDS {
+        if pairs.is_empty() {
+            break;
+        }
+        let mut region = vec![false; mesh.vertex_count()];
+        for &(a, b) in &pairs {
+            for t in [a, b] {
+                for &v in &mesh.triangles[t] {
+                    region[v as usize] = true;
+                }
+            }
+        }
+        // Grow by `round + 1` rings, so a fold that resists widens the smoothing.
+        for _ in 0..=round {
+            let seeds: Vec<usize> = (0..region.len()).filter(|&v| region[v]).collect();
+            for v in seeds {
+                for n in topology.vertex_neighbors(mesh, v) {
+                    region[n as usize] = true;
+                }
+            }
+        }
+        let vertices: Vec<usize> = (0..region.len())
+            .filter(|&v| region[v] && movable(v as u32))
+            .collect();
+        if vertices.is_empty() {
+            break;
+        }
+        for _ in 0..STEPS_PER_ROUND {
+            let targets: Vec<DVec3> = vertices
+                .iter()
+                .map(|&v| {
+                    let neighbours = topology.vertex_neighbors(mesh, v);
+                    let mean = neighbours
+                        .iter()
+                        .map(|&n| mesh.positions[n as usize])
+                        .sum::<DVec3>()
+                        / neighbours.len().max(1) as f64;
+                    mesh.positions[v].lerp(mean, STEP_FRACTION)
+                })
+                .collect();
+            for (&v, target) in vertices.iter().zip(targets) {
+                mesh.positions[v] = target;
+                moved[v] = true;
+            }
+        }
+        pairs = self_intersections(mesh);
+    }
+    if !pairs.is_empty() {
+        mesh.positions = original;
+        return Err(pairs);
+    }
+    let max_displacement_mm = (0..moved.len())
+        .filter(|&v| moved[v])
+        .map(|v| mesh.positions[v].distance(original[v]))
+        .fold(0.0, f64::max);
+    Ok(Some(Untangled {
+        pairs_found,
+        vertices_moved: moved.iter().filter(|&&m| m).count(),
+        max_displacement_mm,
+        near,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shapes::{grid, icosphere};
+
+    #[test]
+    fn a_vertex_pushed_through_the_far_side_is_smoothed_back() {
+        // A 10 mm sphere with one vertex pushed through the centre out beyond the far
+        // side: its triangles pierce the far side. Smoothing pulls it back towards its
+        // neighbours until nothing crosses: back on its own side, within half the radius
+        // of where it was (untangled, not restored: each step halves the distance).
+        let sphere = icosphere(10.0, 3);
+        let mut mesh = sphere.clone();
+        let v = 0;
+        mesh.positions[v] = -1.3 * sphere.positions[v];
+        assert!(!self_intersections(&mesh).is_empty());
+        let result = untangle(&mut mesh, |_| true).unwrap().unwrap();
+        assert!(self_intersections(&mesh).is_empty());
+        assert!(result.pairs_found > 0);
+        let back = mesh.positions[v].distance(sphere.positions[v]);
+        assert!(back < 5.0, "{back} mm from where it was");
+        // Far from the fold nothing moved.
+        let far = (0..sphere.vertex_count())
+            .filter(|&k| sphere.positions[k].distance(sphere.positions[v]) > 8.0)
+            .filter(|&k| sphere.positions[k].distance(-sphere.positions[v]) > 8.0);
+        for k in far {
+            assert_eq!(mesh.positions[k], sphere.positions[k]);
+        }
+    }
+
+    #[test]
+    fn a_clean_mesh_is_left_alone() {
+        let mut mesh = grid(5, 5, 1.0);
+        assert_eq!(untangle(&mut mesh, |_| true), Ok(None));
+        assert_eq!(mesh.positions, grid(5, 5, 1.0).positions);
+    }
+}
