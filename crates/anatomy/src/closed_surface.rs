@@ -1517,8 +1517,8 @@ fn extent_limits(points: &[DVec3], across: usize, lo: f64, hi: f64, along: usize
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mesh::self_intersections;
     use glam::DMat3;
+    use mesh::self_intersections;
     use mesh::shapes::grid;
 
     /// Radius of the synthetic chest (mm).

@@ -623,19 +623,15 @@ pub fn write_model(
     }
     let breasts = &model.breasts;
     let meshes = [
-        ("closed_surface.ply", &model.closed_surface.mesh),
         ("fill_left.ply", &breasts.left.fill.mesh),
         ("fill_right.ply", &breasts.right.fill.mesh),
         ("filled_base.ply", &breasts.filled_base),
     ];
     let levels = &model.tets.levels;
-    progress.stage("write", (meshes.len() + levels.len()) as u64 + 6);
-    let mut files = Vec::new();
-    for (name, mesh) in meshes {
-        mesh::io::write_mesh(&out_dir.join(name), mesh)?;
-        files.push(name.to_string());
-        progress.step();
-    }
+    progress.stage("write", (meshes.len() + levels.len()) as u64 + 7);
+    let mut files = vec!["closed_surface.ply".to_string()];
+    mesh::io::write_mesh(&out_dir.join(&files[0]), &model.closed_surface.mesh)?;
+    progress.step();
     // The breast patches carry which vertices are reconstructed skin (1) and which
     // were measured (0).
     for side in Side::BOTH {
@@ -657,6 +653,11 @@ pub fn write_model(
             }],
         )?;
         files.push(name);
+        progress.step();
+    }
+    for (name, mesh) in meshes {
+        mesh::io::write_mesh(&out_dir.join(name), mesh)?;
+        files.push(name.to_string());
         progress.step();
     }
     for (l, level) in levels.iter().enumerate() {

@@ -52,7 +52,6 @@ use std::path::PathBuf;
 /// than the scan's 1.5-3 mm triangles, so the cut follows the spline closely.
 pub const DEFAULT_SAMPLE_SPACING_MM: f64 = 1.0;
 
-
 /// Marks a vertex that a part does not contain.
 const NOT_IN_PART: u32 = u32::MAX;
 
@@ -279,7 +278,9 @@ pub enum BreastError {
     InvalidPcRatio(f64),
     #[error("the spline sample spacing {0} mm is out of range: expected a positive length")]
     InvalidSampleSpacing(f64),
-    #[error("the largest reconstructed share of a breast {0} is out of range: expected a number between 0 and 1")]
+    #[error(
+        "the largest reconstructed share of a breast {0} is out of range: expected a number between 0 and 1"
+    )]
     InvalidReconstructedShare(f64),
     #[error("control point file {}: {message}", path.display())]
     ControlPointFile { path: PathBuf, message: String },
