@@ -63,6 +63,7 @@
 use crate::fill_in::inside_polygon;
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks};
+use crate::wall_clearance::{FixedAxes, keep_wall_clear};
 use glam::{DVec2, DVec3};
 use mesh::{ManifoldReport, MeshError, Topology, TriMesh, manifold_report, untangle};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
@@ -100,6 +101,10 @@ const FITTED_RETRY_STEP_MM: f64 = 2.0;
 /// How far inside a lateral plane the breast landmarks should lie (mm); see
 /// [`ClosedSurfaceOptions::min_border_clearance_mm`].
 pub const LANDMARK_MARGIN_MM: f64 = 5.0;
+/// The rear wall keeps at least this fraction of the offset behind the scan
+/// ([`keep_wall_clear`]): where the chest runs almost parallel to the shift, the
+/// translated wall alone would come closer.
+const WALL_CLEARANCE_FRACTION: f64 = 0.2;
 /// Vertices closer to a clip plane than this fraction of the mean edge length are moved
 /// onto it (at most 2% of an edge, about 0.05 mm on a scan), so clipping leaves no
 /// sliver triangles.
@@ -881,6 +886,7 @@ pub fn build_closed_surface_in_box(
     if front.anterior_area() < 0.0 {
         front.reverse();
     }
+    back.keep_clear_of(&front, WALL_CLEARANCE_FRACTION * rear_wall_offset_mm);
     // The wall's border must run against the scan's around the box; then walk the
     // wall's border in the scan's direction.
     if (front.winding() > 0.0) == (back.winding() > 0.0) {
@@ -1071,6 +1077,30 @@ impl ClippedPart {
     }
 
     /// Bit `i` set if vertex `v` lies on plane `i`.
+    /// Pushes this part's vertices (a wall) that lie less than `clearance_mm` behind
+    /// `scan` further in ([`keep_wall_clear`]); border vertices stay on their planes.
+    fn keep_clear_of(&mut self, scan: &ClippedPart, clearance_mm: f64) {
+        let scan_mesh = TriMesh::new(scan.positions.clone(), scan.triangles.clone());
+        let mut wall = TriMesh::new(self.positions.clone(), self.triangles.clone());
+        let fixed: Vec<FixedAxes> = (0..self.positions.len() as u32)
+            .map(|v| {
+                let mask = self.plane_mask(v);
+                let on_axis = |axis: usize| {
+                    self.planes
+                        .iter()
+                        .enumerate()
+                        .any(|(i, plane)| plane.axis == axis && mask & (1 << i) != 0)
+                };
+                FixedAxes {
+                    x: on_axis(0),
+                    y: on_axis(1),
+                }
+            })
+            .collect();
+        keep_wall_clear(&scan_mesh, &mut wall, &fixed, clearance_mm);
+        self.positions = wall.positions;
+    }
+
     fn plane_mask(&self, v: u32) -> u8 {
         let p = self.positions[v as usize];
         self.planes

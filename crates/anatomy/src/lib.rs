@@ -11,6 +11,7 @@ pub mod landmarks;
 pub mod measure;
 pub mod register;
 pub mod scan_holes;
+mod wall_clearance;
 
 pub use breast::{
     Breast, BreastError, BreastModel, BreastOptions, ControlPoints, QuadrantVolumes, Side,

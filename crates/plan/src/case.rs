@@ -301,6 +301,7 @@ impl PhantomRecord {
             noise_mm: self.noise_mm,
             asymmetry: self.asymmetry,
             seed: self.seed,
+            ..PhantomParams::default()
         })
     }
 }
