@@ -24,14 +24,6 @@ pub const DEFAULT_PC_RATIO: f64 = 1.0 / 3.0;
 /// it on the surface starts (mm): beyond any breast's projection.
 const RAY_START_MM: f64 = 400.0;
 
-/// The distances along the bisector, in multiples of the mean distance of the upper
-/// point and the fold's lateral end from the nipple, at which
-/// [`AroundNipple::along_surface`] looks for a far enough surface point.
-const LATERAL_REACH_FACTORS: [f64; 5] = [1.0, 1.25, 1.5, 2.0, 3.0];
-/// How far (degrees, from the anterior towards the nipple) the rays of
-/// [`AroundNipple::along_surface`] turn when the one from the front misses.
-const LATERAL_VIEW_TURNS_DEG: [f64; 4] = [0.0, 30.0, 60.0, 85.0];
-
 /// How far below PSMFm and PSMF (mm, along the frame's down direction) the default curve
 /// runs: on the chest wall rather than in the fold's crease, whose walls would give the
 /// fill-in the tangents of the crease instead of the chest's. PSMFl is kept: on real
@@ -101,29 +93,11 @@ impl ControlPoints {
             };
             let below_fold =
                 |name| around.seen_from_front(at(name) - frame.up() * FOLD_CLEARANCE_MM);
-            // The lateral point lies along the surface from the nipple, as far as the
-            // upper point and the fold's lateral end lie on average.
-            let nipple_to_upper = (1.0 - pc_ratio) * clavicle_to_nipple.length_mm;
-            let nipple_to_fold_end =
-                section_path(surface, frame, at(names.nipple), at(names.fold_lateral))
-                    .map_err(|source| BreastError::Section {
-                        side,
-                        from: names.nipple.as_str().to_string(),
-                        to: names.fold_lateral.as_str().to_string(),
-                        source,
-                    })?
-                    .length_mm;
-            let lateral = around.along_surface(
-                upper,
-                at(names.fold_lateral),
-                lateral_direction,
-                0.5 * (nipple_to_upper + nipple_to_fold_end),
-            );
             Ok(vec![
                 below_fold(names.fold_medial),
                 below_fold(names.fold_lowest),
                 at(names.fold_lateral),
-                lateral,
+                around.between(upper, at(names.fold_lateral), lateral_direction),
                 upper,
                 around.between(upper, at(names.fold_medial), -lateral_direction),
             ])
@@ -233,68 +207,6 @@ impl AroundNipple<'_> {
             bisector
         };
         self.seen_from_front(self.nipple + bisector * 0.5 * (a.length() + b.length()))
-    }
-
-    /// The surface point `arc_mm` along the surface from the nipple, on the section of
-    /// the plane through the nipple that contains the anterior direction and the
-    /// bisector (seen from the front) of the directions to `a` and `b` that points
-    /// towards `side`. The section is followed to the surface points seen (in that
-    /// plane) from points at ever larger distances along the bisector, until one lies
-    /// `arc_mm` away along it; if none does, the farthest is taken. A ray from the front alone meets the
-    /// breast's lateral slope or the chest's side far behind it depending on a
-    /// millimetre of its target; the arc length along the surface does not jump.
-    fn along_surface(&self, a: DVec3, b: DVec3, side: DVec3, arc_mm: f64) -> DVec3 {
-        let anterior = self.frame.anterior();
-        let coronal = |p: DVec3| {
-            let d = p - self.nipple;
-            d - anterior * d.dot(anterior)
-        };
-        let (ca, cb) = (coronal(a), coronal(b));
-        let bisector = (ca.normalize_or_zero() + cb.normalize_or_zero())
-            .try_normalize()
-            .unwrap_or(side);
-        let bisector = if bisector.dot(side) < 0.0 {
-            -bisector
-        } else {
-            bisector
-        };
-        let reach = 0.5 * (ca.length() + cb.length());
-        let normal = bisector.cross(anterior);
-        let start = SurfacePoint::from(self.surface.index.closest_point(self.nipple));
-        let mut farthest: Option<SurfacePath> = None;
-        for factor in LATERAL_REACH_FACTORS {
-            let target = self.nipple + bisector * reach * factor;
-            // From the front, or turned towards the body where that misses (the target
-            // lies beyond the torso's outline); every such ray stays in the plane.
-            let Some(hit) = LATERAL_VIEW_TURNS_DEG.iter().find_map(|turn: &f64| {
-                let (sin, cos) = turn.to_radians().sin_cos();
-                let view = -(anterior * cos + bisector * sin);
-                self.surface
-                    .index
-                    .cast_ray(target - view * RAY_START_MM, view, 2.0 * RAY_START_MM)
-            }) else {
-                break;
-            };
-            let end = SurfacePoint::from(self.surface.index.closest_point(hit.point));
-            let Ok(path) =
-                plane_section_path(self.surface.mesh, self.surface.topology, start, end, normal)
-            else {
-                continue;
-            };
-            if path.length_mm >= arc_mm {
-                return point_along(&path, arc_mm / path.length_mm);
-            }
-            if farthest
-                .as_ref()
-                .is_none_or(|f| path.length_mm > f.length_mm)
-            {
-                farthest = Some(path);
-            }
-        }
-        match farthest {
-            Some(path) => path.points.last().copied().unwrap_or(self.nipple),
-            None => self.between(a, b, side),
-        }
     }
 
     /// The first surface point on the ray along the posterior direction through `target`

@@ -44,10 +44,12 @@ pub fn reconstructed_part(
             })
             .collect(),
     };
-    let area_mm2: f64 = (0..patch.triangle_count())
+    // `+ 0.0`: an empty sum is -0.0, which would print as such.
+    let area_mm2 = (0..patch.triangle_count())
         .filter(|&t| triangle_flags[t])
         .map(|t| patch.triangle_area(t))
-        .sum();
+        .sum::<f64>()
+        + 0.0;
     let total_area = patch.area();
     let mut vertex_flags = vec![true; patch.vertex_count()];
     let mut touched = vec![false; patch.vertex_count()];
@@ -68,7 +70,7 @@ pub fn reconstructed_part(
         } else {
             0.0
         },
-        volume_ml: volume_over_flat_caps(patch, &triangle_flags) / 1000.0,
+        volume_ml: volume_over_flat_caps(patch, &triangle_flags) / 1000.0 + 0.0,
     }
 }
 
