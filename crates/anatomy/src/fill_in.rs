@@ -227,11 +227,22 @@ pub fn fill_hole(
         .cylinder_axis
         .and_then(|axis| Frame::fit_cylinder(base, &loop_positions, &base_side.normals, axis))
         .and_then(|cylinder| Some((project(&cylinder).ok()?, cylinder)));
+    // Then the best-fit plane, and where the loop folds over seen from it (the crescent
+    // a standing scan leaves round a full breast's lower pole, whose two rims overlap
+    // seen from the front), the plane from which the loop encloses the most area.
     let (boundary, frame) = match on_cylinder {
         Some(found) => found,
         None => {
-            let plane = Frame::fit(&loop_positions, base_side.normals.iter().sum())?;
-            (project(&plane)?, plane)
+            let reference_normal: DVec3 = base_side.normals.iter().sum();
+            let plane = Frame::fit(&loop_positions, reference_normal)?;
+            match project(&plane) {
+                Ok(boundary) => (boundary, plane),
+                Err(error) => {
+                    let facing = Frame::facing(&loop_positions, reference_normal, &plane)
+                        .ok_or(error.clone())?;
+                    (project(&facing).map_err(|_| error)?, facing)
+                }
+            }
         }
     };
     let lattice = Lattice::covering(&boundary.points, spacing)?;
@@ -599,6 +610,32 @@ impl Frame {
         let u_axis = column(2);
         Ok(Frame::Plane {
             origin,
+            axes: DMat3::from_cols(u_axis, normal.cross(u_axis), normal),
+        })
+    }
+
+    /// The plane through `plane`'s origin orthogonal to the loop's vector area
+    /// (`1/2 sum p_i x p_(i+1)`), the direction from which the loop encloses the largest
+    /// area, turned towards `reference_normal`; `u` is `plane`'s `u` made orthogonal to
+    /// it. `None` for a loop enclosing no area or a `plane` that is not a plane.
+    fn facing(loop_positions: &[DVec3], reference_normal: DVec3, plane: &Frame) -> Option<Frame> {
+        let Frame::Plane { origin, axes } = plane else {
+            return None;
+        };
+        let n = loop_positions.len();
+        let vector_area: DVec3 = (0..n)
+            .map(|i| (loop_positions[i] - *origin).cross(loop_positions[(i + 1) % n] - *origin))
+            .sum::<DVec3>()
+            * 0.5;
+        let mut normal = vector_area.try_normalize()?;
+        if normal.dot(reference_normal) < 0.0 {
+            normal = -normal;
+        }
+        let u_axis = (axes.x_axis - normal * axes.x_axis.dot(normal))
+            .try_normalize()
+            .or_else(|| normal.any_orthonormal_vector().try_normalize())?;
+        Some(Frame::Plane {
+            origin: *origin,
             axes: DMat3::from_cols(u_axis, normal.cross(u_axis), normal),
         })
     }

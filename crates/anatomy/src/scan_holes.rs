@@ -45,8 +45,12 @@ pub struct ClosedScan {
     pub left_open: Vec<OpenHole>,
 }
 
-/// Closes every hole of `scan` but its outer border (the longest boundary loop).
-pub fn close_scan_holes(scan: &TriMesh, topology: &Topology) -> ClosedScan {
+/// Closes every hole of `scan` but its outer border (the longest boundary loop) with the
+/// fill-in of `params`. Give the body's long axis as `params.cylinder_axis` where it is
+/// known: the hole a standing scan leaves under a full breast is a crescent wrapped round
+/// the lower pole, whose two rims overlap seen from its own best-fit plane but not seen
+/// from the body's axis.
+pub fn close_scan_holes(scan: &TriMesh, topology: &Topology, params: &FillInParams) -> ClosedScan {
     let mut loops: Vec<(f64, Vec<u32>)> = topology
         .boundary_loops(scan)
         .into_iter()
@@ -65,7 +69,7 @@ pub fn close_scan_holes(scan: &TriMesh, topology: &Topology) -> ClosedScan {
             .to_array();
         // Holes are filled one at a time into the growing mesh; earlier vertices keep
         // their indices, so the loop stays valid.
-        match fill_hole(&mesh, &boundary, &FillInParams::default()) {
+        match fill_hole(&mesh, &boundary, params) {
             Ok(fill) => {
                 mesh = stitch(&mesh, &fill);
                 closed.push(ClosedHole {
@@ -119,7 +123,7 @@ mod tests {
         let topology = Topology::new(&scan);
         assert_eq!(topology.boundary_loops(&scan).len(), 3);
 
-        let result = close_scan_holes(&scan, &topology);
+        let result = close_scan_holes(&scan, &topology, &FillInParams::default());
         assert_eq!(result.closed.len(), 2);
         assert!(result.left_open.is_empty());
         for hole in &result.closed {

@@ -51,7 +51,11 @@ impl MeasuringSurface {
     /// Closes the scan's holes; a hole that cannot be closed is a warning (paths go
     /// around it).
     pub fn new(scan: &Scan, progress: &dyn crate::Progress) -> Result<MeasuringSurface> {
-        let closed = close_scan_holes(&scan.mesh, &scan.topology);
+        let closed = close_scan_holes(
+            &scan.mesh,
+            &scan.topology,
+            &anatomy::FillInParams::default(),
+        );
         for hole in &closed.left_open {
             progress.warn(&format!(
                 "{}: {hole}; paths go around it",

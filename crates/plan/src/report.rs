@@ -26,7 +26,7 @@ use crate::simulate::{
 };
 use crate::views::{RenderedView, ViewContent, standard_views};
 use crate::{Distance, MarkedScan, Progress};
-use anatomy::breast::{BreastModel, QuadrantVolumes};
+use anatomy::breast::{BreastModel, QuadrantVolumes, Side};
 use anatomy::{AnatomicalFrame, BreastOptions, LandmarkName, Landmarks};
 use anyhow::{Context, Result};
 use assess::{
@@ -142,8 +142,14 @@ pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
     }
     for (title, scan) in shown {
         let curves = scan.breasts.as_ref().map(cut_curves).unwrap_or_default();
+        let reconstructed = scan
+            .breasts
+            .as_ref()
+            .map(reconstructed_skin)
+            .unwrap_or_default();
         let content = ViewContent {
             curves: &curves,
+            reconstructed: &reconstructed,
             ..Default::default()
         };
         for view in standard_views(&scan.marked.scan.mesh, &scan.marked.landmarks, &content)? {
@@ -184,6 +190,16 @@ pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
 }
 
 /// The cut curves of both breasts as points on the surface (mm).
+/// Each breast's reconstructed skin, as a mesh of its own.
+fn reconstructed_skin(breasts: &BreastModel) -> Vec<mesh::TriMesh> {
+    Side::BOTH
+        .map(|side| {
+            let breast = breasts.breast(side);
+            breast.reconstructed.skin(&breast.patch.mesh)
+        })
+        .into()
+}
+
 fn cut_curves(breasts: &BreastModel) -> Vec<Vec<DVec3>> {
     [&breasts.left, &breasts.right]
         .map(|breast| breast.curve.points.iter().map(|p| p.position).collect())

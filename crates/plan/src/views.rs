@@ -16,6 +16,9 @@ use render::{
 const LEFT_MARKER: [u8; 3] = [0, 90, 200];
 const RIGHT_MARKER: [u8; 3] = [210, 0, 140];
 const MIDLINE_MARKER: [u8; 3] = [35, 35, 35];
+/// Tone (sRGB) of skin the scanner did not see and the model reconstructed: a cool grey,
+/// apart from every skin tone and from the deviation map's colours.
+pub const RECONSTRUCTED_TONE: [u8; 3] = [150, 165, 190];
 /// Curve colour (sRGB) and stroke width (pixels).
 const CURVE_COLOUR: [u8; 3] = [100, 40, 150];
 const CURVE_WIDTH_PX: f64 = 2.5;
@@ -28,6 +31,9 @@ pub struct ViewContent<'a> {
     pub colours: Option<&'a [[u8; 3]]>,
     /// Closed curves on the surface (mm, scan frame), e.g. the breasts' cut curves.
     pub curves: &'a [Vec<DVec3>],
+    /// Skin the scanner did not see, reconstructed by the model (mm, scan frame): drawn
+    /// over the scan's holes in [`RECONSTRUCTED_TONE`].
+    pub reconstructed: &'a [TriMesh],
     /// Picture size (pixels).
     pub width: u32,
     pub height: u32,
@@ -38,6 +44,7 @@ impl Default for ViewContent<'_> {
         ViewContent {
             colours: None,
             curves: &[],
+            reconstructed: &[],
             width: 800,
             height: 1000,
         }
@@ -72,8 +79,16 @@ pub fn standard_views(
         (None, Some(_)) => Colouring::MeshColours,
         (None, None) => Colouring::Uniform(SKIN_TONE),
     };
+    let mut layers = vec![MeshLayer::new(scan, colouring)];
+    layers.extend(
+        content
+            .reconstructed
+            .iter()
+            .filter(|skin| skin.triangle_count() > 0)
+            .map(|skin| MeshLayer::new(skin, Colouring::Uniform(RECONSTRUCTED_TONE))),
+    );
     let scene = Scene {
-        layers: vec![MeshLayer::new(scan, colouring)],
+        layers,
         markers: landmarks
             .iter()
             .map(|(name, position)| Marker {

@@ -471,6 +471,34 @@ fn a_large_hole_in_the_breast_is_reconstructed_with_the_volume_kept() {
     assert!(error_ml.abs() < 2.0, "{error_ml} ml");
 }
 
+/// A breast reconstructed beyond the allowed share is refused, naming the share: here the
+/// 40 mm hole of the test above (a few per cent of the breast) against a limit of 1%.
+#[test]
+fn a_breast_reconstructed_beyond_the_limit_is_an_error() {
+    let phantom = medium_phantom();
+    let scan = with_hole_above_right_nipple(&phantom, 20.0);
+    let options = BreastOptions {
+        max_reconstructed_share: 0.01,
+        ..BreastOptions::default()
+    };
+    let error = build(&scan, &phantom.landmarks, &options).unwrap_err();
+    println!("{error}");
+    let BreastError::MostlyUnscanned {
+        side,
+        reconstructed_area_mm2,
+        area_mm2,
+        ..
+    } = error
+    else {
+        panic!("{error:?}")
+    };
+    assert_eq!(side, Side::Right);
+    let hole_area = scan_area_difference(&phantom.scan, &scan);
+    assert!((reconstructed_area_mm2 - hole_area).abs() < 0.15 * hole_area);
+    assert!(reconstructed_area_mm2 / area_mm2 > 0.01);
+    assert!(error.to_string().contains("was not seen by the scanner"));
+}
+
 /// The area (mm²) `holed` lacks against `full`.
 fn scan_area_difference(full: &TriMesh, holed: &TriMesh) -> f64 {
     full.area() - holed.area()

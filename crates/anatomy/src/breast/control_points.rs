@@ -91,8 +91,14 @@ impl ControlPoints {
                 frame,
                 nipple: at(names.nipple),
             };
-            let below_fold =
-                |name| around.seen_from_front(at(name) - frame.up() * FOLD_CLEARANCE_MM);
+            // The nearest surface point, not the one seen from the front: under a
+            // hanging breast a ray from the front meets the lower pole, not the chest.
+            let below_fold = |name| {
+                surface
+                    .index
+                    .closest_point(at(name) - frame.up() * FOLD_CLEARANCE_MM)
+                    .point
+            };
             Ok(vec![
                 below_fold(names.fold_medial),
                 below_fold(names.fold_lowest),

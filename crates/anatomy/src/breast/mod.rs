@@ -327,7 +327,7 @@ pub enum BreastError {
     #[error("cutting the scan failed (cut curve 0 is the left breast's, 1 the right's): {0}")]
     Cut(CutError),
     #[error(
-        "{side} breast: {:.0}% of its skin ({:.0} of {:.0} cm²) was not seen by the scanner, more than the {:.0}% that can be reconstructed: the scan lacks most of this breast; rescan with the breast facing the cameras",
+        "{side} breast: {:.0}% of its skin ({:.0} of {:.0} cm²) was not seen by the scanner, more than the {:.0}% the model reconstructs: too little of this breast was scanned to measure it; rescan with the breast facing the cameras",
         100.0 * reconstructed_area_mm2 / area_mm2, reconstructed_area_mm2 / 100.0, area_mm2 / 100.0, 100.0 * max_share
     )]
     MostlyUnscanned {
@@ -372,7 +372,11 @@ pub fn build_breast_model(
     if !(options.sample_spacing_mm > 0.0 && options.sample_spacing_mm.is_finite()) {
         return Err(BreastError::InvalidSampleSpacing(options.sample_spacing_mm));
     }
-    let closed_scan = close_scan_holes(scan, topology);
+    let hole_params = FillInParams {
+        cylinder_axis: Some(frame.up()),
+        ..FillInParams::default()
+    };
+    let closed_scan = close_scan_holes(scan, topology, &hole_params);
     let closed_topology =
         (!closed_scan.closed.is_empty()).then(|| Topology::new(&closed_scan.mesh));
     // Control points are put on the surface by rays and nearest points: over a hole

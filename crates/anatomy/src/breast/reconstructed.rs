@@ -13,6 +13,8 @@ pub const DEFAULT_MAX_RECONSTRUCTED_SHARE: f64 = 0.5;
 /// The reconstructed part of one breast patch.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reconstructed {
+    /// Per triangle of the patch: it lies on a fill-in of the scan's holes.
+    pub triangle_flags: Vec<bool>,
     /// Per vertex of the patch: it lies inside reconstructed skin (all its triangles are
     /// reconstructed; the rim of a filled hole is measured skin).
     pub vertex_flags: Vec<bool>,
@@ -25,6 +27,23 @@ pub struct Reconstructed {
     /// than on the measured skin around it (negative where it lies inside the flat
     /// patches).
     pub volume_ml: f64,
+}
+
+impl Reconstructed {
+    /// The reconstructed triangles of `patch` (the patch these flags were made for) as a
+    /// mesh of their own, on the patch's vertices.
+    pub fn skin(&self, patch: &TriMesh) -> TriMesh {
+        TriMesh::new(
+            patch.positions.clone(),
+            patch
+                .triangles
+                .iter()
+                .zip(&self.triangle_flags)
+                .filter(|(_, flag)| **flag)
+                .map(|(t, _)| *t)
+                .collect(),
+        )
+    }
 }
 
 /// Which triangles of `patch` lie on the fill-ins of the closed scan: those whose
@@ -64,6 +83,7 @@ pub fn reconstructed_part(
     }
     Reconstructed {
         vertex_flags,
+        triangle_flags: triangle_flags.clone(),
         area_mm2,
         area_share: if total_area > 0.0 {
             area_mm2 / total_area
