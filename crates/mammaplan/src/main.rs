@@ -118,6 +118,12 @@ enum Command {
         asymmetry: f64,
         #[arg(long, default_value_t = PhantomParams::default().seed)]
         seed: u64,
+        /// Leave out what a standing three-camera clinical scanner (cameras at -30, 0
+        /// and +30 degrees) does not see: the underside of full or hanging breasts, the
+        /// lateral fold, the sides; the largest connected piece is kept and hidden
+        /// landmarks move to the nearest seen vertex.
+        #[arg(long)]
+        occlusion: bool,
     },
     /// Clinical distances between landmarks (Euclidean, plane-section and geodesic).
     Measure {
@@ -396,6 +402,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             noise_mm,
             asymmetry,
             seed,
+            occlusion,
         } => {
             let params = PhantomParams {
                 cup,
@@ -403,6 +410,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 noise_mm,
                 asymmetry,
                 seed,
+                occlusion,
             };
             let phantom = plan::demo::write_phantom(&params, &out, &landmarks)?;
             progress.finish();

@@ -2,8 +2,9 @@
 //! -30°, 0° and +30°) sees it: an open surface of the front and sides from just above
 //! the sternal notch to below the navel, with clavicles, sternal notch, sternum,
 //! xiphoid, costal margins, navel and two breasts with areolae, nipples and
-//! inframammary fold creases. Breast size, ptosis, measurement noise and natural
-//! asymmetry are adjustable; the result is deterministic for a given seed.
+//! inframammary fold creases. Breast size, ptosis, measurement noise, natural asymmetry
+//! and what the cameras miss are adjustable; the result is deterministic for a given
+//! seed.
 //!
 //! Alongside the mesh it returns its exact landmarks (paper Fig. 2; each is a vertex of
 //! the mesh) and its true breast volumes (the volume between the breast skin and the
@@ -16,9 +17,29 @@
 //!
 //! The seed decides only the measurement noise and which side is larger when
 //! asymmetry is asked for; the anatomy is otherwise fixed by the parameters.
+//!
+//! With [`PhantomParams::occlusion`] (`mammaplan phantom --occlusion`) the scan fails as
+//! real ones do: it keeps only the triangles one of the three cameras of a standing
+//! clinical scan sees, as the shared zoo scans were made. The eyes stand 1 m from the
+//! vertical axis through the chest at nipple height, at -30°, 0° and +30°, 11 cm below
+//! nipple height (the zoo's); a triangle is seen when the ray from an eye to its centroid
+//! meets no other part of the noise-free surface more than 2.5 mm before it and its
+//! normal is within 75° of the direction to the eye. Single triangles missed between seen
+//! ones are kept, spikes and pinched rim vertices removed, and only the largest connected
+//! piece stays. The underside of a full or hanging breast, the skin of the lateral fold
+//! hidden behind a large breast, the sides, the shoulder tops and the bottom of the
+//! sternal notch come out missing: holes a model must reconstruct (10 to 20% of a large,
+//! hanging breast's skin; under 1% of a small, firm one's). A landmark the cameras did not
+//! see moves to the nearest seen vertex along the surface (a hidden fold point to where
+//! the scanned fold stops, down the chest wall, not up onto the breast; the sternal notch
+//! `Pj` some 5 mm off its deepest point). The true chest wall, the true breast volumes
+//! and the whole noise-free skin ([`Phantom::full_skin`], with the correspondence of the
+//! scan's vertices and triangles to it) stay as they are, so a reconstruction can be
+//! measured against the truth.
 
 mod breast;
 mod grid;
+mod occlusion;
 mod shape;
 mod surface;
 mod torso;
@@ -27,7 +48,7 @@ use anatomy::{LandmarkName, Landmarks};
 use breast::{Breast, BreastShape};
 use glam::DVec3;
 use grid::Grid;
-use mesh::TriMesh;
+use mesh::{Topology, TriMesh};
 use rand::{Rng, SeedableRng};
 use rand_distr::Normal;
 use rand_pcg::Pcg64;
@@ -124,10 +145,14 @@ pub struct PhantomParams {
     pub asymmetry: f64,
     /// Seed of the noise and of the choice of the larger side.
     pub seed: u64,
+    /// Remove what the three cameras of a standing clinical scan do not see (the
+    /// underside of a full or hanging breast, the lateral fold), keeping the largest
+    /// connected piece; see the crate docs.
+    pub occlusion: bool,
 }
 
 impl Default for PhantomParams {
-    /// Medium cup, mild ptosis, no noise, symmetric, seed 1.
+    /// Medium cup, mild ptosis, no noise, symmetric, seed 1, no occlusion.
     fn default() -> PhantomParams {
         PhantomParams {
             cup: Cup::Medium,
@@ -135,18 +160,19 @@ impl Default for PhantomParams {
             noise_mm: 0.0,
             asymmetry: 0.0,
             seed: 1,
+            occlusion: false,
         }
     }
 }
 
 impl std::fmt::Display for PhantomParams {
     /// One line naming every parameter, e.g.
-    /// `cup=medium ptosis=0.3 noise_mm=0 asymmetry=0 seed=1`.
+    /// `cup=medium ptosis=0.3 noise_mm=0 asymmetry=0 seed=1 occlusion=false`.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "cup={} ptosis={} noise_mm={} asymmetry={} seed={}",
-            self.cup, self.ptosis, self.noise_mm, self.asymmetry, self.seed
+            "cup={} ptosis={} noise_mm={} asymmetry={} seed={} occlusion={}",
+            self.cup, self.ptosis, self.noise_mm, self.asymmetry, self.seed, self.occlusion
         )
     }
 }
@@ -161,13 +187,26 @@ pub struct BreastVolumes {
 /// A generated scan with its ground truth.
 #[derive(Debug, Clone)]
 pub struct Phantom {
-    /// The scan surface (mm), open, outward oriented.
+    /// The scan surface (mm), open, outward oriented; with occlusion only the part the
+    /// cameras saw.
     pub scan: TriMesh,
     /// The surface beneath the breasts, without them and without noise: the truth a
-    /// fill-in should reproduce (mm). Same vertices and triangles as `scan`, equal to it
-    /// away from the breasts but for the noise.
+    /// fill-in should reproduce (mm). Same vertices and triangles as `full_skin`, equal
+    /// to it away from the breasts.
     pub chest_wall: TriMesh,
-    /// The twelve landmarks, each exactly at a vertex of `scan` (mm).
+    /// The whole skin without noise and without occlusion: the truth a reconstruction of
+    /// unseen skin should reproduce (mm). Without occlusion it has the vertices and
+    /// triangles of `scan` (equal to it but for the noise).
+    pub full_skin: TriMesh,
+    /// For each vertex of `scan`, the same vertex of `full_skin` and `chest_wall` (the
+    /// identity without occlusion).
+    pub full_vertex: Vec<u32>,
+    /// For each triangle of `scan`, the same triangle of `full_skin` and `chest_wall`
+    /// (the identity without occlusion).
+    pub full_triangle: Vec<u32>,
+    /// The twelve landmarks, each exactly at a vertex of `scan` (mm). With occlusion, a
+    /// landmark the cameras did not see sits at the nearest seen vertex (along the
+    /// surface), as on a real scan.
     pub landmarks: Landmarks,
     /// Volume between each breast's skin and the chest wall beneath it (ml).
     pub breast_volume_ml: BreastVolumes,
@@ -206,8 +245,9 @@ pub fn generate(params: &PhantomParams) -> Phantom {
     let landmark_parameters = landmark_parameters(&surface);
     let grid = Grid::new(&surface, &landmark_parameters);
     let origin = surface.sample(0.0, 0.0).skin;
-    let mut scan = grid.mesh(&surface, origin, |sample| sample.skin);
+    let full_skin = grid.mesh(&surface, origin, |sample| sample.skin);
     let chest_wall = grid.mesh(&surface, origin, |sample| sample.wall);
+    let mut scan = full_skin.clone();
 
     let noise_mm = if params.noise_mm > 0.0 && params.noise_mm.is_finite() {
         params.noise_mm
@@ -224,19 +264,73 @@ pub fn generate(params: &PhantomParams) -> Phantom {
     }
 
     // Grid lines pass through every landmark, so each landmark is a vertex.
-    let landmarks = Landmarks::new(|name| {
-        let (theta, h) = landmark_parameters[name as usize];
-        scan.positions[grid.nearest_vertex(theta, h)]
-    });
+    let mut landmark_vertices = landmark_parameters.map(|(theta, h)| grid.nearest_vertex(theta, h));
+    let (full_vertex, full_triangle) = if params.occlusion {
+        let (seen, vertex_map, triangle_map, moved) =
+            scanned_part(&full_skin, &scan, &landmark_vertices);
+        scan = seen;
+        landmark_vertices = moved;
+        (vertex_map, triangle_map)
+    } else {
+        (
+            (0..scan.vertex_count() as u32).collect(),
+            (0..scan.triangle_count() as u32).collect(),
+        )
+    };
+    let landmarks = Landmarks::new(|name| scan.positions[landmark_vertices[name as usize]]);
     let [left, right] = surface
         .breasts
         .map(|b| breast_volume_ml(&surface, &b, VOLUME_CELLS));
     Phantom {
         scan,
         chest_wall,
+        full_skin,
+        full_vertex,
+        full_triangle,
         landmarks,
         breast_volume_ml: BreastVolumes { left, right },
     }
+}
+
+/// The part of `scan` the cameras see of the noise-free `full_skin` (same vertices and
+/// triangles), aimed at the chest at the nipples' height: the mesh, for each of its
+/// vertices and triangles the index in `scan`, and the vertices of the landmarks
+/// (indices into `full_skin`'s vertices given) in the new mesh, each moved to the
+/// nearest seen vertex along the surface where the cameras did not see it.
+fn scanned_part(
+    full_skin: &TriMesh,
+    scan: &TriMesh,
+    landmark_vertices: &[usize; 12],
+) -> (TriMesh, Vec<u32>, Vec<u32>, [usize; 12]) {
+    let nipple_height = 0.5
+        * (full_skin.positions[landmark_vertices[LandmarkName::Pnl as usize]].y
+            + full_skin.positions[landmark_vertices[LandmarkName::Pnr as usize]].y);
+    let pj = full_skin.positions[landmark_vertices[LandmarkName::Pj as usize]];
+    let target = DVec3::new(pj.x, nipple_height, pj.z + occlusion::TARGET_DEPTH_MM);
+    let topology = Topology::new(full_skin);
+    let keep = occlusion::scanned_triangles(full_skin, &topology, &occlusion::camera_eyes(target));
+    let mut kept_vertex = vec![false; full_skin.vertex_count()];
+    for (corners, _) in full_skin.triangles.iter().zip(&keep).filter(|(_, k)| **k) {
+        for &v in corners {
+            kept_vertex[v as usize] = true;
+        }
+    }
+    let nearest =
+        occlusion::nearest_kept_vertices(full_skin, &topology, &kept_vertex, landmark_vertices);
+    let (mut seen, vertex_map, triangle_map) = occlusion::submesh(full_skin, &keep);
+    for (position, &v) in seen.positions.iter_mut().zip(&vertex_map) {
+        *position = scan.positions[v as usize];
+    }
+    let mut new_index = vec![u32::MAX; full_skin.vertex_count()];
+    for (k, &v) in vertex_map.iter().enumerate() {
+        new_index[v as usize] = k as u32;
+    }
+    // The largest piece holds the front of the chest, so every landmark reaches it.
+    let moved = std::array::from_fn(|k| {
+        let vertex = nearest[k].unwrap_or(landmark_vertices[k]);
+        new_index[vertex] as usize
+    });
+    (seen, vertex_map, triangle_map, moved)
 }
 
 /// A value in `[0, 1]`; anything else (including NaN) is clamped, NaN to 0.

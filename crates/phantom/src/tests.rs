@@ -26,7 +26,7 @@ fn cup_names_parse_and_bad_names_are_explained() {
     }
     assert_eq!(
         PhantomParams::default().to_string(),
-        "cup=medium ptosis=0.3 noise_mm=0 asymmetry=0 seed=1"
+        "cup=medium ptosis=0.3 noise_mm=0 asymmetry=0 seed=1 occlusion=false"
     );
     let error = "xl".parse::<Cup>().unwrap_err();
     assert_eq!(
@@ -461,4 +461,235 @@ fn full_height_profiles_and_horizontal_sections_are_simple_curves() {
             .collect();
         assert!(!self_intersects(&section), "section at h {h}");
     }
+}
+
+/// A phantom scanned with occlusion, with its unoccluded twin.
+fn occluded(cup: Cup, ptosis: f64) -> (Phantom, Phantom) {
+    let params = PhantomParams {
+        cup,
+        ptosis,
+        occlusion: true,
+        ..PhantomParams::default()
+    };
+    let plain = generate(&PhantomParams {
+        occlusion: false,
+        ..params
+    });
+    (generate(&params), plain)
+}
+
+/// Per triangle of `phantom.full_skin`, whether the scan kept it.
+fn kept_triangles(phantom: &Phantom) -> Vec<bool> {
+    let mut kept = vec![false; phantom.full_skin.triangle_count()];
+    for &t in &phantom.full_triangle {
+        kept[t as usize] = true;
+    }
+    kept
+}
+
+/// Whether triangle `t` of the full skin lies on a breast (all corners off the wall).
+fn on_breast(phantom: &Phantom, t: usize) -> bool {
+    phantom.full_skin.triangles[t].iter().all(|&v| {
+        let v = v as usize;
+        phantom.full_skin.positions[v].distance(phantom.chest_wall.positions[v]) > 0.5
+    })
+}
+
+/// Share of the area of the full skin's triangles selected by `select` that the scan
+/// lost.
+fn lost_share(phantom: &Phantom, select: impl Fn(usize) -> bool) -> f64 {
+    let kept = kept_triangles(phantom);
+    let (mut total, mut lost) = (0.0, 0.0);
+    for t in (0..phantom.full_skin.triangle_count()).filter(|&t| select(t)) {
+        let area = phantom.full_skin.triangle_area(t);
+        total += area;
+        if !kept[t] {
+            lost += area;
+        }
+    }
+    assert!(total > 0.0, "nothing selected");
+    lost / total
+}
+
+#[test]
+fn occlusion_removes_the_underside_of_a_large_hanging_breast_and_keeps_the_front() {
+    let (phantom, plain) = occluded(Cup::Large, 1.0);
+    let skin = &phantom.full_skin;
+    let nipple = plain.landmarks.get(L::Pnl).y;
+    let centroid = |t: usize| skin.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
+    // Below the nipple, facing down and back towards the chest: the cameras look at it
+    // from in front and slightly below, past the breast.
+    let underside = lost_share(&phantom, |t| {
+        let normal = skin.triangle_normal(t);
+        on_breast(&phantom, t) && centroid(t).y < nipple && normal.y < -0.5 && normal.z < 0.0
+    });
+    assert!(
+        underside > 0.85,
+        "only {:.1}% of the underside lost",
+        100.0 * underside
+    );
+    // A real scan misses some 10 to 35% of a full or hanging breast's skin.
+    let breast = lost_share(&phantom, |t| on_breast(&phantom, t));
+    assert!(
+        (0.1..0.35).contains(&breast),
+        "{:.1}% of the breast lost",
+        100.0 * breast
+    );
+    // The front: the upper pole facing forward and the midline strip, notch to navel.
+    let front = lost_share(&phantom, |t| {
+        let c = centroid(t);
+        skin.triangle_normal(t).z > 0.5
+            && ((on_breast(&phantom, t) && c.y > nipple) || c.x.abs() < 25.0)
+            && c.y < -25.0
+            && c.y > -360.0
+    });
+    assert_eq!(front, 0.0, "{:.3}% of the front lost", 100.0 * front);
+    // The lateral fold: skin just in front of its lateral end is hidden by the breast.
+    let lateral_end = plain.landmarks.get(L::PSMFll);
+    let near = |t: usize| {
+        let c = centroid(t);
+        c.distance(lateral_end) < 25.0 && c.z > lateral_end.z
+    };
+    let lateral = lost_share(&phantom, near);
+    assert!(
+        lateral > 0.05,
+        "{:.1}% of the lateral fold lost",
+        100.0 * lateral
+    );
+
+    // What is kept is the same skin, noise and all.
+    for (k, &v) in phantom.full_vertex.iter().enumerate() {
+        assert_eq!(phantom.scan.positions[k], plain.scan.positions[v as usize]);
+    }
+    for (k, &t) in phantom.full_triangle.iter().enumerate() {
+        let corners = phantom.scan.triangles[k].map(|v| phantom.full_vertex[v as usize]);
+        assert_eq!(corners, skin.triangles[t as usize]);
+    }
+    assert_eq!(phantom.chest_wall, plain.chest_wall);
+    assert_eq!(phantom.full_skin, plain.scan);
+    assert_eq!(phantom.breast_volume_ml, plain.breast_volume_ml);
+}
+
+#[test]
+fn a_small_firm_breast_loses_little() {
+    let (small, plain) = occluded(Cup::Small, 0.0);
+    let breast = lost_share(&small, |t| on_breast(&small, t));
+    assert!(breast < 0.01, "{:.2}% of the breast lost", 100.0 * breast);
+    let lateral_end = plain.landmarks.get(L::PSMFll);
+    let lateral = lost_share(&small, |t| {
+        let c = small.full_skin.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
+        c.distance(lateral_end) < 25.0 && c.z > lateral_end.z
+    });
+    assert_eq!(lateral, 0.0);
+    // Beyond the breasts the cameras miss the sides, the shoulder tops and the bottom
+    // of the sternal notch, as on every scan.
+    let total = 1.0 - small.scan.area() / small.full_skin.area();
+    assert!((0.1..0.3).contains(&total), "{:.1}% lost", 100.0 * total);
+}
+
+#[test]
+fn the_occluded_scan_is_one_clean_sheet_with_landmarks_on_its_vertices() {
+    for (cup, ptosis, noise_mm) in [(Cup::Large, 1.0, 0.3), (Cup::Medium, 0.5, 0.0)] {
+        let params = PhantomParams {
+            cup,
+            ptosis,
+            noise_mm,
+            asymmetry: 0.6,
+            occlusion: true,
+            ..PhantomParams::default()
+        };
+        let phantom = generate(&params);
+        let plain = generate(&PhantomParams {
+            occlusion: false,
+            ..params
+        });
+        let scan = &phantom.scan;
+        scan.validate().unwrap();
+        let topology = Topology::new(scan);
+        assert_eq!(topology.non_manifold_edge_count, 0, "{params}");
+        assert_eq!(topology.inconsistent_edge_count, 0, "{params}");
+        assert_eq!(topology.triangle_components().1, 1, "{params}");
+        // Every vertex is used, and each hole's rim passes a vertex once: no pinches.
+        let mut used = vec![false; scan.vertex_count()];
+        for &v in scan.triangles.iter().flatten() {
+            used[v as usize] = true;
+        }
+        assert!(used.iter().all(|&u| u), "{params}");
+        let loops = topology.boundary_loops(scan);
+        assert!(loops.len() >= 3, "{params}: the holes under the breasts");
+        let mut on_rim = vec![false; scan.vertex_count()];
+        for &v in loops.iter().flatten() {
+            assert!(!on_rim[v as usize], "{params}: vertex {v} pinches a rim");
+            on_rim[v as usize] = true;
+        }
+        // Landmarks: each exactly at a vertex of the scan; a seen one where it was, a
+        // hidden one at the nearest seen vertex, a few millimetres along the surface.
+        for name in L::ALL {
+            let point = phantom.landmarks.get(name);
+            let vertex = scan.positions.iter().position(|&p| p == point);
+            assert!(vertex.is_some(), "{params}: {name:?} is not a vertex");
+            let moved = point.distance(plain.landmarks.get(name));
+            assert!(moved < 8.0, "{params}: {name:?} moved {moved:.1} mm");
+        }
+        for name in [L::Pnl, L::Pnr, L::Pcl, L::Pcr, L::Px, L::PSMFml, L::PSMFmr] {
+            assert_eq!(
+                phantom.landmarks.get(name),
+                plain.landmarks.get(name),
+                "{params}: {name:?} is seen"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_hidden_fold_point_moves_down_the_chest_wall_not_onto_the_breast() {
+    let (phantom, plain) = occluded(Cup::Large, 1.0);
+    for (fold, nipple) in [(L::PSMFl, L::Pnl), (L::PSMFr, L::Pnr)] {
+        let (seen, truth) = (phantom.landmarks.get(fold), plain.landmarks.get(fold));
+        assert_ne!(seen, truth, "{fold:?} is hidden under the breast");
+        // Below the true fold, on the chest wall (where the skin is the wall), not up on
+        // the breast's underside.
+        assert!(seen.y < truth.y, "{fold:?} {seen} vs {truth}");
+        let vertex = phantom.full_vertex[phantom
+            .scan
+            .positions
+            .iter()
+            .position(|&p| p == seen)
+            .unwrap()] as usize;
+        let off_wall =
+            phantom.full_skin.positions[vertex].distance(phantom.chest_wall.positions[vertex]);
+        assert!(
+            off_wall < 0.5,
+            "{fold:?} is {off_wall:.2} mm off the chest wall"
+        );
+        assert!(seen.y < phantom.landmarks.get(nipple).y);
+    }
+}
+
+#[test]
+fn without_occlusion_the_scan_is_the_whole_skin() {
+    let phantom = phantom(Cup::Large, 1.0);
+    assert_eq!(phantom.scan, phantom.full_skin);
+    assert!(
+        phantom
+            .full_vertex
+            .iter()
+            .enumerate()
+            .all(|(k, &v)| v as usize == k)
+    );
+    assert!(
+        phantom
+            .full_triangle
+            .iter()
+            .enumerate()
+            .all(|(k, &t)| t as usize == k)
+    );
+    let params = PhantomParams {
+        occlusion: true,
+        ..PhantomParams::default()
+    };
+    assert_eq!(
+        params.to_string(),
+        "cup=medium ptosis=0.3 noise_mm=0 asymmetry=0 seed=1 occlusion=true"
+    );
 }

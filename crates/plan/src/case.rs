@@ -279,6 +279,9 @@ struct PhantomRecord {
     noise_mm: f64,
     asymmetry: f64,
     seed: u64,
+    /// Cases written before occlusion existed read as without it.
+    #[serde(default)]
+    occlusion: bool,
 }
 
 impl From<&PhantomParams> for PhantomRecord {
@@ -289,6 +292,7 @@ impl From<&PhantomParams> for PhantomRecord {
             noise_mm: params.noise_mm,
             asymmetry: params.asymmetry,
             seed: params.seed,
+            occlusion: params.occlusion,
         }
     }
 }
@@ -301,7 +305,7 @@ impl PhantomRecord {
             noise_mm: self.noise_mm,
             asymmetry: self.asymmetry,
             seed: self.seed,
-            ..PhantomParams::default()
+            occlusion: self.occlusion,
         })
     }
 }
