@@ -297,8 +297,11 @@ fn the_move_buttons_move_the_implants_by_the_step_in_the_anatomical_frame() {
         live.sides.right.placed.as_ref().unwrap().move_mm,
         [-10.0, 5.0, 0.0]
     );
-    assert!(left.dot(frame.left()) > 8.0, "{left}");
-    assert!(right.dot(frame.left()) < -8.0, "{right}");
+    // The placement keeps each implant inside the breast's footprint, which may hold
+    // part of a 10 mm move back: 7.6 mm laterally on this phantom (since 2026-11-26, when
+    // the fold's control points became the nearest surface points).
+    assert!(left.dot(frame.left()) > 6.0, "{left}");
+    assert!(right.dot(frame.left()) < -6.0, "{right}");
 }
 
 #[test]

@@ -32,7 +32,9 @@ mod spline;
 
 pub use control_points::{ControlPoints, DEFAULT_PC_RATIO};
 pub use quadrants::{QuadrantError, QuadrantLines, QuadrantVolumes, quadrant_volumes_ml};
-pub use reconstructed::{DEFAULT_MAX_RECONSTRUCTED_SHARE, Reconstructed, reconstructed_part};
+pub use reconstructed::{
+    DEFAULT_MAX_RECONSTRUCTED_SHARE, Reconstructed, reconstructed_part, reconstructed_triangles,
+};
 pub use spline::{ClosedSpline, MIN_CONTROL_POINT_SPACING_MM, SplineError};
 
 use crate::fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
@@ -447,8 +449,16 @@ pub fn build_breast_model(
             let position = cut_mesh.mesh.positions[v as usize].to_array();
             return Err(BreastError::CurveOnBorder { side, position });
         }
-        let reconstructed =
-            reconstructed_part(&patch.mesh, closed_index.as_ref(), scan.triangle_count());
+        let reconstructed = reconstructed_part(
+            &patch.mesh,
+            reconstructed_triangles(
+                &cut_mesh,
+                Region::Inside(curve_index),
+                scan.triangle_count(),
+                closed_scan.mesh.triangle_count(),
+                closed_index.as_ref(),
+            ),
+        );
         if reconstructed.area_share > options.max_reconstructed_share {
             return Err(BreastError::MostlyUnscanned {
                 side,

@@ -3,7 +3,7 @@
 //! lateral fold), and how much area and volume rest on it.
 
 use glam::DVec3;
-use mesh::{SurfaceIndex, Topology, TriMesh};
+use mesh::{CutMesh, Region, SurfaceIndex, Topology, TriMesh};
 
 /// Default of [`super::BreastOptions::max_reconstructed_share`]: a breast whose skin is
 /// more than half reconstructed is not a scan of that breast. A standing three-camera
@@ -46,24 +46,34 @@ impl Reconstructed {
     }
 }
 
-/// Which triangles of `patch` lie on the fill-ins of the closed scan: those whose
-/// centroid's nearest triangle on the closed scan (`closed_index`) is not one of the
-/// scan's own first `scan_triangles`. `None` for `closed_index` means no hole was closed.
-pub fn reconstructed_part(
-    patch: &TriMesh,
-    closed_index: Option<&SurfaceIndex>,
+/// Per triangle of the part `region` of `cut` (in the order [`CutMesh::part`] gives):
+/// whether it lies on a fill-in of the closed scan the cut was made on, whose first
+/// `scan_triangles` of `closed_triangles` triangles are the scan's. A triangle the cut
+/// left whole keeps its index; a piece of a split one is placed by its centroid's
+/// nearest triangle on the closed scan (`closed_index`; `None`: no hole was closed).
+pub fn reconstructed_triangles(
+    cut: &CutMesh,
+    region: Region,
     scan_triangles: usize,
-) -> Reconstructed {
-    let triangle_flags: Vec<bool> = match closed_index {
-        None => vec![false; patch.triangle_count()],
-        Some(index) => (0..patch.triangle_count())
-            .map(|t| {
-                let centroid = patch.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
+    closed_triangles: usize,
+    closed_index: Option<&SurfaceIndex>,
+) -> Vec<bool> {
+    (0..cut.mesh.triangle_count())
+        .filter(|&t| cut.regions[t] == region)
+        .map(|t| match closed_index {
+            None => false,
+            Some(_) if t < closed_triangles => t >= scan_triangles,
+            Some(index) => {
+                let centroid = cut.mesh.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
                 index.closest_point(centroid).triangle >= scan_triangles
-            })
-            .collect(),
-    };
-    // `+ 0.0`: an empty sum is -0.0, which would print as such.
+            }
+        })
+        .collect()
+}
+
+/// The reconstructed part of `patch` from its triangles' flags
+/// ([`reconstructed_triangles`]).
+pub fn reconstructed_part(patch: &TriMesh, triangle_flags: Vec<bool>) -> Reconstructed {
     let area_mm2 = (0..patch.triangle_count())
         .filter(|&t| triangle_flags[t])
         .map(|t| patch.triangle_area(t))
@@ -81,16 +91,17 @@ pub fn reconstructed_part(
     for (flag, touched) in vertex_flags.iter_mut().zip(&touched) {
         *flag &= *touched;
     }
+    let volume_ml = volume_over_flat_caps(patch, &triangle_flags) / 1000.0 + 0.0;
     Reconstructed {
         vertex_flags,
-        triangle_flags: triangle_flags.clone(),
+        triangle_flags,
         area_mm2,
         area_share: if total_area > 0.0 {
             area_mm2 / total_area
         } else {
             0.0
         },
-        volume_ml: volume_over_flat_caps(patch, &triangle_flags) / 1000.0 + 0.0,
+        volume_ml,
     }
 }
 
@@ -169,7 +180,7 @@ mod tests {
     #[test]
     fn no_closed_holes_means_nothing_reconstructed() {
         let sphere = icosphere(10.0, 2);
-        let part = reconstructed_part(&sphere, None, sphere.triangle_count());
+        let part = reconstructed_part(&sphere, vec![false; sphere.triangle_count()]);
         assert_eq!(part.area_mm2, 0.0);
         assert_eq!(part.volume_ml, 0.0);
         assert!(part.vertex_flags.iter().all(|f| !f));
