@@ -28,10 +28,13 @@
 //!    each of the four plane intersections; a loop off the planes means the box reaches
 //!    beyond the surface's border, a further loop a hole inside the box.
 //! 3. The clipped base is translated by the rear-wall offset along the posterior axis
-//!    (`-z` of the frame). A translation keeps its border on the same four planes and
-//!    cannot fold or self-intersect the wall; it is the paper's "shifted towards the
-//!    back". Its orientation is reversed (if needed, judged by the winding of its border
-//!    against the scan's) so it faces posteriorly.
+//!    (`-z` of the frame), the paper's "shifted towards the back"; a translation keeps
+//!    its border on the same four planes. Where the scan runs almost parallel to that
+//!    axis (the underside of a hanging breast), the translated wall stays too close to
+//!    it; there its vertices are pushed further in along the scan's inward normal until
+//!    they lie a fifth of the offset behind it (`wall_clearance.rs`). Its
+//!    orientation is reversed (if needed, judged by the winding of its border against
+//!    the scan's) so it faces posteriorly.
 //! 4. Stitching: both borders are split at their corners into four sides; each side of
 //!    the scan and the same side of the wall lie in one plane and, with the two corner
 //!    edges, bound a planar polygon, triangulated by a constrained Delaunay
@@ -40,8 +43,9 @@
 //!    lower pole, cut by a lateral plane). The band adds no vertices.
 //!    The scan is turned to face anteriorly first if it faces the other way.
 //! 5. Checks: watertight and 2-manifold ([`mesh::manifold_report`]), no self-intersections
-//!    ([`mesh::self_intersections`]), and a positive volume (else the wall lies in front
-//!    of the scan).
+//!    ([`mesh::self_intersections`]; sub-millimetre folds of the scan's own noise are
+//!    smoothed out first, [`mesh::untangle`], with a warning), and a positive volume
+//!    (else the wall lies in front of the scan).
 //! 6. If clipping or stitching fails, [`build_closed_surface`] retries with the lateral
 //!    planes further in, a few times, then with the upright box of earlier versions
 //!    (see there).
@@ -341,11 +345,12 @@ pub enum ClosedSurfaceError {
     )]
     WallInFront { volume_ml: f64 },
     #[error(
-        "closed surface: the result intersects itself ({count} pairs of triangles, the first \
-         {} and {}): the shifted base crosses the scan; use a smaller rear-wall offset or \
-         check the fill-ins", first.0, first.1
+        "closed surface: the chest wall rebuilt behind the breasts crosses the skin near \
+         ({:.0}, {:.0}, {:.0}) mm ({count} pairs of triangles): the skin folds back on \
+         itself there, or a cut curve runs into a fold; check the landmarks and control \
+         points near that point", near_mm[0], near_mm[1], near_mm[2]
     )]
-    SelfIntersecting { count: usize, first: (usize, usize) },
+    SelfIntersecting { count: usize, near_mm: [f64; 3] },
 }
 
 /// A closed, outward-oriented surface around the breast region.
@@ -967,10 +972,11 @@ pub fn build_closed_surface_in_box(
         }
         Err(pairs) => pairs,
     };
-    if let Some(&first) = crossings.first() {
+    if let Some(&(a, b)) = crossings.first() {
+        let centre = |t: usize| mesh.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
         return Err(ClosedSurfaceError::SelfIntersecting {
             count: crossings.len(),
-            first,
+            near_mm: (0.5 * (centre(a) + centre(b))).to_array(),
         });
     }
     let volume_ml = mesh.signed_volume() / 1000.0;
