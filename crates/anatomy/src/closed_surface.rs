@@ -55,8 +55,9 @@
 //! # Limitations
 //! - On each plane the scan's cut curve must lie anterior to the shifted wall's; where
 //!   they cross, the build fails rather than repairs.
-//! - The wall is a translated copy, so where the chest is steep (the lateral planes)
-//!   its distance from the scan along the normal is less than the offset.
+//! - The wall is a translated copy pushed in only where it comes within a fifth of the
+//!   offset of the scan, so where the chest is steep (the lateral planes) its distance
+//!   from the scan along the normal is less than the offset.
 //! - The lateral planes are planes (straight lines in the coronal plane) and stay inside
 //!   the scan at every height of the box. On the phantom and the shared scans the
 //!   breasts reach to within a few millimetres of the torso's silhouette, so the planes
@@ -105,6 +106,10 @@ const FITTED_RETRY_STEP_MM: f64 = 2.0;
 /// How far inside a lateral plane the breast landmarks should lie (mm); see
 /// [`ClosedSurfaceOptions::min_border_clearance_mm`].
 pub const LANDMARK_MARGIN_MM: f64 = 5.0;
+/// The farthest a scan vertex may move to smooth out a fold of noise through the scan
+/// (mm): a few times the scanner's noise (0.1-0.4 mm on the shared scans); a larger
+/// crossing is anatomy or a wrong wall, and an error.
+const MAX_UNTANGLE_MM: f64 = 1.5;
 /// The rear wall keeps at least this fraction of the offset behind the scan
 /// ([`keep_wall_clear`]): where the chest runs almost parallel to the shift, the
 /// translated wall alone would come closer.
@@ -345,12 +350,16 @@ pub enum ClosedSurfaceError {
     )]
     WallInFront { volume_ml: f64 },
     #[error(
-        "closed surface: the chest wall rebuilt behind the breasts crosses the skin near \
-         ({:.0}, {:.0}, {:.0}) mm ({count} pairs of triangles): the skin folds back on \
-         itself there, or a cut curve runs into a fold; check the landmarks and control \
-         points near that point", near_mm[0], near_mm[1], near_mm[2]
+        "closed surface: {what} near ({:.0}, {:.0}, {:.0}) mm ({count} pairs of triangles \
+         cross): check the scan there, and the landmarks and control points near that \
+         point", near_mm[0], near_mm[1], near_mm[2]
     )]
-    SelfIntersecting { count: usize, near_mm: [f64; 3] },
+    SelfIntersecting {
+        count: usize,
+        /// Which surfaces cross, in words.
+        what: &'static str,
+        near_mm: [f64; 3],
+    },
 }
 
 /// A closed, outward-oriented surface around the breast region.
@@ -891,7 +900,8 @@ pub fn build_closed_surface_in_box(
     if front.anterior_area() < 0.0 {
         front.reverse();
     }
-    back.keep_clear_of(&front, WALL_CLEARANCE_FRACTION * rear_wall_offset_mm);
+    let clearance_mm = WALL_CLEARANCE_FRACTION * rear_wall_offset_mm;
+    let too_close = back.keep_clear_of(&front, clearance_mm);
     // The wall's border must run against the scan's around the box; then walk the
     // wall's border in the scan's direction.
     if (front.winding() > 0.0) == (back.winding() > 0.0) {
@@ -947,7 +957,8 @@ pub fn build_closed_surface_in_box(
         return Err(ClosedSurfaceError::NotWatertight(report));
     }
     // Scanner noise may fold a few tiny triangles of the scan through each other; only
-    // the scan's inner vertices move, so the band and the wall stay as built.
+    // the scan's inner vertices move, by at most [`MAX_UNTANGLE_MM`], so the band and
+    // the wall stay as built and a real crossing of wall and scan stays an error.
     let mut scan_border = vec![false; offset as usize];
     for side in &front_sides {
         for &v in &side.chain {
@@ -955,12 +966,24 @@ pub fn build_closed_surface_in_box(
         }
     }
     let mut warnings = Vec::new();
-    let crossings = match untangle(&mut mesh, |v| v < offset && !scan_border[v as usize]) {
+    if too_close > 0 {
+        warnings.push(format!(
+            "{too_close} vertices of the rear wall stay less than {clearance_mm:.1} mm behind \
+             the scan"
+        ));
+    }
+    let scan_only = |t: usize| front_range.contains(&t);
+    let crossings = match untangle(
+        &mut mesh,
+        |v| v < offset && !scan_border[v as usize],
+        MAX_UNTANGLE_MM,
+    ) {
         Ok(None) => Vec::new(),
         Ok(Some(done)) => {
             warnings.push(format!(
                 "the scan folds through itself in {} places near ({:.0}, {:.0}, {:.0}) mm \
-                 (scanner noise); smoothed there, moving {} vertices by at most {:.2} mm",
+                 (scanner noise); smoothed there, moving {} vertices by at most {:.2} mm \
+                 (at most {MAX_UNTANGLE_MM} mm allowed)",
                 done.pairs_found,
                 done.near.x,
                 done.near.y,
@@ -972,10 +995,21 @@ pub fn build_closed_surface_in_box(
         }
         Err(pairs) => pairs,
     };
-    if let Some(&(a, b)) = crossings.first() {
+    // Name the worst kind of crossing: the wall through the skin before a fold of either.
+    let first = crossings
+        .iter()
+        .find(|&&(a, b)| scan_only(a) != scan_only(b))
+        .or(crossings.first());
+    if let Some(&(a, b)) = first {
         let centre = |t: usize| mesh.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
+        let what = match (scan_only(a), scan_only(b)) {
+            (true, true) => "the skin folds through itself",
+            (false, false) => "the rebuilt chest wall folds through itself",
+            _ => "the chest wall rebuilt behind the breasts crosses the skin",
+        };
         return Err(ClosedSurfaceError::SelfIntersecting {
             count: crossings.len(),
+            what,
             near_mm: (0.5 * (centre(a) + centre(b))).to_array(),
         });
     }
@@ -1082,10 +1116,10 @@ impl ClippedPart {
             .to_array()
     }
 
-    /// Bit `i` set if vertex `v` lies on plane `i`.
     /// Pushes this part's vertices (a wall) that lie less than `clearance_mm` behind
-    /// `scan` further in ([`keep_wall_clear`]); border vertices stay on their planes.
-    fn keep_clear_of(&mut self, scan: &ClippedPart, clearance_mm: f64) {
+    /// `scan` (or in front of it) further in ([`keep_wall_clear`]); border vertices stay
+    /// on their planes. Returns how many are still too close.
+    fn keep_clear_of(&mut self, scan: &ClippedPart, clearance_mm: f64) -> usize {
         let scan_mesh = TriMesh::new(scan.positions.clone(), scan.triangles.clone());
         let mut wall = TriMesh::new(self.positions.clone(), self.triangles.clone());
         let fixed: Vec<FixedAxes> = (0..self.positions.len() as u32)
@@ -1103,10 +1137,12 @@ impl ClippedPart {
                 }
             })
             .collect();
-        keep_wall_clear(&scan_mesh, &mut wall, &fixed, clearance_mm);
+        let done = keep_wall_clear(&scan_mesh, &mut wall, &fixed, clearance_mm);
         self.positions = wall.positions;
+        done.still_too_close
     }
 
+    /// Bit `i` set if vertex `v` lies on plane `i`.
     fn plane_mask(&self, v: u32) -> u8 {
         let p = self.positions[v as usize];
         self.planes

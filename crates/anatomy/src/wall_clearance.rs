@@ -5,10 +5,10 @@
 //! breast the fill-in leaves the fold nearly level with the breast's underside, and the
 //! translated copy stays within a millimetre of it (or crosses it where scanner noise
 //! raises the skin). [`keep_wall_clear`] pushes such wall vertices further inside, along
-//! the scan's inward normal at their nearest scan point, until every wall vertex lies at
-//! least the clearance behind the scan; the push is smoothed over the wall so it bends
-//! rather than dents. Wall vertices already clear do not move, so a wall that was fine
-//! stays exactly the translated copy.
+//! the scan's inward normal at their nearest scan point, towards the clearance behind the
+//! scan, for a bounded number of rounds (what is still too close is reported); the push
+//! is smoothed over some ten rings of the wall so it bends rather than dents. A wall with
+//! no vertex too close stays exactly the translated copy.
 
 use glam::DVec3;
 use mesh::{SurfaceIndex, Topology, TriMesh};
@@ -60,6 +60,10 @@ pub(crate) fn keep_wall_clear(
     // How far a point must move along the scan's inward normal to lie the clearance
     // behind it, and that normal.
     let deficit = |p: DVec3| -> Option<(f64, DVec3)> {
+        // A vertex that crossed to the scan's outside by less than the clearance is found
+        // too (its depth is negative); one farther out is left to the closed surface's
+        // self-intersection check, since the sign from the normal at the nearest point
+        // is unreliable farther off (at the scan's border on the clip planes).
         let closest = index.closest_point_within(p, clearance_mm)?;
         let corners = scan.triangles[closest.triangle];
         let normal = (0..3)
@@ -148,6 +152,23 @@ mod tests {
     /// 2 mm behind the scan: with a 5 mm clearance every wall vertex ends at least 5 mm
     /// behind (to round-off), the vertices that were clear far from the dent keep their
     /// place, and the fixed coordinates do not change.
+    /// A wall whose middle has crossed 2 mm in front of a flat scan (the scan faces +z)
+    /// ends at least the clearance (3 mm) behind it: a crossing is found and undone, not
+    /// taken for clearance.
+    #[test]
+    fn a_wall_crossing_the_scan_is_pushed_back_behind_it() {
+        let scan = grid(60, 60, 1.0);
+        let mut wall = grid(60, 60, 1.0);
+        for p in &mut wall.positions {
+            let r = (p.x - 30.0).hypot(p.y - 30.0);
+            p.z = -10.0 + 12.0 * (-(r * r) / 50.0).exp();
+        }
+        let fixed = vec![FixedAxes::default(); wall.vertex_count()];
+        let done = keep_wall_clear(&scan, &mut wall, &fixed, 3.0);
+        assert_eq!(done.still_too_close, 0);
+        assert!(wall.positions.iter().all(|p| p.z <= -3.0 + 1e-9));
+    }
+
     #[test]
     fn a_dent_towards_the_scan_is_pushed_back_to_the_clearance() {
         let scan = grid(60, 60, 1.0);

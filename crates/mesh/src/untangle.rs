@@ -33,17 +33,29 @@ pub struct Untangled {
 }
 
 /// Smooths out the self-intersections of `mesh` by moving only vertices for which
-/// `movable` is true (e.g. not on a border that must stay where it is). Returns `None` if
-/// the mesh had none; `Some` with what moved if all were removed; the remaining pairs
-/// (as [`self_intersections`]) if some could not be.
+/// `movable` is true (e.g. not on a border that must stay where it is), and only if
+/// every intersecting triangle has a movable corner and no vertex moves farther than
+/// `max_displacement_mm`: a fold of noise, not a crossing of two surfaces. Returns
+/// `None` if the mesh had none; `Some` with what moved if all were removed; the
+/// intersecting pairs (as [`self_intersections`]) with `mesh` unchanged otherwise.
 pub fn untangle(
     mesh: &mut TriMesh,
     movable: impl Fn(u32) -> bool,
+    max_displacement_mm: f64,
 ) -> Result<Option<Untangled>, Vec<(usize, usize)>> {
-    let mut pairs = self_intersections(mesh);
-    let Some(&(a, b)) = pairs.first() else {
+    let first_pairs = self_intersections(mesh);
+    let Some(&(a, b)) = first_pairs.first() else {
         return Ok(None);
     };
+    let all_movable = first_pairs.iter().all(|&(a, b)| {
+        [a, b]
+            .iter()
+            .all(|&t| mesh.triangles[t].iter().any(|&v| movable(v)))
+    });
+    if !all_movable {
+        return Err(first_pairs);
+    }
+    let mut pairs = first_pairs.clone();
     let centre = |mesh: &TriMesh, t: usize| mesh.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
     let near = 0.5 * (centre(mesh, a) + centre(mesh, b));
     let pairs_found = pairs.len();
@@ -97,18 +109,18 @@ pub fn untangle(
         }
         pairs = self_intersections(mesh);
     }
-    if !pairs.is_empty() {
-        mesh.positions = original;
-        return Err(pairs);
-    }
-    let max_displacement_mm = (0..moved.len())
+    let moved_by = (0..moved.len())
         .filter(|&v| moved[v])
         .map(|v| mesh.positions[v].distance(original[v]))
         .fold(0.0, f64::max);
+    if !pairs.is_empty() || moved_by > max_displacement_mm {
+        mesh.positions = original;
+        return Err(first_pairs);
+    }
     Ok(Some(Untangled {
         pairs_found,
         vertices_moved: moved.iter().filter(|&&m| m).count(),
-        max_displacement_mm,
+        max_displacement_mm: moved_by,
         near,
     }))
 }
@@ -129,7 +141,7 @@ mod tests {
         let v = 0;
         mesh.positions[v] = -1.3 * sphere.positions[v];
         assert!(!self_intersections(&mesh).is_empty());
-        let result = untangle(&mut mesh, |_| true).unwrap().unwrap();
+        let result = untangle(&mut mesh, |_| true, 30.0).unwrap().unwrap();
         assert!(self_intersections(&mesh).is_empty());
         assert!(result.pairs_found > 0);
         let back = mesh.positions[v].distance(sphere.positions[v]);
@@ -143,10 +155,26 @@ mod tests {
         }
     }
 
+    /// The same fold with the displacement capped at 1 mm (undoing it takes some 20), or
+    /// with every vertex held: refused, the pairs returned, the mesh exactly as it was.
+    #[test]
+    fn a_fold_beyond_the_cap_or_on_held_vertices_is_refused_unchanged() {
+        let sphere = icosphere(10.0, 3);
+        let mut folded = sphere.clone();
+        folded.positions[0] = -1.3 * sphere.positions[0];
+        let pairs = self_intersections(&folded);
+        let mut capped = folded.clone();
+        assert_eq!(untangle(&mut capped, |_| true, 1.0), Err(pairs.clone()));
+        assert_eq!(capped.positions, folded.positions);
+        let mut held = folded.clone();
+        assert_eq!(untangle(&mut held, |_| false, 30.0), Err(pairs));
+        assert_eq!(held.positions, folded.positions);
+    }
+
     #[test]
     fn a_clean_mesh_is_left_alone() {
         let mut mesh = grid(5, 5, 1.0);
-        assert_eq!(untangle(&mut mesh, |_| true), Ok(None));
+        assert_eq!(untangle(&mut mesh, |_| true, 1.0), Ok(None));
         assert_eq!(mesh.positions, grid(5, 5, 1.0).positions);
     }
 }

@@ -330,6 +330,12 @@ pub fn build_model(
         &options.closed_surface,
     )
     .with_context(|| scan.path.display().to_string())?;
+    for warning in &closed_surface.warnings {
+        progress.warn(&format!(
+            "{}: closed surface: {warning}",
+            scan.path.display()
+        ));
+    }
     let closed_surface_ms = elapsed_ms(closed_start);
     progress.step();
     check_cancelled(progress)?;

@@ -420,9 +420,10 @@ fn with_hole_above_right_nipple(phantom: &phantom::Phantom, radius_mm: f64) -> T
     scan
 }
 
-/// A scanner dropout inside a breast is closed by the fill-in and reported. Known answer: the intact breast's volume. Even a flat patch
-/// over a hole 25 mm across on a 60 mm radius breast misses a cap of 0.35 ml; the fill-in
-/// follows the skin's curvature: bound 0.35 ml.
+/// A scanner dropout inside a breast is closed by the fill-in and reported. Known answer:
+/// the intact breast's volume. Even a flat patch over a hole 25 mm across on a 60 mm
+/// radius breast misses a cap of 0.35 ml; the fill-in follows the skin's curvature:
+/// bound 0.35 ml.
 #[test]
 fn a_dropout_in_the_breast_is_closed_with_the_breast_volume_kept() {
     let phantom = medium_phantom();
@@ -495,7 +496,7 @@ fn a_breast_reconstructed_beyond_the_limit_is_an_error() {
     assert_eq!(side, Side::Right);
     let hole_area = scan_area_difference(&phantom.scan, &scan);
     assert!((reconstructed_area_mm2 - hole_area).abs() < 0.15 * hole_area);
-    assert!(reconstructed_area_mm2 / area_mm2 > 0.01);
+    assert!(area_mm2 > 10.0 * hole_area);
     assert!(error.to_string().contains("was not seen by the scanner"));
 }
 

@@ -374,6 +374,11 @@ pub fn build_breast_model(
     if !(options.sample_spacing_mm > 0.0 && options.sample_spacing_mm.is_finite()) {
         return Err(BreastError::InvalidSampleSpacing(options.sample_spacing_mm));
     }
+    if !(0.0..=1.0).contains(&options.max_reconstructed_share) {
+        return Err(BreastError::InvalidReconstructedShare(
+            options.max_reconstructed_share,
+        ));
+    }
     let hole_params = FillInParams {
         cylinder_axis: Some(frame.up()),
         ..FillInParams::default()
@@ -417,11 +422,6 @@ pub fn build_breast_model(
     )
     .map_err(cut_error)?;
     let holes_in_breasts = holes_in_breasts(scan, topology, &cut_mesh);
-    if !(0.0..=1.0).contains(&options.max_reconstructed_share) {
-        return Err(BreastError::InvalidReconstructedShare(
-            options.max_reconstructed_share,
-        ));
-    }
 
     let base = cut_mesh.part(Region::Outside);
     let to_base = inverse_map(&base.vertex_map, cut_mesh.mesh.vertex_count());

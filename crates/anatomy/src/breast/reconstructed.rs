@@ -72,10 +72,10 @@ pub fn reconstructed_triangles(
 }
 
 /// The reconstructed part of `patch` from its triangles' flags
-/// ([`reconstructed_triangles`]).
+/// ([`reconstructed_triangles`]); a triangle without a flag counts as measured.
 pub fn reconstructed_part(patch: &TriMesh, triangle_flags: Vec<bool>) -> Reconstructed {
     let area_mm2 = (0..patch.triangle_count())
-        .filter(|&t| triangle_flags[t])
+        .filter(|&t| triangle_flags.get(t).copied().unwrap_or(false))
         .map(|t| patch.triangle_area(t))
         .sum::<f64>()
         + 0.0;
@@ -85,7 +85,7 @@ pub fn reconstructed_part(patch: &TriMesh, triangle_flags: Vec<bool>) -> Reconst
     for (t, corners) in patch.triangles.iter().enumerate() {
         for &v in corners {
             touched[v as usize] = true;
-            vertex_flags[v as usize] &= triangle_flags[t];
+            vertex_flags[v as usize] &= triangle_flags.get(t).copied().unwrap_or(false);
         }
     }
     for (flag, touched) in vertex_flags.iter_mut().zip(&touched) {
