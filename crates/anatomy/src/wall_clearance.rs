@@ -148,35 +148,37 @@ mod tests {
     use super::*;
     use mesh::shapes::grid;
 
-    /// A flat scan at z = 0 facing +z and a wall 10 mm behind it with a dent rising to
-    /// 2 mm behind the scan: with a 5 mm clearance every wall vertex ends at least 5 mm
-    /// behind (to round-off), the vertices that were clear far from the dent keep their
-    /// place, and the fixed coordinates do not change.
-    /// A wall whose middle has crossed 2 mm in front of a flat scan (the scan faces +z)
-    /// ends at least the clearance (3 mm) behind it: a crossing is found and undone, not
-    /// taken for clearance.
-    #[test]
-    fn a_wall_crossing_the_scan_is_pushed_back_behind_it() {
-        let scan = grid(60, 60, 1.0);
+    /// A flat 60 x 60 mm wall 10 mm behind a flat scan at z = 0 (facing +z), with a
+    /// Gaussian bump of `height_mm` towards the scan in its middle.
+    fn wall_with_bump(height_mm: f64) -> TriMesh {
         let mut wall = grid(60, 60, 1.0);
         for p in &mut wall.positions {
             let r = (p.x - 30.0).hypot(p.y - 30.0);
-            p.z = -10.0 + 12.0 * (-(r * r) / 50.0).exp();
+            p.z = -10.0 + height_mm * (-(r * r) / 50.0).exp();
         }
+        wall
+    }
+
+    /// A wall whose middle has crossed 2 mm in front of the scan ends at least the
+    /// clearance (3 mm) behind it: a crossing is found and undone, not taken for
+    /// clearance.
+    #[test]
+    fn a_wall_crossing_the_scan_is_pushed_back_behind_it() {
+        let scan = grid(60, 60, 1.0);
+        let mut wall = wall_with_bump(12.0);
         let fixed = vec![FixedAxes::default(); wall.vertex_count()];
         let done = keep_wall_clear(&scan, &mut wall, &fixed, 3.0);
         assert_eq!(done.still_too_close, 0);
         assert!(wall.positions.iter().all(|p| p.z <= -3.0 + 1e-9));
     }
 
+    /// A dent rising to 2 mm behind the scan: with a 5 mm clearance every wall vertex
+    /// ends at least 5 mm behind (to round-off), the vertices far from the dent keep
+    /// their place, and the fixed coordinates do not change.
     #[test]
     fn a_dent_towards_the_scan_is_pushed_back_to_the_clearance() {
         let scan = grid(60, 60, 1.0);
-        let mut wall = grid(60, 60, 1.0);
-        for p in &mut wall.positions {
-            let r = (p.x - 30.0).hypot(p.y - 30.0);
-            p.z = -10.0 + 8.0 * (-(r * r) / 50.0).exp();
-        }
+        let mut wall = wall_with_bump(8.0);
         let fixed: Vec<FixedAxes> = wall
             .positions
             .iter()

@@ -190,6 +190,21 @@ pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
 }
 
 /// The cut curves of both breasts as points on the surface (mm).
+/// What the views' grey-blue patches are, where the pre-operative breasts have any.
+fn reconstruction_note(scans: &ReportScans) -> Option<String> {
+    let breasts = scans.preoperative.breasts.as_ref()?;
+    let shares = Side::BOTH.map(|side| breasts.breast(side).reconstructed.area_share);
+    (shares.iter().any(|&share| share > 0.0)).then(|| {
+        format!(
+            "Skin drawn in grey-blue was not seen by the scanner and is reconstructed by the \
+             model ({:.0}% of the left breast's skin, {:.0}% of the right's): its shape is \
+             an estimate, not a measurement.",
+            100.0 * shares[0],
+            100.0 * shares[1]
+        )
+    })
+}
+
 /// Each breast's reconstructed skin, as a mesh of its own.
 fn reconstructed_skin(breasts: &BreastModel) -> Vec<mesh::TriMesh> {
     Side::BOTH
@@ -517,7 +532,10 @@ pub fn report_content(
 
     Ok(report::ReportContent {
         title: "Breast augmentation plan".into(),
-        notes: notes(&simulation, model_dir),
+        notes: notes(&simulation, model_dir)
+            .into_iter()
+            .chain(reconstruction_note(&scans))
+            .collect(),
         case,
         implants: report::PerSide {
             left: (simulation.implants.left).map(|i| implant_choice(i, simulation.anchor)),
