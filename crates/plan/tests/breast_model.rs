@@ -396,12 +396,20 @@ fn a_self_crossing_curve_is_an_error_naming_the_breast() {
             error,
             BreastError::Curve {
                 side: Side::Left,
-                source: CurveError::SelfCrossing { .. }
+                source: CurveError::SelfCrossing { .. },
+                ..
             }
         ),
         "{error:?}"
     );
     assert!(error.to_string().starts_with("left breast: "));
+    // The message names a control point to move (user points: by number).
+    assert!(
+        error
+            .to_string()
+            .contains("the nearest control point is control point"),
+        "{error}"
+    );
 }
 
 /// The phantom's scan with a hole (seen from the front) of `radius_mm` 35 mm above the
@@ -535,7 +543,8 @@ fn a_curve_across_the_scan_border_is_an_error() {
             error,
             BreastError::Curve {
                 side: Side::Left,
-                source: CurveError::LeavesMesh { .. }
+                source: CurveError::LeavesMesh { .. },
+                ..
             } | BreastError::CurveOnBorder {
                 side: Side::Left,
                 ..

@@ -30,6 +30,17 @@ const RAY_START_MM: f64 = 400.0;
 /// scans it often sits on the rim of the hole where the scanner missed the lateral fold.
 const FOLD_CLEARANCE_MM: f64 = 8.0;
 
+/// What each default control point ([`ControlPoints::from_landmarks`]) stands for, in
+/// their order, for messages that tell the user which to move.
+pub const DEFAULT_CONTROL_POINT_ROLES: [&str; 6] = [
+    "the point below the fold's medial end (from PSMFm)",
+    "the point below the fold's lowest point (from PSMF)",
+    "the fold's lateral end (PSMFl)",
+    "the lateral point",
+    "the upper point (on the line from Pc to Pn)",
+    "the medial point",
+];
+
 /// Cut-curve control points of both breasts (mm, file frame), in order around each.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControlPoints {

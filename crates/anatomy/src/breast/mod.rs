@@ -30,7 +30,7 @@ mod quadrants;
 mod reconstructed;
 mod spline;
 
-pub use control_points::{ControlPoints, DEFAULT_PC_RATIO};
+pub use control_points::{ControlPoints, DEFAULT_CONTROL_POINT_ROLES, DEFAULT_PC_RATIO};
 pub use quadrants::{QuadrantError, QuadrantLines, QuadrantVolumes, quadrant_volumes_ml};
 pub use reconstructed::{
     DEFAULT_MAX_RECONSTRUCTED_SHARE, Reconstructed, reconstructed_part, reconstructed_triangles,
@@ -310,11 +310,14 @@ pub enum BreastError {
         "{side} breast: control point {index} and the next one are closer than {MIN_CONTROL_POINT_SPACING_MM} mm"
     )]
     CoincidentControlPoints { side: Side, index: usize },
-    #[error("{side} breast: the cut curve cannot be laid on the scan: {source}")]
+    #[error("{side} breast: the cut curve cannot be laid on the scan: {source}{hint}")]
     Curve {
         side: Side,
         #[source]
         source: CurveError,
+        /// What to do, where the failure has a place: the nearest control point to
+        /// move (empty otherwise).
+        hint: String,
     },
     #[error(
         "{side} breast: the cut curve runs along the scan's border near ({:.1}, {:.1}, {:.1}) mm, so the breast is not surrounded by scanned chest: move its control points inwards",
@@ -403,12 +406,17 @@ pub fn build_breast_model(
         Some(points) => points.clone(),
         None => ControlPoints::from_landmarks(&surface, frame, landmarks, options.pc_ratio)?,
     };
+    let roles = options
+        .control_points
+        .is_none()
+        .then_some(&DEFAULT_CONTROL_POINT_ROLES[..]);
     let [left_curve, right_curve] = Side::BOTH.map(|side| {
         cut_curve(
             &surface,
             frame,
             side,
             control_points.side(side),
+            roles,
             options.sample_spacing_mm,
         )
     });
@@ -517,6 +525,7 @@ pub fn cut_curve(
     frame: &AnatomicalFrame,
     side: Side,
     control_points: &[DVec3],
+    roles: Option<&[&str]>,
     sample_spacing_mm: f64,
 ) -> Result<(Vec<DVec3>, SurfaceCurve), BreastError> {
     let mut start_triangle = 0;
@@ -553,10 +562,46 @@ pub fn cut_curve(
         .map(|sample| surface.index.closest_point(sample).point)
         .collect();
     let curve = SurfaceCurve::project(surface.mesh, surface.topology, start_triangle, &samples)
-        .map_err(|source| BreastError::Curve { side, source })?
+        .map_err(|source| {
+            let hint = curve_error_hint(&source, &snapped, roles);
+            BreastError::Curve { side, source, hint }
+        })?
         .snapped_to_vertices(surface.mesh, surface.topology, CUT_SNAP_FRACTION)
         .oriented_counter_clockwise_about(frame.anterior());
     Ok((snapped, curve))
+}
+
+/// "; the nearest control point is ... move it" for a curve error that has a place, naming
+/// the point by `roles` (one per control point) where given, else by its number.
+fn curve_error_hint(
+    error: &CurveError,
+    control_points: &[DVec3],
+    roles: Option<&[&str]>,
+) -> String {
+    let place = match error {
+        CurveError::LeavesMesh { position }
+        | CurveError::DegenerateTriangle { position, .. }
+        | CurveError::NoProgress { position, .. }
+        | CurveError::SelfCrossing { position } => DVec3::from_array(*position),
+        CurveError::NotClosed { last, .. } => DVec3::from_array(*last),
+        _ => return String::new(),
+    };
+    let Some((index, distance_mm)) = control_points
+        .iter()
+        .map(|p| p.distance(place))
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+    else {
+        return String::new();
+    };
+    let name = match roles.and_then(|roles| roles.get(index)) {
+        Some(role) => format!("{role} (control point {index})"),
+        None => format!("control point {index}"),
+    };
+    format!(
+        "; the nearest control point is {name}, {distance_mm:.0} mm away: move it (or the \
+         landmark it comes from) onto skin the scanner saw, away from the scan's edge"
+    )
 }
 
 /// Radius (mm) over which the triangle normals on each side of the stitch are averaged
@@ -699,6 +744,7 @@ fn cut_error(error: CutError) -> BreastError {
         CutError::Curve { curve, source } => BreastError::Curve {
             side: Side::BOTH[curve.min(1)],
             source,
+            hint: String::new(),
         },
         CutError::CurvesTouch { position, .. } => BreastError::CurvesTouch { position },
         other => BreastError::Cut(other),
