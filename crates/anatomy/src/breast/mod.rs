@@ -578,14 +578,24 @@ fn curve_error_hint(
     control_points: &[DVec3],
     roles: Option<&[&str]>,
 ) -> String {
-    let place = match error {
-        CurveError::LeavesMesh { position }
-        | CurveError::DegenerateTriangle { position, .. }
+    let (place, advice) = match error {
+        CurveError::LeavesMesh { position } => (
+            *position,
+            "onto skin the scanner saw, away from the scan's edge",
+        ),
+        CurveError::NotClosed { last, .. } => (
+            *last,
+            "onto skin the scanner saw, away from the scan's edge",
+        ),
+        CurveError::DegenerateTriangle { position, .. }
         | CurveError::NoProgress { position, .. }
-        | CurveError::SelfCrossing { position } => DVec3::from_array(*position),
-        CurveError::NotClosed { last, .. } => DVec3::from_array(*last),
+        | CurveError::SelfCrossing { position } => (
+            *position,
+            "so that the curve runs once round the breast without doubling back",
+        ),
         _ => return String::new(),
     };
+    let place = DVec3::from_array(place);
     let Some((index, distance_mm)) = control_points
         .iter()
         .map(|p| p.distance(place))
@@ -600,7 +610,7 @@ fn curve_error_hint(
     };
     format!(
         "; the nearest control point is {name}, {distance_mm:.0} mm away: move it (or the \
-         landmark it comes from) onto skin the scanner saw, away from the scan's edge"
+         landmark it comes from) {advice}"
     )
 }
 
