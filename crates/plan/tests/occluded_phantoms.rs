@@ -92,6 +92,17 @@ fn command(params: &PhantomParams) -> String {
     )
 }
 
+/// The first columns of a case's table row: its number and parameters.
+fn row_start(case: usize, params: &PhantomParams) -> String {
+    format!(
+        "{case:2} | {:6} | {:4.2} | {:4.2} | {:4.2}",
+        params.cup.to_string(),
+        params.ptosis,
+        params.asymmetry,
+        params.noise_mm
+    )
+}
+
 /// The figures of one case that built.
 struct Figures {
     /// Relative volume error, left and right.
@@ -229,11 +240,8 @@ fn random_occluded_phantoms_build_with_true_volumes_and_skin() {
                         format!("{:+5.2}% / {:+5.2}%", 100.0 * l, 100.0 * r)
                     });
                 let row = format!(
-                    "{case:2} | {:6} | {:4.2} | {:4.2} | {:4.2} | {:+6.2}% / {:+6.2}% | {effect} | {:4.1}% / {:4.1}% | {:5.2} | {:4.1} s",
-                    params.cup.to_string(),
-                    params.ptosis,
-                    params.asymmetry,
-                    params.noise_mm,
+                    "{} | {:+6.2}% / {:+6.2}% | {effect} | {:4.1}% / {:4.1}% | {:5.2} | {:4.1} s",
+                    row_start(case, params),
                     100.0 * left,
                     100.0 * right,
                     100.0 * figures.reconstructed_share[0],
@@ -262,14 +270,7 @@ fn random_occluded_phantoms_build_with_true_volumes_and_skin() {
                 }
             }
             Err(error) => {
-                let row = format!(
-                    "{case:2} | {:6} | {:4.2} | {:4.2} | {:4.2} | error: {}",
-                    params.cup.to_string(),
-                    params.ptosis,
-                    params.asymmetry,
-                    params.noise_mm,
-                    message(&error)
-                );
+                let row = format!("{} | error: {}", row_start(case, params), message(&error));
                 println!("{row}");
                 rows.push(row);
                 errors.push(format!(
