@@ -663,6 +663,8 @@ pub fn build_closed_surface(
     landmarks: &Landmarks,
     options: &ClosedSurfaceOptions,
 ) -> Result<ClosedSurface, ClosedSurfaceError> {
+    // The box follows the thorax (the body's axes), not the way she stood.
+    let frame = &frame.sternal();
     let footprints = footprint_points(scan, filled_base);
     let mut first_error = None;
     // The fitted box if asked for, then (should it not close) the upright one.
@@ -1601,6 +1603,8 @@ mod tests {
         AnatomicalFrame {
             origin: DVec3::ZERO,
             axes: DMat3::IDENTITY,
+            sternal_axes: DMat3::IDENTITY,
+            up_source: crate::UpSource::FileVertical,
         }
     }
 

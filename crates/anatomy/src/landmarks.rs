@@ -1,7 +1,7 @@
 //! Anatomical landmarks (paper Fig. 2) and the landmark file format of the GUIDE:
 //! `{"units":"mm","landmarks":{"Pj":[x,y,z],...},"extra":{"name":[x,y,z]}}`.
 
-use crate::frame::{AnatomicalFrame, FrameError};
+use crate::frame::{AnatomicalFrame, FrameError, Up};
 use glam::DVec3;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
@@ -364,15 +364,19 @@ impl PartialLandmarks {
         Ok(landmarks)
     }
 
-    /// The anatomical frame once Pj, Px, Pcl and Pcr are placed.
-    pub fn frame(&self) -> Option<Result<AnatomicalFrame, FrameError>> {
+    /// The standing frame once Pj, Px, Pcl and Pcr are placed, with up `given` or
+    /// resolved as [`Up::resolve`] does.
+    pub fn frame(&self, given: Option<Up>) -> Option<Result<AnatomicalFrame, FrameError>> {
         use LandmarkName::{Pcl, Pcr, Pj, Px};
-        Some(AnatomicalFrame::from_points(
-            self.get(Pj)?,
-            self.get(Px)?,
-            self.get(Pcl)?,
-            self.get(Pcr)?,
-        ))
+        let bony = [Pj, Px, Pcl, Pcr];
+        if bony.iter().any(|&n| self.get(n).is_none()) {
+            return None;
+        }
+        let landmarks = Landmarks::new(|n| self.get(n).unwrap_or_default());
+        Some(
+            Up::resolve(given, &landmarks)
+                .and_then(|up| AnatomicalFrame::from_landmarks(&landmarks, up)),
+        )
     }
 
     /// Reads a landmark file that may lack some required landmarks.
@@ -585,7 +589,7 @@ mod tests {
         let full = Landmarks::from_json(&sample_json(), Path::new("lm.json")).unwrap();
         let mut partial = PartialLandmarks::default();
         assert_eq!(partial.missing().next(), Some(LandmarkName::Pj));
-        assert!(partial.frame().is_none());
+        assert!(partial.frame(None).is_none());
         for name in [LandmarkName::Pj, LandmarkName::Px, LandmarkName::Pnl] {
             partial.set(name, full.get(name));
         }
@@ -612,7 +616,7 @@ mod tests {
         );
 
         let mut whole = PartialLandmarks::from(&full);
-        assert!(whole.frame().is_some());
+        assert!(whole.frame(None).is_some());
         whole.extra.clear();
         whole.extra.insert("scar".into(), DVec3::new(1.0, 2.0, 3.0));
         assert_eq!(whole.complete(Path::new("lm.json")).unwrap(), full);

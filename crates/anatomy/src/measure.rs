@@ -304,7 +304,7 @@ mod tests {
     ) -> Result<Vec<Distance>, UnknownLandmark> {
         let topology = Topology::new(mesh);
         let index = SurfaceIndex::new(mesh).unwrap();
-        let frame = AnatomicalFrame::from_landmarks(landmarks).unwrap();
+        let frame = AnatomicalFrame::from_landmarks(landmarks, crate::Up::FILE_VERTICAL).unwrap();
         let surface = MeasuredSurface {
             mesh,
             topology: &topology,

@@ -185,7 +185,9 @@ impl GuiApp {
         if let (Some(document), None) = (&self.document, &self.distances) {
             let ctx = ui.ctx().clone();
             let mut distances =
-                LiveDistances::start(Arc::clone(&document.scan), move || ctx.request_repaint());
+                LiveDistances::start(Arc::clone(&document.scan), document.up, move || {
+                    ctx.request_repaint()
+                });
             distances.update(&document.landmarks);
             self.distances = Some(distances);
         }
@@ -265,7 +267,7 @@ impl GuiApp {
         let Some(document) = &self.document else {
             return;
         };
-        let body = match document.landmarks.frame() {
+        let body = match document.landmarks.frame(document.up) {
             Some(Ok(frame)) => frame.axes,
             _ => DMat3::IDENTITY,
         };

@@ -3,7 +3,7 @@
 //! No egui here; the surface queries go through `mesh` and the files through `plan` and
 //! `anatomy`.
 
-use anatomy::{LandmarkName, Landmarks, PartialLandmarks};
+use anatomy::{LandmarkName, Landmarks, PartialLandmarks, Up};
 use anyhow::{Context, Result, bail};
 use glam::DVec3;
 use mesh::SurfaceIndex;
@@ -29,6 +29,9 @@ pub struct Document {
     pub pending_extra: Option<String>,
     /// Landmarks changed since they were read or saved.
     pub unsaved: bool,
+    /// Which way is up in the scan's file, when the user said it (`--up`, a case);
+    /// `None`: resolved from the file and the landmarks.
+    pub up: Option<Up>,
 }
 
 /// What a click on the surface will place.
@@ -63,6 +66,7 @@ impl Document {
             selected: None,
             pending_extra: None,
             unsaved: false,
+            up: None,
         }
     }
 
@@ -108,6 +112,7 @@ impl Document {
         }
         let document = Document {
             landmarks,
+            up: case.up,
             ..Document::new(scan, case.scan.clone())
         };
         let warnings = warnings
@@ -127,7 +132,7 @@ impl Document {
             ))
         });
         let landmarks: Landmarks = self.landmarks.complete(&path)?;
-        MarkedScan::new(Arc::clone(&self.scan), landmarks, &path, &Silent)
+        MarkedScan::new(Arc::clone(&self.scan), landmarks, &path, self.up, &Silent)
     }
 
     /// Reads a landmark file (required landmarks may be missing) and snaps its points

@@ -3,8 +3,8 @@
 //! [`MeasuringSurface`]: holes closed) and then measures the latest landmark set it was
 //! sent, skipping sets that were superseded while it worked.
 
-use anatomy::PartialLandmarks;
 use anatomy::measure::{DistanceSpec, clinical_distances};
+use anatomy::{PartialLandmarks, Up};
 use plan::measure::MeasuringSurface;
 use plan::{Distance, Scan, Silent};
 use std::sync::Arc;
@@ -37,7 +37,12 @@ pub struct LiveDistances {
 impl LiveDistances {
     /// Starts the worker for a scan; `wake` is called after each answer (the UI asks
     /// for a repaint there).
-    pub fn start(scan: Arc<Scan>, wake: impl Fn() + Send + 'static) -> LiveDistances {
+    /// `up` is the scan's up as given (`None`: resolved from the file and landmarks).
+    pub fn start(
+        scan: Arc<Scan>,
+        up: Option<Up>,
+        wake: impl Fn() + Send + 'static,
+    ) -> LiveDistances {
         let (requests, inbox) = channel::<(u64, PartialLandmarks)>();
         let (outbox, answers) = channel();
         std::thread::spawn(move || {
@@ -49,7 +54,7 @@ impl LiveDistances {
                 }
                 let (number, landmarks) = request;
                 let table = match &surface {
-                    Ok(surface) => measure(surface, &landmarks),
+                    Ok(surface) => measure(surface, &landmarks, up),
                     Err(error) => Table::Failed(format!("{error:#}")),
                 };
                 if outbox.send((number, table)).is_err() {
@@ -90,8 +95,8 @@ impl LiveDistances {
 }
 
 /// The clinical distances whose points are both placed, measured.
-fn measure(surface: &MeasuringSurface, landmarks: &PartialLandmarks) -> Table {
-    let Some(frame) = landmarks.frame() else {
+fn measure(surface: &MeasuringSurface, landmarks: &PartialLandmarks, up: Option<Up>) -> Table {
+    let Some(frame) = landmarks.frame(up) else {
         return Table::NeedFrame;
     };
     let frame = match frame {
@@ -129,7 +134,7 @@ mod tests {
     fn the_worker_measures_the_pairs_that_are_placed() {
         let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
         let full = PartialLandmarks::from(&marked.landmarks);
-        let mut live = LiveDistances::start(marked.scan, || {});
+        let mut live = LiveDistances::start(marked.scan, None, || {});
         assert_eq!(*live.poll(), Table::Preparing);
 
         let mut partial = PartialLandmarks::default();

@@ -35,7 +35,7 @@ impl RegisteredScan {
         scan_path: &Path,
         landmarks_path: &Path,
     ) -> Result<RegisteredScan> {
-        let moving = MarkedScan::load(scan_path, landmarks_path, &Silent)?;
+        let moving = MarkedScan::load(scan_path, landmarks_path, None, &Silent)?;
         let (transform, report) = register(fixed, &moving, true)?;
         let positions = (moving.scan.mesh.positions.iter())
             .map(|&p| transform.apply(p))

@@ -134,6 +134,11 @@ enum Command {
         /// An extra distance between two named points, e.g. `--pair Pj,scar_top`; repeatable.
         #[arg(long, value_name = "A,B", value_parser = landmark_pair)]
         pair: Vec<(String, String)>,
+        /// Which way is up in the scan's file: an axis (+y, -z, ...) or a vector x,y,z.
+        /// Without it the file's +y, or an estimate (with a warning) where the patient
+        /// does not stand upright in the file.
+        #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
+        up: Option<plan::Up>,
         #[arg(long)]
         json: bool,
     },
@@ -153,6 +158,11 @@ enum Command {
         /// Refine with point-to-plane ICP on the surface away from the breasts.
         #[arg(long)]
         icp: bool,
+        /// Which way is up in both scans' files: an axis (+y, -z, ...) or a vector
+        /// x,y,z. Without it the file's +y, or an estimate (with a warning) where the
+        /// patient does not stand upright in the file.
+        #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
+        up: Option<plan::Up>,
         #[arg(long)]
         json: bool,
     },
@@ -188,6 +198,11 @@ enum Command {
         /// the tissue).
         #[arg(long, value_name = "JSON")]
         test_control_points: Option<PathBuf>,
+        /// Which way is up in both scans' files: an axis (+y, -z, ...) or a vector
+        /// x,y,z. Without it the file's +y, or an estimate (with a warning) where the
+        /// patient does not stand upright in the file.
+        #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
+        up: Option<plan::Up>,
         #[arg(long)]
         json: bool,
     },
@@ -222,6 +237,11 @@ enum Command {
         /// Longest element edge in the refined band (mm).
         #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REFINE_EDGE_MM, value_parser = positive, requires = "refine_band_mm")]
         refine_edge_mm: f64,
+        /// Which way is up in the scan's file: an axis (+y, -z, ...) or a vector x,y,z.
+        /// Without it the file's +y, or an estimate (with a warning) where the patient
+        /// does not stand upright in the file.
+        #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
+        up: Option<plan::Up>,
         #[arg(long)]
         json: bool,
     },
@@ -284,6 +304,9 @@ enum Command {
         /// The post-operative scan's landmark file.
         #[arg(long, value_name = "JSON", requires = "postop")]
         postop_landmarks: Option<PathBuf>,
+        /// Which way is up in the post-operative scan's file, as `model --up`.
+        #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true, requires = "postop")]
+        postop_up: Option<plan::Up>,
         /// The report (HTML).
         #[arg(long, value_name = "HTML")]
         out: PathBuf,
@@ -323,6 +346,9 @@ enum Command {
         /// Its landmark file (required landmarks may be missing: place them in the window).
         #[arg(long, value_name = "JSON", requires = "scan")]
         landmarks: Option<PathBuf>,
+        /// Which way is up in the scan's file, as `model --up`.
+        #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true, requires = "scan")]
+        up: Option<plan::Up>,
         /// Open the built-in phantom with its landmarks.
         #[arg(long, conflicts_with = "case")]
         phantom: bool,
@@ -355,6 +381,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
         Command::Gui {
             scan,
             landmarks,
+            up,
             phantom,
             case,
             script,
@@ -365,6 +392,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             let start = match (scan, case) {
                 (Some(scan), _) => {
                     let mut document = gui::Document::open_scan(&scan)?;
+                    document.up = up;
                     if let Some(landmarks) = landmarks {
                         for warning in document.open_landmarks(&landmarks)? {
                             progress.warn(&warning);
@@ -429,15 +457,17 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             scan,
             landmarks,
             pair,
+            up,
             json,
         } => {
-            let marked = plan::MarkedScan::load(&scan, &landmarks, progress)?;
+            let marked = plan::MarkedScan::load(&scan, &landmarks, up, progress)?;
             let report = plan::measure::measure(&marked, &pair, progress)?;
             progress.finish();
             if json {
                 print_json(&report)
             } else {
                 print!("{}", summary::distances(&report.distances));
+                print!("{}", summary::up(&report.up));
                 Ok(())
             }
         }
@@ -448,10 +478,11 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             moving_landmarks,
             out,
             icp,
+            up,
             json,
         } => {
-            let fixed = plan::MarkedScan::load(&fixed, &fixed_landmarks, progress)?;
-            let moving = plan::MarkedScan::load(&moving, &moving_landmarks, progress)?;
+            let fixed = plan::MarkedScan::load(&fixed, &fixed_landmarks, up, progress)?;
+            let moving = plan::MarkedScan::load(&moving, &moving_landmarks, up, progress)?;
             let (transform, report) = plan::register::register(&fixed, &moving, icp)?;
             plan::register::write_registered_mesh(&out, &moving, &transform)?;
             progress.finish();
@@ -472,10 +503,11 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             max_distance_mm,
             reference_control_points,
             test_control_points,
+            up,
             json,
         } => {
-            let reference = plan::MarkedScan::load(&reference, &reference_landmarks, progress)?;
-            let test = plan::MarkedScan::load(&test, &test_landmarks, progress)?;
+            let reference = plan::MarkedScan::load(&reference, &reference_landmarks, up, progress)?;
+            let test = plan::MarkedScan::load(&test, &test_landmarks, up, progress)?;
             let options = plan::compare::CompareOptions {
                 register,
                 max_distance_mm,
@@ -556,14 +588,19 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             simulation,
             postop,
             postop_landmarks,
+            postop_up,
             out,
         } => {
             let inputs = plan::report::ReportInputs {
                 model_dir: model,
                 simulation_dir: simulation,
-                postoperative: postop
-                    .zip(postop_landmarks)
-                    .map(|(scan, landmarks)| plan::report::PostoperativeScan { scan, landmarks }),
+                postoperative: postop.zip(postop_landmarks).map(|(scan, landmarks)| {
+                    plan::report::PostoperativeScan {
+                        scan,
+                        landmarks,
+                        up: postop_up,
+                    }
+                }),
                 created: std::time::SystemTime::now(),
             };
             let report = plan::report::write_report(&inputs, &out, progress)?;
@@ -606,9 +643,10 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             elements,
             refine_band_mm,
             refine_edge_mm,
+            up,
             json,
         } => {
-            let marked = plan::MarkedScan::load(&scan, &landmarks, progress)?;
+            let marked = plan::MarkedScan::load(&scan, &landmarks, up, progress)?;
             let mut options = plan::model::ModelOptions {
                 control_points_file: control_points,
                 elements,
@@ -780,6 +818,11 @@ fn landmark_pair(text: &str) -> Result<(String, String), String> {
             "expected two point names separated by a comma, got {text:?}"
         )),
     }
+}
+
+/// `--up`: an axis or a vector ([`plan::Up::parse`]).
+fn up_axis(text: &str) -> Result<plan::Up, String> {
+    plan::Up::parse(text).map_err(|e| e.to_string())
 }
 
 mod summary;

@@ -12,6 +12,20 @@ fn millimetres(value: Option<f64>) -> String {
 }
 
 /// The distance table.
+/// Which way was up, and the sternum's lean from it.
+pub fn up(up: &plan::UpRecord) -> String {
+    let [x, y, z] = up.direction;
+    let source = match up.source {
+        plan::UpSourceName::File => "the file's +y",
+        plan::UpSourceName::Given => "given",
+        plan::UpSourceName::Estimated => "estimated from the sternum",
+    };
+    format!(
+        "up ({x:.3}, {y:.3}, {z:.3}): {source}; the sternum leans {:.1}° back from it\n",
+        up.sternum_lean_deg
+    )
+}
+
 pub fn distances(distances: &[Distance]) -> String {
     let mut out = format!(
         "{:<14} {:>14} {:>12} {:>12}\n",
@@ -181,6 +195,7 @@ fn model_figures(report: &ModelReport) -> String {
 /// What `model` built and where the files are.
 pub fn model(report: &ModelReport) -> String {
     let mut out = model_figures(report);
+    out.push_str(&up(&report.up));
     let _ = writeln!(out, "\nfiles in {}:", report.out_dir.display());
     for file in &report.files {
         let _ = writeln!(out, "  {file}");

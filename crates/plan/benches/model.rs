@@ -20,6 +20,7 @@ fn bench_model(c: &mut Criterion) {
         Scan::from_mesh(phantom.scan, Path::new("phantom.ply")).expect("a valid scan"),
         phantom.landmarks,
         Path::new("phantom.json"),
+        None,
         &Silent,
     )
     .expect("landmarks on the scan");

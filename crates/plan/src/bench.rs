@@ -116,6 +116,7 @@ pub fn bench(
             Scan::from_mesh(phantom.scan.clone(), Path::new("phantom.ply"))?,
             phantom.landmarks.clone(),
             Path::new("phantom.json"),
+            None,
             &crate::Silent,
         )?;
         let model = build_model(

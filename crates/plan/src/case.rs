@@ -31,7 +31,7 @@
 use crate::model::{DEFAULT_ELEMENTS, ModelOptions, PerSide};
 use crate::simulate::{ImplantRequest, Material, SimulationOptions};
 use crate::{PhantomParams, Progress, Scan};
-use anatomy::{ControlPoints, PartialLandmarks};
+use anatomy::{ControlPoints, PartialLandmarks, Up};
 use anyhow::{Context, Result, bail, ensure};
 use glam::DVec3;
 use implant::ImplantSpec;
@@ -70,6 +70,9 @@ impl ScanSource {
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlanningCase {
     pub scan: ScanSource,
+    /// Which way is up in the scan's file, when the user said it (`--up`); `None`: the
+    /// file's vertical or an estimate ([`anatomy::Up::resolve`]).
+    pub up: Option<Up>,
     pub landmarks: PartialLandmarks,
     /// The cut curves' control points (from a built model); `None`: the defaults from
     /// the landmarks.
@@ -90,6 +93,7 @@ impl PlanningCase {
     pub fn new(scan: ScanSource, landmarks: PartialLandmarks) -> PlanningCase {
         PlanningCase {
             scan,
+            up: None,
             landmarks,
             control_points: None,
             elements: DEFAULT_ELEMENTS,
@@ -193,8 +197,13 @@ impl PlanningCase {
                 .map(|r| r.request("right"))
                 .transpose()?,
         };
+        let up = record
+            .up
+            .map(|[x, y, z]| Up::parse(&format!("{x},{y},{z}")).context("up"))
+            .transpose()?;
         Ok(PlanningCase {
             scan,
+            up,
             landmarks,
             control_points,
             elements,
@@ -225,6 +234,7 @@ impl PlanningCase {
             version: CASE_VERSION,
             units: "mm".into(),
             scan,
+            up: self.up.map(|up| up.direction.to_array()),
             landmarks: self.landmarks.to_json(Default::default()),
             control_points: self.control_points.as_ref().map(ControlPoints::to_json),
             model: ModelRecord {
@@ -255,6 +265,9 @@ struct CaseRecord {
     version: u32,
     units: String,
     scan: ScanRecord,
+    /// The given up (file frame); absent when the file's vertical or an estimate serves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    up: Option<[f64; 3]>,
     landmarks: Value,
     #[serde(default)]
     control_points: Option<Value>,
@@ -378,6 +391,7 @@ mod tests {
             left: vec![DVec3::new(1.0, 2.0, 3.0); 4],
             right: vec![DVec3::new(-1.0, 2.0, 3.0); 5],
         });
+        case.up = Some(Up::parse("-z").unwrap());
         case.elements = 8_000;
         case.tissue = Material::new(3.5, 0.4);
         case.gravity = false;

@@ -123,6 +123,7 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
         Scan::from_mesh(phantom.scan.clone(), &path("scan.ply"))?,
         phantom.landmarks.clone(),
         &path("landmarks.json"),
+        None,
         progress,
     )?;
     let measurements = measure(&fixed, &[], progress)?;
@@ -135,6 +136,7 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
         Scan::from_mesh(follow_up.scan, &path("followup_scan.ply"))?,
         follow_up.landmarks,
         &path("followup_landmarks.json"),
+        None,
         progress,
     )?;
     let (transform, registration) = register(&fixed, &moving, true)?;

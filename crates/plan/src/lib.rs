@@ -18,8 +18,9 @@ pub mod simulate;
 pub mod views;
 
 pub use anatomy::measure::Distance;
+pub use anatomy::{Up, UpSource};
 pub use phantom::{Cup, PhantomParams};
-pub use scan::{MarkedScan, Scan};
+pub use scan::{MarkedScan, Scan, UpRecord, UpSourceName};
 
 /// The error and its causes on one line, outermost first. A cause whose message the
 /// previous one already ends with (errors that print their source) is not repeated.

@@ -15,6 +15,9 @@ use serde::Serialize;
 pub struct MeasureReport {
     pub scan: String,
     pub landmarks: String,
+    /// Which way was up in the scan's file (the coronal plane of the plane-section
+    /// distances is vertical), with the sternum's lean from it.
+    pub up: crate::UpRecord,
     pub distances: Vec<Distance>,
     /// Scanner holes closed (fill-in) before the on-surface measurements.
     pub holes_closed: Vec<HoleSummary>,
@@ -106,6 +109,7 @@ pub fn measure(
     Ok(MeasureReport {
         scan: marked.scan.path.display().to_string(),
         landmarks: marked.landmarks_path.display().to_string(),
+        up: crate::UpRecord::of(&marked.frame),
         distances,
         holes_closed: surface.holes_closed,
     })

@@ -114,6 +114,8 @@ pub struct PatientModel {
     pub scan_path: PathBuf,
     pub landmarks_path: PathBuf,
     pub control_points_file: Option<PathBuf>,
+    /// Which way was up in the scan's file.
+    pub up: crate::UpRecord,
     /// The upper control point ratio used (unless the control points came from a file).
     pub pc_ratio: f64,
     pub breasts: BreastModel,
@@ -248,6 +250,9 @@ pub struct ModelReport {
     pub landmarks: String,
     /// The control-point file given, if any.
     pub control_points_file: Option<String>,
+    /// Which way was up in the scan's file (the standing frame's y), with the sternum's
+    /// lean from it.
+    pub up: crate::UpRecord,
     pub breast_volume_ml: PerSide<f64>,
     pub quadrant_volume_ml: PerSide<QuadrantVolumes>,
     pub closed_surface_volume_ml: f64,
@@ -356,6 +361,7 @@ pub fn build_model(
         scan_path: scan.path.clone(),
         landmarks_path: marked.landmarks_path.clone(),
         control_points_file: options.control_points_file.clone(),
+        up: crate::UpRecord::of(&marked.frame),
         pc_ratio,
         breasts,
         closed_surface,
@@ -538,6 +544,7 @@ impl PatientModel {
                 .control_points_file
                 .as_ref()
                 .map(|p| p.display().to_string()),
+            up: self.up,
             breast_volume_ml: PerSide::from_fn(|side| model.breast(side).volume_ml),
             quadrant_volume_ml: PerSide::from_fn(|side| model.breast(side).quadrant_volume_ml),
             closed_surface_volume_ml: closed.volume_ml,
@@ -723,6 +730,8 @@ pub fn write_closed_polyline(path: &Path, points: &[mesh::DVec3]) -> Result<()> 
 pub(crate) struct ModelRecord {
     pub scan: PathBuf,
     pub landmarks: PathBuf,
+    /// Absent in folders from before the standing frame: the file's vertical.
+    pub up: Option<crate::UpRecord>,
     pub elements_requested: usize,
     pub rear_wall_offset_mm: f64,
     pub refinement: Option<Refinement>,
@@ -774,7 +783,12 @@ pub(crate) fn read_folder_json<T: serde::de::DeserializeOwned>(
 pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedScan, PatientModel)> {
     let report_path = model_dir.join("model.json");
     let record = read_model_record(model_dir)?;
-    let marked = MarkedScan::load(&record.scan, &record.landmarks, progress)
+    let up = record
+        .up
+        .map(|up| up.up())
+        .transpose()
+        .with_context(|| report_path.display().to_string())?;
+    let marked = MarkedScan::load(&record.scan, &record.landmarks, up, progress)
         .with_context(|| format!("the scan named in {}", report_path.display()))?;
     let mut options = ModelOptions {
         control_points_file: Some(model_dir.join("control_points.json")),

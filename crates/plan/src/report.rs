@@ -27,7 +27,7 @@ use crate::simulate::{
 use crate::views::{RenderedView, ViewContent, standard_views};
 use crate::{Distance, MarkedScan, Progress};
 use anatomy::breast::{BreastModel, QuadrantVolumes, Side};
-use anatomy::{AnatomicalFrame, BreastOptions, LandmarkName, Landmarks};
+use anatomy::{AnatomicalFrame, BreastOptions, LandmarkName, Landmarks, Up};
 use anyhow::{Context, Result};
 use assess::{
     DEFAULT_MAX_DISTANCE_MM, DEVIATION_COLOR_MAX_MM, DeviationStatistics, DistanceSurface,
@@ -58,6 +58,8 @@ pub struct ReportInputs {
 pub struct PostoperativeScan {
     pub scan: PathBuf,
     pub landmarks: PathBuf,
+    /// Which way is up in its file (`None`: resolved from the file and landmarks).
+    pub up: Option<Up>,
 }
 
 /// What was written.
@@ -80,9 +82,14 @@ pub struct ShownScan {
 
 impl ShownScan {
     /// Loads a scan with its landmarks.
-    pub fn load(scan: &Path, landmarks: &Path, progress: &dyn Progress) -> Result<ShownScan> {
+    pub fn load(
+        scan: &Path,
+        landmarks: &Path,
+        up: Option<Up>,
+        progress: &dyn Progress,
+    ) -> Result<ShownScan> {
         Ok(ShownScan {
-            marked: MarkedScan::load(scan, landmarks, progress)?,
+            marked: MarkedScan::load(scan, landmarks, up, progress)?,
             breasts: None,
         })
     }
@@ -92,10 +99,11 @@ impl ShownScan {
     pub fn load_with_breasts(
         scan: &Path,
         landmarks: &Path,
+        up: Option<Up>,
         control_points_file: Option<&Path>,
         progress: &dyn Progress,
     ) -> Result<ShownScan> {
-        let marked = MarkedScan::load(scan, landmarks, progress)?;
+        let marked = MarkedScan::load(scan, landmarks, up, progress)?;
         let (breasts, _) = build_breasts(
             &marked,
             &BreastOptions::default(),
@@ -152,7 +160,12 @@ pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
             reconstructed: &reconstructed,
             ..Default::default()
         };
-        for view in standard_views(&scan.marked.scan.mesh, &scan.marked.landmarks, &content)? {
+        for view in standard_views(
+            &scan.marked.scan.mesh,
+            &scan.marked.landmarks,
+            scan.marked.up(),
+            &content,
+        )? {
             views.push(report_view(format!("{title}, {}", view.name), view, None)?);
         }
     }
@@ -171,7 +184,12 @@ pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
         ..Default::default()
     };
     let simulated = &scans.simulated.marked;
-    for view in standard_views(&simulated.scan.mesh, &simulated.landmarks, &content)? {
+    for view in standard_views(
+        &simulated.scan.mesh,
+        &simulated.landmarks,
+        simulated.up(),
+        &content,
+    )? {
         if matches!(
             view.view,
             StandardView::Front | StandardView::LeftOblique | StandardView::RightOblique
@@ -371,9 +389,15 @@ pub fn report_content(
     let simulation = read_simulation_record(simulation_dir)?;
 
     progress.stage("report", 3 + 2 * inputs.postoperative.is_some() as u64);
+    let model_up = model
+        .up
+        .map(|up| up.up())
+        .transpose()
+        .with_context(|| model_dir.join("model.json").display().to_string())?;
     let preoperative = ShownScan::load_with_breasts(
         &model.scan,
         &model.landmarks,
+        model_up,
         Some(&model_dir.join("control_points.json")),
         progress,
     )
@@ -388,6 +412,7 @@ pub fn report_content(
     let mut simulated = ShownScan::load(
         &simulation_dir.join("simulated_scan.ply"),
         &simulation_dir.join("simulated_landmarks.json"),
+        Some(preoperative.marked.up()),
         progress,
     )
     .with_context(|| format!("the simulated scan in {}", simulation_dir.display()))?;
@@ -429,8 +454,14 @@ pub fn report_content(
     let (postoperative, postoperative_distances) = match &inputs.postoperative {
         None => (None, None),
         Some(files) => {
-            let scan = ShownScan::load_with_breasts(&files.scan, &files.landmarks, None, progress)
-                .context("the post-operative scan")?;
+            let scan = ShownScan::load_with_breasts(
+                &files.scan,
+                &files.landmarks,
+                files.up,
+                None,
+                progress,
+            )
+            .context("the post-operative scan")?;
             progress.step();
             let distances = measure(&scan.marked, &[], progress)?.distances;
             progress.step();
@@ -831,13 +862,12 @@ mod tests {
             LandmarkName::Pnr => DVec3::new(-90.0, -185.0, 78.0),
             _ => DVec3::new(0.0, -200.0, 50.0),
         };
-        let rotation = DMat3::from_quat(DQuat::from_axis_angle(
-            DVec3::new(0.3, 1.0, -0.2).normalize(),
-            0.7,
-        ));
+        let turn = DQuat::from_axis_angle(DVec3::new(0.3, 1.0, -0.2).normalize(), 0.7);
+        let rotation = DMat3::from_quat(turn);
         let shift = DVec3::new(12.0, 900.0, -40.0);
         let landmarks = Landmarks::new(|name| rotation * local(name) + shift);
-        let frame = AnatomicalFrame::from_landmarks(&landmarks).unwrap();
+        let up = Up::FILE_VERTICAL.rotated(turn);
+        let frame = AnatomicalFrame::from_landmarks(&landmarks, up).unwrap();
         let nipples = NippleSymmetry::new(&frame, &landmarks);
         // Left 5 mm higher, 5 mm further from the midline, 2 mm further forward.
         let tolerance_mm = 1e-9; // round-off of a rigid motion of ~1 m coordinates

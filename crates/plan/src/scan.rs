@@ -1,7 +1,7 @@
 //! A scan loaded for work: the mesh with its connectivity and spatial index, and
 //! optionally its landmarks, snapped and turned into an anatomical frame.
 
-use anatomy::{AnatomicalFrame, Landmarks};
+use anatomy::{AnatomicalFrame, Landmarks, Up, UpSource};
 use anyhow::{Context, Result, bail};
 use mesh::{SurfaceIndex, Topology, TriMesh};
 use std::path::{Path, PathBuf};
@@ -93,23 +93,37 @@ pub struct MarkedScan {
 }
 
 impl MarkedScan {
+    /// Which way is up in the scan's file, and where that came from.
+    pub fn up(&self) -> Up {
+        Up {
+            direction: self.frame.up(),
+            source: self.frame.up_source,
+        }
+    }
+}
+
+impl MarkedScan {
     /// Loads a scan and its landmark file, snaps landmarks within 5 mm onto the surface
-    /// (warning for each moved one) and rejects farther ones.
+    /// (warning for each moved one) and rejects farther ones. Up is `up` if given, else
+    /// resolved from the file and the landmarks ([`Up::resolve`], warning if estimated).
     pub fn load(
         scan: &Path,
         landmarks: &Path,
+        up: Option<Up>,
         progress: &dyn crate::Progress,
     ) -> Result<MarkedScan> {
         let scan = Scan::load(scan, progress)?;
         let landmark_set = Landmarks::read(landmarks)?;
-        MarkedScan::new(scan, landmark_set, landmarks, progress)
+        MarkedScan::new(scan, landmark_set, landmarks, up, progress)
     }
 
-    /// Attaches landmarks (already in memory) to a scan (owned or shared).
+    /// Attaches landmarks (already in memory) to a scan (owned or shared); `up` as for
+    /// [`MarkedScan::load`].
     pub fn new(
         scan: impl Into<Arc<Scan>>,
         mut landmarks: Landmarks,
         landmarks_path: &Path,
+        up: Option<Up>,
         progress: &dyn crate::Progress,
     ) -> Result<MarkedScan> {
         let scan = scan.into();
@@ -119,7 +133,12 @@ impl MarkedScan {
         for warning in warnings {
             progress.warn(&format!("{}: {warning}", landmarks_path.display()));
         }
-        let frame = AnatomicalFrame::from_landmarks(&landmarks)
+        let up =
+            Up::resolve(up, &landmarks).with_context(|| landmarks_path.display().to_string())?;
+        if let Some(warning) = up.warning() {
+            progress.warn(&format!("{}: {warning}", scan.path.display()));
+        }
+        let frame = AnatomicalFrame::from_landmarks(&landmarks, up)
             .with_context(|| landmarks_path.display().to_string())?;
         Ok(MarkedScan {
             scan,
@@ -135,11 +154,66 @@ impl MarkedScan {
         let phantom = phantom::generate(params);
         let path = phantom_path(params);
         let scan = Scan::from_mesh(phantom.scan, &path)?;
-        MarkedScan::new(scan, phantom.landmarks, &path, &crate::Silent)
+        MarkedScan::new(scan, phantom.landmarks, &path, None, &crate::Silent)
     }
 }
 
 /// What names the phantom in messages.
 fn phantom_path(params: &phantom::PhantomParams) -> PathBuf {
     PathBuf::from(format!("phantom ({params})"))
+}
+
+/// Which way was up in a scan's file, as `model.json`, `measure --json` and planning
+/// cases record it; read back, it gives the same frame again.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct UpRecord {
+    /// Against gravity, unit vector in the file's coordinates.
+    pub direction: [f64; 3],
+    /// `file` (the file's +y, an upright scan), `given` (`--up`) or `estimated`.
+    pub source: UpSourceName,
+    /// How far the sternum (Px towards Pj) leans back from this vertical (degrees).
+    pub sternum_lean_deg: f64,
+}
+
+/// [`UpSource`] as JSON names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum UpSourceName {
+    File,
+    Given,
+    Estimated,
+}
+
+impl UpRecord {
+    /// The record of a frame's up.
+    pub fn of(frame: &AnatomicalFrame) -> UpRecord {
+        UpRecord {
+            direction: frame.up().to_array(),
+            source: match frame.up_source {
+                UpSource::FileVertical => UpSourceName::File,
+                UpSource::Given => UpSourceName::Given,
+                UpSource::Estimated => UpSourceName::Estimated,
+            },
+            sternum_lean_deg: frame.sternum_lean_deg(),
+        }
+    }
+
+    /// The up it records, with its source; an error if the direction is not a finite
+    /// non-zero vector (an edited file).
+    pub fn up(&self) -> Result<Up> {
+        let Some(direction) = mesh::DVec3::from_array(self.direction).try_normalize() else {
+            bail!(
+                "\"up\": \"direction\" {:?} is not a non-zero vector",
+                self.direction
+            );
+        };
+        Ok(Up {
+            direction,
+            source: match self.source {
+                UpSourceName::File => UpSource::FileVertical,
+                UpSourceName::Given => UpSource::Given,
+                UpSourceName::Estimated => UpSource::Estimated,
+            },
+        })
+    }
 }

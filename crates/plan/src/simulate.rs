@@ -323,6 +323,7 @@ impl Session {
             self.marked.scan.moved_to(positions, path)?,
             self.simulation.landmarks_moved_by(&scan_displacements),
             path,
+            Some(self.marked.up()),
             &crate::Silent,
         )
         .context("the simulated scan")

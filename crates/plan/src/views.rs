@@ -2,7 +2,7 @@
 //! anatomical frame from its landmarks, with an optional colour map, the landmarks as
 //! markers and curves (e.g. the cut curves) on the surface, as PNG files in memory.
 
-use anatomy::{AnatomicalFrame, Landmarks};
+use anatomy::{AnatomicalFrame, Landmarks, Up};
 use anyhow::{Context, Result};
 use glam::DVec3;
 use mesh::TriMesh;
@@ -65,15 +65,15 @@ pub struct RenderedView {
 }
 
 /// Renders `scan` in every [`StandardView`], all at the same scale, looking from the
-/// anatomical frame of `landmarks` stood upright
-/// ([`AnatomicalFrame::upright_axes`]).
+/// standing frame of `landmarks` with `up`.
 pub fn standard_views(
     scan: &TriMesh,
     landmarks: &Landmarks,
+    up: Up,
     content: &ViewContent,
 ) -> Result<Vec<RenderedView>> {
-    let frame = AnatomicalFrame::from_landmarks(landmarks)
-        .context("the views look from the landmarks' anatomical frame")?;
+    let frame = AnatomicalFrame::from_landmarks(landmarks, up)
+        .context("the views look from the landmarks' standing frame")?;
     let colouring = match (content.colours, &scan.vertex_colors) {
         (Some(colours), _) => Colouring::PerVertex(colours),
         (None, Some(_)) => Colouring::MeshColours,
@@ -109,9 +109,8 @@ pub fn standard_views(
             .collect(),
     };
     let aspect = f64::from(content.width) / f64::from(content.height);
-    let axes = frame.upright_axes(&scan.positions);
     let cameras =
-        Camera::standard_views(axes, &scan.positions, aspect).context("framing the scan")?;
+        Camera::standard_views(frame.axes, &scan.positions, aspect).context("framing the scan")?;
     let options = RenderOptions::default();
     cameras
         .into_iter()

@@ -7,7 +7,7 @@
 //! base of every model as PLY files there.
 
 use anatomy::breast::{BreastError, BreastModel, BreastOptions, ControlPoints, Side};
-use anatomy::{AnatomicalFrame, LandmarkName, Landmarks, build_breast_model};
+use anatomy::{AnatomicalFrame, LandmarkName, Landmarks, Up, build_breast_model};
 use mesh::{CurveError, DVec3, SurfaceIndex, Topology, TriMesh};
 use phantom::{Cup, PhantomParams};
 use plan::{MarkedScan, Silent};
@@ -17,6 +17,14 @@ use std::time::Instant;
 /// The bound on the angle between face normals across the stitch (degrees).
 const MAX_STITCH_ANGLE_DEG: f64 = 25.0;
 
+/// The frame the breast model is built in ([`AnatomicalFrame::sternal`]) for landmarks
+/// in an upright file.
+fn sternal_frame(landmarks: &Landmarks) -> AnatomicalFrame {
+    AnatomicalFrame::from_landmarks(landmarks, Up::FILE_VERTICAL)
+        .unwrap()
+        .sternal()
+}
+
 /// Builds the model of a mesh with its landmarks.
 fn build(
     mesh: &TriMesh,
@@ -25,7 +33,7 @@ fn build(
 ) -> Result<BreastModel, BreastError> {
     let topology = Topology::new(mesh);
     let index = SurfaceIndex::new(mesh).unwrap();
-    let frame = AnatomicalFrame::from_landmarks(landmarks).unwrap();
+    let frame = sternal_frame(landmarks);
     build_breast_model(mesh, &topology, &index, &frame, landmarks, options)
 }
 
@@ -217,6 +225,7 @@ fn load(dir: &Path, name: &str) -> MarkedScan {
     MarkedScan::load(
         &dir.join(format!("{name}.ply")),
         &dir.join(format!("{name}_landmarks.json")),
+        None,
         &Silent,
     )
     .unwrap()
@@ -332,7 +341,7 @@ fn medium_phantom() -> phantom::Phantom {
 fn default_points(mesh: &TriMesh, landmarks: &Landmarks) -> ControlPoints {
     let topology = Topology::new(mesh);
     let index = SurfaceIndex::new(mesh).unwrap();
-    let frame = AnatomicalFrame::from_landmarks(landmarks).unwrap();
+    let frame = sternal_frame(landmarks);
     let surface = anatomy::measure::MeasuredSurface {
         mesh,
         topology: &topology,

@@ -11,7 +11,7 @@
 use anatomy::closed_surface::{
     ClosedSurface, ClosedSurfaceError, ClosedSurfaceOptions, build_closed_surface,
 };
-use anatomy::{AnatomicalFrame, LandmarkName};
+use anatomy::{AnatomicalFrame, LandmarkName, Up};
 use mesh::{Topology, TriMesh, manifold_report, self_intersections};
 use phantom::{Cup, Phantom, PhantomParams};
 use std::time::Instant;
@@ -27,7 +27,7 @@ fn phantom(cup: Cup, noise_mm: f64) -> Phantom {
 /// The closed surface of `front` over the small-cup stand-in base, with its build time.
 fn close(front: &Phantom, options: &ClosedSurfaceOptions) -> (ClosedSurface, f64) {
     let base = phantom(Cup::Small, 0.0);
-    let frame = AnatomicalFrame::from_landmarks(&front.landmarks).unwrap();
+    let frame = sternal_frame(front);
     let start = Instant::now();
     let surface =
         build_closed_surface(&front.scan, &base.scan, &frame, &front.landmarks, options).unwrap();
@@ -119,7 +119,7 @@ fn noisy_phantom_closes() {
 fn too_large_an_offset_or_a_box_outside_the_scan_is_an_error() {
     let front = phantom(Cup::Medium, 0.0);
     let base = phantom(Cup::Small, 0.0);
-    let frame = AnatomicalFrame::from_landmarks(&front.landmarks).unwrap();
+    let frame = sternal_frame(&front);
     // A clearance larger than the scan's reach around the breasts leaves them out.
     let options = ClosedSurfaceOptions {
         border_clearance_mm: 400.0,
@@ -135,7 +135,12 @@ fn too_large_an_offset_or_a_box_outside_the_scan_is_an_error() {
 }
 
 fn frame_local(phantom: &Phantom, name: LandmarkName) -> glam::DVec3 {
-    AnatomicalFrame::from_landmarks(&phantom.landmarks)
+    sternal_frame(phantom).to_local(phantom.landmarks.get(name))
+}
+
+/// The frame the closed surface is built in ([`AnatomicalFrame::sternal`]).
+fn sternal_frame(phantom: &Phantom) -> AnatomicalFrame {
+    AnatomicalFrame::from_landmarks(&phantom.landmarks, Up::FILE_VERTICAL)
         .unwrap()
-        .to_local(phantom.landmarks.get(name))
+        .sternal()
 }

@@ -29,7 +29,7 @@ fn a_partial_set_measures_like_the_full_one() {
     ] {
         partial.set(name, marked.landmarks.get(name));
     }
-    let frame = partial.frame().unwrap().unwrap();
+    let frame = partial.frame(None).unwrap().unwrap();
     assert_eq!(frame, marked.frame);
     let surface = MeasuringSurface::new(&marked.scan, &Silent).unwrap();
     let specs = [

@@ -170,6 +170,7 @@ fn phantom_model_folder() {
         Scan::from_mesh(phantom.scan.clone(), Path::new("phantom.ply")).unwrap(),
         phantom.landmarks.clone(),
         Path::new("phantom.json"),
+        None,
         &Silent,
     )
     .unwrap();
@@ -203,6 +204,7 @@ fn every_shared_scan_gives_a_watertight_closed_surface() {
         let marked = MarkedScan::load(
             &dir.join(format!("{name}.ply")),
             &dir.join(format!("{name}_landmarks.json")),
+            None,
             &Silent,
         )
         .unwrap();
@@ -221,6 +223,7 @@ fn refined_level_around_the_fill_ins() {
     let marked = MarkedScan::load(
         &dir.join(format!("{name}.ply")),
         &dir.join(format!("{name}_landmarks.json")),
+        None,
         &Silent,
     )
     .unwrap();

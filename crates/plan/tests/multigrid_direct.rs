@@ -32,6 +32,7 @@ fn multigrid_matches_the_direct_solver_on_shared_scans() {
             let marked = MarkedScan::load(
                 &dir.join(format!("{name}.ply")),
                 &dir.join(format!("{name}_landmarks.json")),
+                None,
                 &Silent,
             )
             .unwrap();

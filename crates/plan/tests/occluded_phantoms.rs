@@ -124,6 +124,7 @@ fn marked_scan(phantom: &phantom::Phantom) -> anyhow::Result<MarkedScan> {
         scan,
         phantom.landmarks.clone(),
         Path::new("its landmarks"),
+        None,
         &Silent,
     )
 }

@@ -28,7 +28,8 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         &path("landmarks.json"),
     )
     .unwrap();
-    let marked = MarkedScan::load(&path("scan.ply"), &path("landmarks.json"), &Silent).unwrap();
+    let marked =
+        MarkedScan::load(&path("scan.ply"), &path("landmarks.json"), None, &Silent).unwrap();
     let options = ModelOptions {
         elements: ELEMENTS,
         ..Default::default()
@@ -69,6 +70,7 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         postoperative: Some(PostoperativeScan {
             scan: path("postop.ply"),
             landmarks: path("postop_landmarks.json"),
+            up: None,
         }),
         created: UNIX_EPOCH + Duration::from_secs(1_795_339_260),
     };
@@ -178,6 +180,7 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
     let simulated_scan = MarkedScan::load(
         &path("simulation/simulated_scan.ply"),
         &path("simulation/simulated_landmarks.json"),
+        None,
         &Silent,
     )
     .unwrap();

@@ -5,6 +5,7 @@
 //! write the pictures (`phantom_front.png`, ...) there and look at them.
 
 use phantom::PhantomParams;
+use plan::Up;
 use plan::views::{RenderedView, ViewContent, standard_views};
 use render::{StandardView, Visibility};
 
@@ -28,7 +29,13 @@ fn the_phantom_is_seen_from_the_front_and_both_sides() {
         height: 500,
         ..ViewContent::default()
     };
-    let views = standard_views(&phantom.scan, &phantom.landmarks, &content).unwrap();
+    let views = standard_views(
+        &phantom.scan,
+        &phantom.landmarks,
+        Up::FILE_VERTICAL,
+        &content,
+    )
+    .unwrap();
     assert_eq!(
         views.iter().map(|v| v.view).collect::<Vec<_>>(),
         StandardView::ALL
@@ -53,7 +60,10 @@ fn the_phantom_is_seen_from_the_front_and_both_sides() {
     let (pj, px) = (marker(front, "Pj"), marker(front, "Px"));
     assert!(pj.pixel.y < px.pixel.y);
     assert!((pj.pixel.x - 200.0).abs() < 2.0 && (px.pixel.x - 200.0).abs() < 2.0);
-    for label in ["Pj", "Pnl", "Pnr", "Pcl", "Pcr", "Px"] {
+    // Pj is not in the list: the phantom's trunk leans back about 11° from its file's
+    // vertical (its torso's long axis), so seen level from the front the notch lies
+    // behind the clavicle heads (docs/dev/standing-frame.md).
+    for label in ["Pnl", "Pnr", "Pcl", "Pcr", "Px"] {
         assert_eq!(
             marker(front, label).visibility,
             Visibility::Visible,

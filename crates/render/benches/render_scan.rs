@@ -4,7 +4,7 @@
 //! from the front and the left oblique, skin tone, its twelve landmarks as markers;
 //! then the PNG encoding of the picture.
 
-use anatomy::AnatomicalFrame;
+use anatomy::{AnatomicalFrame, Up};
 use criterion::{Criterion, criterion_group, criterion_main};
 use phantom::PhantomParams;
 use render::{
@@ -18,7 +18,8 @@ const HEIGHT: u32 = 1000;
 
 fn bench_render(c: &mut Criterion) {
     let phantom = phantom::generate(&PhantomParams::default());
-    let frame = AnatomicalFrame::from_landmarks(&phantom.landmarks).expect("the phantom's frame");
+    let frame = AnatomicalFrame::from_landmarks(&phantom.landmarks, Up::FILE_VERTICAL)
+        .expect("the phantom's frame");
     let scene = Scene {
         layers: vec![MeshLayer::new(&phantom.scan, Colouring::Uniform(SKIN_TONE))],
         markers: phantom

@@ -18,6 +18,7 @@ fn bench(c: &mut Criterion) {
         Scan::from_mesh(phantom.scan.clone(), Path::new("phantom.ply")).unwrap(),
         phantom.landmarks.clone(),
         Path::new("phantom.json"),
+        None,
         &Silent,
     )
     .unwrap();

@@ -679,7 +679,7 @@ impl Simulation {
             .iter()
             .flat_map(|&s| input.breasts.breast(s).fill.mesh.positions.iter().copied())
             .collect();
-        let cylinder = ChestCylinder::fit(&fill_points, &frame);
+        let cylinder = ChestCylinder::fit(&fill_points, &frame.sternal());
         let sides = Side::BOTH.map(|side| {
             let b = input.breasts.breast(side);
             let (volume_before_ml, centre_before_mm) = closed_volume(&b.patch.mesh, &b.fill.mesh);
@@ -705,7 +705,7 @@ impl Simulation {
                 options.shift_mm,
             )
             .or_else(|error| {
-                let own = ChestCylinder::fit(&data.fill.positions, &frame);
+                let own = ChestCylinder::fit(&data.fill.positions, &frame.sternal());
                 ImplantBed::new(
                     side,
                     &data.fill,
@@ -1629,7 +1629,7 @@ impl Simulation {
         let base = moved(&self.base, &maps.base);
         let landmarks = self.landmarks();
         let params = FillInParams {
-            cylinder_axis: self.options.fill_in.cylinder_axis.or(Some(self.frame.up())),
+            cylinder_axis: (self.options.fill_in.cylinder_axis).or(Some(self.frame.sternum())),
             ..self.options.fill_in
         };
         let mut out = Vec::with_capacity(2);
@@ -1647,7 +1647,7 @@ impl Simulation {
             let quadrant_volume_ml = quadrant_volumes_ml(
                 &closed_soup(&patch, &fill.mesh),
                 &QuadrantLines::of_breast(side, &landmarks),
-                self.frame.anterior(),
+                self.frame.sternal().anterior(),
             )
             .ok();
             let moved_fill = moved(&data.fill, &maps.fills[s]);

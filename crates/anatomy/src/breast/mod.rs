@@ -364,8 +364,9 @@ pub enum BreastError {
 }
 
 /// Builds both breasts and the rear wall from a scan (mm) with its topology and spatial
-/// index, the anatomical frame and the landmarks (on the surface). See the module
-/// documentation for the steps.
+/// index, the standing frame and the landmarks (on the surface). See the module
+/// documentation for the steps. The model is built in the frame's body axes
+/// ([`AnatomicalFrame::sternal`]): it follows the thorax, not the way she stood.
 pub fn build_breast_model(
     scan: &TriMesh,
     topology: &Topology,
@@ -374,6 +375,7 @@ pub fn build_breast_model(
     landmarks: &Landmarks,
     options: &BreastOptions,
 ) -> Result<BreastModel, BreastError> {
+    let frame = &frame.sternal();
     if !(options.sample_spacing_mm > 0.0 && options.sample_spacing_mm.is_finite()) {
         return Err(BreastError::InvalidSampleSpacing(options.sample_spacing_mm));
     }

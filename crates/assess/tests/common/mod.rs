@@ -3,7 +3,7 @@
 // Each test file uses a part of it.
 #![allow(dead_code)]
 
-use anatomy::{AnatomicalFrame, BreastModel, BreastOptions, build_breast_model};
+use anatomy::{AnatomicalFrame, BreastModel, BreastOptions, Up, build_breast_model};
 use mesh::{SurfaceIndex, Topology};
 use phantom::{Phantom, PhantomParams};
 
@@ -23,12 +23,12 @@ pub fn marked_phantom(params: &PhantomParams) -> MarkedPhantom {
         SurfaceIndex::new(&phantom.scan).unwrap(),
         Topology::new(&phantom.scan),
     );
-    let frame = AnatomicalFrame::from_landmarks(&phantom.landmarks).unwrap();
+    let frame = AnatomicalFrame::from_landmarks(&phantom.landmarks, Up::FILE_VERTICAL).unwrap();
     let breasts = build_breast_model(
         &phantom.scan,
         &topology,
         &index,
-        &frame,
+        &frame.sternal(),
         &phantom.landmarks,
         &BreastOptions::default(),
     )

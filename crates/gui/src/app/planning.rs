@@ -271,6 +271,7 @@ impl GuiApp {
     /// The planning case of the window's state.
     fn case_of(&self, document: &Document) -> PlanningCase {
         let mut case = PlanningCase::new(document.source.clone(), document.landmarks.clone());
+        case.up = document.up;
         case.control_points = self.settings.control_points.clone();
         case.elements = self.settings.elements;
         case.tissue = self.settings.tissue;
@@ -780,6 +781,7 @@ impl GuiApp {
                 .map(|registered| PostoperativeScan {
                     scan: registered.scan_path.clone(),
                     landmarks: registered.landmarks_path.clone(),
+                    up: None,
                 });
         let Some(live) = &mut self.live else {
             ui.weak("Build the model and choose implants to measure the prediction.");

@@ -54,6 +54,7 @@ pub fn phantom() -> &'static Patient {
             Scan::from_mesh(phantom.scan.clone(), Path::new("phantom.ply")).unwrap(),
             phantom.landmarks.clone(),
             Path::new("phantom.json"),
+            None,
             &Silent,
         )
         .unwrap();
@@ -78,7 +79,7 @@ pub fn shared_scan(name: &str) -> Option<Patient> {
     if !scan.exists() || !landmarks.exists() {
         return None;
     }
-    let marked = MarkedScan::load(&scan, &landmarks, &Silent).unwrap();
+    let marked = MarkedScan::load(&scan, &landmarks, None, &Silent).unwrap();
     let options = ModelOptions {
         elements: ELEMENTS,
         ..Default::default()
