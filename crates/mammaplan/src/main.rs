@@ -282,6 +282,13 @@ enum Command {
         /// moved along the chest wall until the implant fits on the breast's base.
         #[arg(long, value_name = "RULE", default_value = "footprint-centre")]
         anchor: plan::simulate::AnchorRule,
+        /// Lower the left fold by this much (mm): the pocket reaches this far below the
+        /// native fold's lowest point (PSMFl).
+        #[arg(long, value_name = "MM", default_value_t = 0.0, value_parser = non_negative)]
+        lower_fold_left: f64,
+        /// Lower the right fold by this much (mm), as --lower-fold-left.
+        #[arg(long, value_name = "MM", default_value_t = 0.0, value_parser = non_negative)]
+        lower_fold_right: f64,
         /// The simulation folder (created if needed).
         #[arg(long, value_name = "SIM_DIR")]
         out: PathBuf,
@@ -556,6 +563,8 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             no_gravity,
             catalog,
             anchor,
+            lower_fold_left,
+            lower_fold_right,
             out,
             json,
         } => {
@@ -573,6 +582,10 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 no_gravity,
                 catalog,
                 anchor,
+                fold_lowering_mm: plan::model::PerSide {
+                    left: lower_fold_left,
+                    right: lower_fold_right,
+                },
             };
             let report = plan::simulate::simulate(&model, &out, &options, progress)?;
             progress.finish();

@@ -19,6 +19,7 @@
 use crate::measure::measure;
 use crate::model::{ModelOptions, PatientModel, PerSide, build_model, load_model};
 use crate::{Distance, MarkedScan, Progress, check_cancelled};
+use anatomy::Landmarks;
 use anatomy::breast::{ControlPoints, QuadrantVolumes, Side};
 use anyhow::{Context, Result};
 use glam::DVec3;
@@ -31,6 +32,7 @@ use std::time::Instant;
 use tetra::vtu::{CONSTRAINED, DISPLACEMENT, Field};
 
 pub use fem::Material;
+pub use simulation::pocket::PocketLimits;
 pub use simulation::{AnchorRule, CycleInfo, Placement, RunReport, SimulationOptions, Stage};
 
 /// An implant asked for on one side.
@@ -78,6 +80,8 @@ pub struct SimulateOptions {
     /// Where an implant's default position lies (centred on the breast's footprint, or
     /// straight behind the nipple); moves are relative to it.
     pub anchor: AnchorRule,
+    /// How far each pocket reaches below the native fold (mm, the planned lowering).
+    pub fold_lowering_mm: PerSide<f64>,
 }
 
 /// A patient's model ready for interactive simulation.
@@ -577,9 +581,63 @@ pub struct SimulateReport {
     pub no_gravity: bool,
     /// Where the implants' default positions lay (`footprint-centre`, `behind-nipple`).
     pub anchor: AnchorRule,
+    /// The pockets' limits (`null`: the paper's bed, the fill-in alone).
+    pub pocket: Option<PerSide<PocketReport>>,
+    /// Nipple to the fold's lowest point (PSMF), straight (mm): before, as planned (before
+    /// plus the fold lowering) and on the simulated scan (the landmark carried with the
+    /// tissue).
+    pub nipple_to_fold_mm: PerSide<NippleToFold>,
     pub materials: MaterialsReport,
     pub out_dir: PathBuf,
     pub files: Vec<String>,
+}
+
+/// A pocket's limits as `result.json` records them (see [`simulation::pocket`]).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct PocketReport {
+    /// Reach beyond the native breast's cut curve (mm, along the skin).
+    pub margin_mm: f64,
+    /// Distance kept from the sternal midline (mm).
+    pub midline_clearance_mm: f64,
+    /// Reach beyond the lateral end of the fold, towards the anterior axillary line (mm).
+    pub lateral_beyond_fold_mm: f64,
+    /// The planned fold lowering (mm).
+    pub fold_lowering_mm: f64,
+}
+
+impl From<&PocketLimits> for PocketReport {
+    fn from(limits: &PocketLimits) -> PocketReport {
+        PocketReport {
+            margin_mm: limits.margin_mm,
+            midline_clearance_mm: limits.midline_clearance_mm,
+            lateral_beyond_fold_mm: limits.lateral_beyond_fold_mm,
+            fold_lowering_mm: limits.fold_lowering_mm,
+        }
+    }
+}
+
+/// Nipple to fold distances of one side (mm, straight).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct NippleToFold {
+    pub before_mm: f64,
+    pub planned_mm: f64,
+    pub simulated_mm: f64,
+}
+
+impl NippleToFold {
+    fn new(side: Side, before: &Landmarks, after: &Landmarks, lowering_mm: f64) -> NippleToFold {
+        use anatomy::LandmarkName::{PSMFl, PSMFr, Pnl, Pnr};
+        let (nipple, fold) = match side {
+            Side::Left => (Pnl, PSMFl),
+            Side::Right => (Pnr, PSMFr),
+        };
+        let distance = |l: &Landmarks| l.get(nipple).distance(l.get(fold));
+        NippleToFold {
+            before_mm: distance(before),
+            planned_mm: distance(before) + lowering_mm,
+            simulated_mm: distance(after),
+        }
+    }
 }
 
 /// Runs the simulation of `model_dir` with `options` and writes the simulation folder.
@@ -595,8 +653,16 @@ pub fn simulate(
     );
     let catalog = crate::catalog::load(options.catalog.as_deref())?;
     let (marked, model) = load_model(model_dir, progress)?;
+    let limits = |lowering_mm: f64| PocketLimits {
+        fold_lowering_mm: lowering_mm,
+        ..PocketLimits::default()
+    };
     let simulation_options = SimulationOptions {
         anchor_rule: options.anchor,
+        pocket: Some([
+            limits(options.fold_lowering_mm.left),
+            limits(options.fold_lowering_mm.right),
+        ]),
         ..SimulationOptions::default()
     };
     let session = Session::new(marked, model, catalog, simulation_options)?;
@@ -726,6 +792,21 @@ pub fn write_simulation(
         solver: state.solver.clone(),
         no_gravity: state.no_gravity,
         anchor: session.simulation.options().anchor_rule,
+        pocket: session
+            .simulation
+            .options()
+            .pocket
+            .map(|limits| PerSide::from_fn(|side| PocketReport::from(&limits[side as usize]))),
+        nipple_to_fold_mm: PerSide::from_fn(|side| {
+            let lowering_mm = (session.simulation.options().pocket)
+                .map_or(0.0, |limits| limits[side as usize].fold_lowering_mm);
+            NippleToFold::new(
+                side,
+                &session.marked.landmarks,
+                &simulated.landmarks,
+                lowering_mm,
+            )
+        }),
         materials: MaterialsReport::new(session.simulation.options()),
         out_dir: out_dir.to_path_buf(),
         files,

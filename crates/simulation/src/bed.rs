@@ -284,23 +284,7 @@ impl ImplantBed {
         if fill.triangles.is_empty() || boundary_count < 3 {
             return Err(bad("it has no triangles".into()));
         }
-        let mut normals = fill.vertex_normals();
-        // orient towards the outside of the cylinder (anterior)
-        let outward: f64 = fill
-            .positions
-            .iter()
-            .zip(&normals)
-            .map(|(p, n)| n.dot(cylinder.radial(cylinder.to_cylindrical(*p).x)))
-            .sum();
-        if outward < 0.0 {
-            normals.iter_mut().for_each(|n| *n = -*n);
-        }
-        let positions: Vec<DVec3> = fill
-            .positions
-            .iter()
-            .zip(&normals)
-            .map(|(p, n)| *p - *n * shift_mm)
-            .collect();
+        let (normals, positions) = shifted_surface(fill, cylinder, shift_mm);
         let cyl: Vec<DVec3> = positions
             .iter()
             .map(|p| cylinder.to_cylindrical(*p))
@@ -308,16 +292,10 @@ impl ImplantBed {
         let uv: Vec<DVec2> = cyl.iter().map(|c| DVec2::new(c.x, c.y)).collect();
         let w: Vec<f64> = cyl.iter().map(|c| c.z).collect();
         // consistent orientation in (u, v): all triangles one way (a graph)
-        let signed: Vec<f64> = fill
-            .triangles
+        let flipped = folded_triangles(&uv, &fill.triangles)
             .iter()
-            .map(|t| {
-                let p = t.map(|v| uv[v as usize]);
-                (p[1] - p[0]).perp_dot(p[2] - p[0])
-            })
-            .collect();
-        let total: f64 = signed.iter().sum();
-        let flipped = signed.iter().filter(|&&a| a * total <= 0.0).count();
+            .filter(|&&f| f)
+            .count();
         if flipped * 20 > fill.triangles.len() {
             return Err(bad(format!(
                 "{flipped} of its {} triangles fold over seen from the body's axis",
@@ -478,17 +456,27 @@ impl ImplantBed {
         best.1
     }
 
+    /// The same bed shifted `shift_mm` behind its surface instead (the surface's
+    /// vertex normals are the bed's).
+    pub fn shifted(&self, shift_mm: f64) -> Result<ImplantBed, SimulationError> {
+        let surface = TriMesh::new(
+            (self.positions.iter().zip(&self.normals))
+                .map(|(p, n)| *p + *n * self.shift_mm)
+                .collect(),
+            self.triangles.clone(),
+        );
+        ImplantBed::new(
+            self.side,
+            &surface,
+            self.boundary.len(),
+            &self.cylinder,
+            shift_mm,
+        )
+    }
+
     /// Area centroid of the domain in `(u, v)`.
     pub fn centroid_uv(&self) -> DVec2 {
-        let mut sum = DVec2::ZERO;
-        let mut area = 0.0;
-        for t in &self.triangles {
-            let p = t.map(|v| self.uv[v as usize]);
-            let a = 0.5 * (p[1] - p[0]).perp_dot(p[2] - p[0]).abs();
-            sum += (p[0] + p[1] + p[2]) / 3.0 * a;
-            area += a;
-        }
-        sum / area
+        area_centroid(&self.uv, &self.triangles)
     }
 
     /// Area of the bed (mm², 3D).
@@ -501,4 +489,51 @@ impl ImplantBed {
             })
             .sum()
     }
+}
+
+/// The vertex normals of `surface` turned outwards (away from the cylinder's axis) and
+/// its vertices moved `shift_mm` back along them: the bed's normals and positions.
+pub fn shifted_surface(
+    surface: &TriMesh,
+    cylinder: &ChestCylinder,
+    shift_mm: f64,
+) -> (Vec<DVec3>, Vec<DVec3>) {
+    let mut normals = surface.vertex_normals();
+    let outward: f64 = (surface.positions.iter().zip(&normals))
+        .map(|(p, n)| n.dot(cylinder.radial(cylinder.to_cylindrical(*p).x)))
+        .sum();
+    if outward < 0.0 {
+        normals.iter_mut().for_each(|n| *n = -*n);
+    }
+    let positions = (surface.positions.iter().zip(&normals))
+        .map(|(p, n)| *p - *n * shift_mm)
+        .collect();
+    (normals, positions)
+}
+
+/// Per triangle: whether it turns against the majority in `(u, v)` (folds over seen
+/// from the cylinder's axis), or has no area there.
+pub fn folded_triangles(uv: &[DVec2], triangles: &[[u32; 3]]) -> Vec<bool> {
+    let signed: Vec<f64> = triangles
+        .iter()
+        .map(|t| {
+            let p = t.map(|v| uv[v as usize]);
+            (p[1] - p[0]).perp_dot(p[2] - p[0])
+        })
+        .collect();
+    let total: f64 = signed.iter().sum();
+    signed.iter().map(|&a| a * total <= 0.0).collect()
+}
+
+/// Area centroid of `triangles` over the 2D points `uv`.
+pub fn area_centroid(uv: &[DVec2], triangles: &[[u32; 3]]) -> DVec2 {
+    let mut sum = DVec2::ZERO;
+    let mut area = 0.0;
+    for t in triangles {
+        let p = t.map(|v| uv[v as usize]);
+        let a = 0.5 * (p[1] - p[0]).perp_dot(p[2] - p[0]).abs();
+        sum += (p[0] + p[1] + p[2]) / 3.0 * a;
+        area += a;
+    }
+    sum / area
 }

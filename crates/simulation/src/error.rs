@@ -7,11 +7,11 @@ use thiserror::Error;
 /// or measuring the result.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum SimulationError {
-    /// The implant's footprint does not fit on the fill-in behind the breast.
+    /// The implant's footprint does not fit on its bed (the pocket, or the fill-in).
     #[error(
         "{side} breast: the implant's footprint ({width_mm:.0} x {height_mm:.0} mm) does not fit \
-         on the fill-in behind the breast: its outline reaches {outside_mm:.1} mm beyond the \
-         cut curve near {near_mm:.0?} (anatomical frame, mm); choose a smaller implant or move it"
+         in the pocket behind the breast: its outline reaches {outside_mm:.1} mm beyond it \
+         near {near_mm:.0?} (standing frame, mm); choose a smaller implant or move it"
     )]
     ImplantLargerThanFootprint {
         side: Side,
@@ -24,6 +24,17 @@ pub enum SimulationError {
         outside_mm: f64,
         /// That point in the anatomical frame (mm, relative to Pj).
         near_mm: [f64; 3],
+    },
+    /// The implant reaches past one of its pocket's anatomical limits.
+    #[error(
+        "{side} breast: the implant reaches {beyond_mm:.0} mm past {limit}, which limits the \
+         pocket; choose a narrower implant or move it away from there"
+    )]
+    PocketLimit {
+        side: Side,
+        /// "the sternal midline region", "the anterior axillary line" or "the planned fold".
+        limit: &'static str,
+        beyond_mm: f64,
     },
     /// The anchor (after the moves) left the fill-in.
     #[error(

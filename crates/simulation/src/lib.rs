@@ -43,6 +43,7 @@ pub mod bed;
 pub mod error;
 pub mod field;
 pub mod placement;
+pub mod pocket;
 pub mod session;
 pub mod template;
 

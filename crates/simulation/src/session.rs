@@ -63,9 +63,10 @@ use crate::bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 use crate::error::SimulationError;
 use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap, SurfaceSmoother};
 use crate::placement::{Anchor, AnchorRule, Placement, resolve_anchor};
+use crate::pocket::{PocketBounds, PocketLimits, pocket_surface};
 use crate::template::{
-    BedFeet, ImplantTemplate, SmoothedThickness, TemplateIndex, TemplateRules, build_template,
-    check_footprint, fit_footprint,
+    BedFeet, ImplantTemplate, SideCandidates, SmoothedThickness, TemplateIndex, TemplateRules,
+    build_template, check_footprint, fit_footprint,
 };
 use anatomy::breast::{
     BreastModel, ControlPoints, QuadrantLines, QuadrantVolumes, Side, quadrant_volumes_ml,
@@ -150,6 +151,10 @@ pub struct SimulationOptions {
     pub shift_mm: f64,
     /// Where the default anchor lies.
     pub anchor_rule: AnchorRule,
+    /// The pocket the implant may lie in ([`crate::pocket`]): the fill-in widened over
+    /// the chest within anatomical limits, per side `[left, right]` (the fold lowering
+    /// may differ). `None`: the paper's bed, the fill-in alone.
+    pub pocket: Option<[PocketLimits; 2]>,
     /// Move an implant whose footprint overhangs the bed at the requested anchor to the
     /// nearest anchor where it fits ([`crate::template::fit_footprint`]; the move is
     /// reported as [`PlacedImplant::fit_shift_mm`]) instead of refusing it.
@@ -230,6 +235,7 @@ impl Default for SimulationOptions {
         SimulationOptions {
             shift_mm: DEFAULT_SHIFT_MM,
             anchor_rule: AnchorRule::default(),
+            pocket: Some([PocketLimits::default(); 2]),
             fit_footprint: true,
             hold_bed: true,
             rim_smoothing_mm: None,
@@ -355,6 +361,43 @@ pub struct BreastVolume {
     pub quadrant_volume_ml: Option<QuadrantVolumes>,
 }
 
+/// What [`Simulation::fit_on`] found: bed, feet, pocket bounds, requested and fitted
+/// anchor.
+type FittedOn = (ImplantBed, BedFeet, Option<PocketBounds>, Anchor, Anchor);
+
+/// An implant that does not fit its pocket because it reaches past one of the pocket's
+/// anatomical limits gets the error naming that limit; other errors pass.
+fn pocket_limit_error(
+    side: Side,
+    bounds: Option<&PocketBounds>,
+    error: SimulationError,
+) -> SimulationError {
+    let (SimulationError::ImplantLargerThanFootprint { near_mm, .. }, Some(bounds)) =
+        (&error, bounds)
+    else {
+        return error;
+    };
+    match bounds.violation(DVec3::from_array(*near_mm)) {
+        Some((limit, beyond_mm)) => SimulationError::PocketLimit {
+            side,
+            limit,
+            beyond_mm,
+        },
+        None => error,
+    }
+}
+
+/// A bed an implant may lie on, with the template candidates' feet on it.
+#[derive(Debug, Clone)]
+struct BedChoice {
+    bed: ImplantBed,
+    /// The template's candidate vertices over this bed.
+    candidates: SideCandidates,
+    feet: BedFeet,
+    /// The pocket's limits (`None`: the fill-in's bed).
+    bounds: Option<PocketBounds>,
+}
+
 /// Per-side data of the session.
 #[derive(Debug, Clone)]
 struct SideData {
@@ -396,7 +439,13 @@ pub struct Simulation {
     cylinder: ChestCylinder,
     sides: [SideData; 2],
     beds: [ImplantBed; 2],
-    index: TemplateIndex,
+    /// Each side's beds to try, in order: the fill-in's and the pocket's (the pocket's
+    /// first where the fold is lowered); `beds` holds the one the implant lies on.
+    bed_choices: [Vec<BedChoice>; 2],
+    /// Which of `bed_choices` each side's current implant lies on.
+    current_choice: [usize; 2],
+    /// The limits of the pocket the current implant lies in, if it lies in one.
+    pocket_bounds: [Option<PocketBounds>; 2],
     /// The template candidates' feet on each side's current bed.
     feet: [BedFeet; 2],
     /// Posterior wall and band vertices of the finest level.
@@ -695,28 +744,52 @@ impl Simulation {
         });
         // the chest-wide cylinder, or where the fill-in folds over seen from its axis
         // (a steep lateral fill-in), one fitted to that fill-in alone
-        let bed_of = |side: Side| -> Result<ImplantBed, SimulationError> {
+        let bed_over = |side: Side, surface: &TriMesh, boundary_count: usize| {
             let data = &sides[side as usize];
-            ImplantBed::new(
+            ImplantBed::new(side, surface, boundary_count, &cylinder, options.shift_mm).or_else(
+                |error| {
+                    let own = ChestCylinder::fit(&data.fill.positions, &frame.sternal());
+                    ImplantBed::new(side, surface, boundary_count, &own, options.shift_mm)
+                        .map_err(|_| error)
+                },
+            )
+        };
+        let pockets = Side::BOTH.map(|side| {
+            let limits = options.pocket?[side as usize];
+            let bounds = PocketBounds::new(side, &frame, input.landmarks, &limits);
+            let surface = pocket_surface(
+                &input.breasts.base.mesh,
+                &input.breasts.breast(side).fill,
+                &frame,
+                &bounds,
+                Some(&closed.clip_box),
+                limits.margin_mm,
+            )?;
+            Some((bounds, surface))
+        });
+        // the fill-in's bed, and the pocket's where it can carry an implant (a graph
+        // over the same cylinder once its folding chest triangles are dropped)
+        let fill_bed_of = |side: Side| {
+            let data = &sides[side as usize];
+            bed_over(side, &data.fill, data.boundary_count)
+        };
+        let beds = [fill_bed_of(Side::Left)?, fill_bed_of(Side::Right)?];
+        let pocket_beds = Side::BOTH.map(|side| {
+            let (bounds, pocket) = pockets[side as usize].as_ref()?;
+            let fill_bed = &beds[side as usize];
+            let pocket = pocket
+                .clone()
+                .without_folds(&fill_bed.cylinder, options.shift_mm)?;
+            let bed = ImplantBed::new(
                 side,
-                &data.fill,
-                data.boundary_count,
-                &cylinder,
+                &pocket.mesh,
+                pocket.boundary_count,
+                &fill_bed.cylinder,
                 options.shift_mm,
             )
-            .or_else(|error| {
-                let own = ChestCylinder::fit(&data.fill.positions, &frame.sternal());
-                ImplantBed::new(
-                    side,
-                    &data.fill,
-                    data.boundary_count,
-                    &own,
-                    options.shift_mm,
-                )
-                .map_err(|_| error)
-            })
-        };
-        let beds = [bed_of(Side::Left)?, bed_of(Side::Right)?];
+            .ok()?;
+            Some((bed, *bounds))
+        });
         let mut sides = sides;
         for side in Side::BOTH {
             let bed = &beds[side as usize];
@@ -740,6 +813,17 @@ impl Simulation {
                     ),
                 });
             }
+            // a lowered fold takes the implant down with it, over the pocket
+            let lowering_mm = options
+                .pocket
+                .map_or(0.0, |l| l[side as usize].fold_lowering_mm);
+            let uv = match &pocket_beds[side as usize] {
+                Some((pocket, _)) if lowering_mm > 0.0 => {
+                    let down = Placement::moved(0.0, -lowering_mm, 0.0);
+                    resolve_anchor(pocket, &frame, uv, &down)?.uv
+                }
+                _ => uv,
+            };
             sides[side as usize].default_uv = uv;
         }
 
@@ -752,12 +836,22 @@ impl Simulation {
                 })
             })
             .fold(0.0, f64::max);
-        let index = TemplateIndex::new(
-            &finest,
-            [&beds[0], &beds[1]],
+        let (back_mm, front_mm) = (
             closed.rear_wall_offset_mm + 2.0 * max_edge,
             MAX_FORWARD_SHIFT_MM + options.shift_mm.max(0.0) + 2.0 * max_edge,
         );
+        // candidates over the fill-in's bed (the paper's), and over each pocket
+        let [fill_left, fill_right] =
+            TemplateIndex::new(&finest, [&beds[0], &beds[1]], back_mm, front_mm).sides;
+
+        let pocket_candidates = pocket_beds.each_ref().map(|pocket| {
+            let (bed, _) = pocket.as_ref()?;
+            let [left, right] = TemplateIndex::new(&finest, [bed, bed], back_mm, front_mm).sides;
+            Some(match bed.side {
+                Side::Left => left,
+                Side::Right => right,
+            })
+        });
         // the band is held except where a clip plane cuts through breast tissue in front
         // of an implant bed
         let held = |mesh: &TetMesh, spacing: f64| -> Result<Vec<u32>, SimulationError> {
@@ -812,7 +906,42 @@ impl Simulation {
             .map(|points| ScanFeet::locate(input.scan, &scan_index, points.iter().copied()));
         let n = finest.positions.len();
         let (neighbour_ptr, neighbours) = vertex_neighbours(&finest);
+        let [pocket_left, pocket_right] = pocket_candidates;
+        let sides_candidates = [
+            (Side::Left, fill_left, pocket_left),
+            (Side::Right, fill_right, pocket_right),
+        ];
+        let bed_choices = sides_candidates.map(|(side, candidates, pocket_candidates)| {
+            let s = side as usize;
+            let fill = BedChoice {
+                feet: candidates.feet(&beds[s]),
+                candidates,
+                bed: beds[s].clone(),
+                bounds: None,
+            };
+            let pocket = (pocket_beds[s].as_ref()).zip(pocket_candidates).map(
+                |((bed, bounds), candidates)| BedChoice {
+                    feet: candidates.feet(bed),
+                    candidates,
+                    bed: bed.clone(),
+                    bounds: Some(*bounds),
+                },
+            );
+            let lowered = options.pocket.is_some_and(|l| l[s].fold_lowering_mm > 0.0);
+            match pocket {
+                Some(pocket) if lowered => vec![pocket, fill],
+                Some(pocket) => vec![fill, pocket],
+                None => vec![fill],
+            }
+        });
         Ok(Simulation {
+            current_choice: [0, 0],
+            pocket_bounds: bed_choices.each_ref().map(|choices| choices[0].bounds),
+            feet: bed_choices
+                .each_ref()
+                .map(|choices| choices[0].feet.clone()),
+            beds: bed_choices.each_ref().map(|choices| choices[0].bed.clone()),
+            bed_choices,
             coarse_walls,
             coarse_operator: options.multigrid.coarse_operator,
             coarse_fallbacks: 0,
@@ -824,9 +953,6 @@ impl Simulation {
             rear_wall_offset_mm: closed.rear_wall_offset_mm,
             cylinder,
             sides,
-            feet: Side::BOTH.map(|side| index.side(side).feet(&beds[side as usize])),
-            beds,
-            index,
             wall,
             on_wall,
             implants: [None, None],
@@ -938,31 +1064,18 @@ impl Simulation {
                 ),
             });
         }
-        let new_bed = if self.beds[s].shift_mm == shift {
-            None
-        } else {
-            let data = &self.sides[s];
-            let bed = ImplantBed::new(
-                side,
-                &data.fill,
-                data.boundary_count,
-                &self.beds[s].cylinder,
-                shift,
-            )?;
-            let feet = self.index.side(side).feet(&bed);
-            Some((bed, feet))
-        };
-        let (bed, feet) = match &new_bed {
-            Some((bed, feet)) => (bed, feet),
-            None => (&self.beds[s], &self.feet[s]),
-        };
-        let requested = resolve_anchor(bed, &self.frame, self.sides[s].default_uv, &placement)?;
-        let anchor = if self.options.fit_footprint {
-            fit_footprint(bed, &self.frame, requested, placement.rotation_deg, &shape)?
-        } else {
-            check_footprint(bed, &requested, &shape, &self.frame)?;
-            requested
-        };
+        // the fill-in's bed first, then the pocket's (or the other way round where the
+        // fold is lowered): the first on which the implant fits
+        let mut outcome = Err(SimulationError::BadModel("no bed".into()));
+        let mut chosen = 0;
+        for (k, choice) in self.bed_choices[s].iter().enumerate() {
+            outcome = self.fit_on(side, choice, shift, &shape, &placement);
+            chosen = k;
+            if matches!(outcome, Ok(_) | Err(SimulationError::PocketLimit { .. })) {
+                break;
+            }
+        }
+        let (bed, feet, bounds, requested, anchor) = outcome?;
         let radius = self
             .options
             .rim_smoothing_mm
@@ -974,8 +1087,8 @@ impl Simulation {
         let thickness = SmoothedThickness::new(shape, radius);
         let template = build_template(
             &self.finest,
-            self.index.side(side),
-            feet,
+            &self.bed_choices[s][chosen].candidates,
+            &feet,
             &anchor,
             &thickness,
             &TemplateRules {
@@ -984,10 +1097,10 @@ impl Simulation {
                 on_wall: &self.on_wall,
             },
         )?;
-        if let Some((bed, feet)) = new_bed {
-            self.beds[s] = bed;
-            self.feet[s] = feet;
-        }
+        self.beds[s] = bed;
+        self.feet[s] = feet;
+        self.pocket_bounds[s] = bounds;
+        self.current_choice[s] = chosen;
         self.implants[s] = Some(PlacedImplant {
             shape,
             placement,
@@ -1613,6 +1726,46 @@ impl Simulation {
             self.mesh_maps = Some(maps);
         }
         self.mesh_maps.as_ref().expect("just built")
+    }
+
+    /// The implant placed on `choice`'s bed shifted `shift` mm back: the bed and feet
+    /// used, the pocket's bounds, the requested and the fitted anchor.
+    ///
+    /// Errors: as [`Simulation::set_implant`]; a move the user asked for that takes the
+    /// implant past an anatomical limit of the pocket is [`SimulationError::PocketLimit`]
+    /// (not undone by the fit).
+    fn fit_on(
+        &self,
+        side: Side,
+        choice: &BedChoice,
+        shift: f64,
+        shape: &ImplantShape,
+        placement: &Placement,
+    ) -> Result<FittedOn, SimulationError> {
+        let (bed, feet) = if choice.bed.shift_mm == shift {
+            (choice.bed.clone(), choice.feet.clone())
+        } else {
+            let bed = choice.bed.shifted(shift)?;
+            let feet = choice.candidates.feet(&bed);
+            (bed, feet)
+        };
+        let limit_error = |error| pocket_limit_error(side, choice.bounds.as_ref(), error);
+        let default_uv = self.sides[side as usize].default_uv;
+        let requested = resolve_anchor(&bed, &self.frame, default_uv, placement)?;
+        let moved = placement.move_mm.truncate() != glam::DVec2::ZERO;
+        if moved
+            && let Err(error) = check_footprint(&bed, &requested, shape, &self.frame)
+            && let limit @ SimulationError::PocketLimit { .. } = limit_error(error)
+        {
+            return Err(limit);
+        }
+        let anchor = if self.options.fit_footprint {
+            fit_footprint(&bed, &self.frame, requested, placement.rotation_deg, shape)
+        } else {
+            check_footprint(&bed, &requested, shape, &self.frame).map(|()| requested)
+        }
+        .map_err(limit_error)?;
+        Ok((bed, feet, choice.bounds, requested, anchor))
     }
 
     /// The breast volumes after the simulation (see [`BreastVolume`]). The first call
