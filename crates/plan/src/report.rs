@@ -553,6 +553,11 @@ pub fn report_content(
             tissue: material(&simulation.materials.tissue),
             implant_material: material(&simulation.materials.implant),
             gravity_correction: !simulation.no_gravity,
+            up: model.up.as_ref().map_or_else(
+                || "the file's +y (a model folder from before the standing frame)".to_string(),
+                up_in_words,
+            ),
+            pocket: simulation.pocket.as_ref().map(pocket_in_words),
             solver: report::SolverSummary {
                 vcycles: simulation.solver.vcycles,
                 relative_residual: simulation.solver.relative_residual,
@@ -584,6 +589,35 @@ pub fn report_content(
     })
 }
 
+/// Which way was up, in words.
+fn up_in_words(up: &crate::UpRecord) -> String {
+    let [x, y, z] = up.direction;
+    let source = match up.source {
+        crate::UpSourceName::File => "the file's +y",
+        crate::UpSourceName::Given => "given",
+        crate::UpSourceName::Estimated => "estimated from the sternum",
+    };
+    format!(
+        "({x:.3}, {y:.3}, {z:.3}) in the scan's file, {source}; the sternum leans {:.1}° back from it",
+        up.sternum_lean_deg
+    )
+}
+
+/// A pocket's limits, in words.
+fn pocket_in_words(pocket: &PerSide<crate::simulate::PocketReport>) -> String {
+    let left = &pocket.left;
+    format!(
+        "where the implant does not fit on the fill-in: the fill-in widened up to {:.0} mm over \
+         the chest, {:.0} mm from the midline, {:.0} mm beyond the fold's lateral end; fold \
+         lowered {:.0} mm left, {:.0} mm right",
+        left.margin_mm,
+        left.midline_clearance_mm,
+        left.lateral_beyond_fold_mm,
+        left.fold_lowering_mm,
+        pocket.right.fold_lowering_mm
+    )
+}
+
 /// What the report reads back from `result.json`.
 #[derive(Debug, Deserialize)]
 struct SimulationRecord {
@@ -599,6 +633,9 @@ struct SimulationRecord {
     /// Absent from folders written before it existed: the only rule then.
     #[serde(default)]
     anchor: AnchorRule,
+    /// Absent from folders written before it existed (no pocket then).
+    #[serde(default)]
+    pocket: Option<PerSide<crate::simulate::PocketReport>>,
     materials: MaterialsReport,
 }
 

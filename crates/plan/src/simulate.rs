@@ -593,7 +593,7 @@ pub struct SimulateReport {
 }
 
 /// A pocket's limits as `result.json` records them (see [`simulation::pocket`]).
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 pub struct PocketReport {
     /// Reach beyond the native breast's cut curve (mm, along the skin).
     pub margin_mm: f64,

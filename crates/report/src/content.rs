@@ -76,6 +76,10 @@ pub struct ModelParameters {
     pub implant_material: MaterialParameters,
     /// Whether the weight of the implant was simulated (paper V-B).
     pub gravity_correction: bool,
+    /// Which way was up in the scan (the direction gravity acts against), in words.
+    pub up: String,
+    /// The pocket's limits in words; `None`: the implant bed was the fill-in alone.
+    pub pocket: Option<String>,
     /// How the solve ended.
     pub solver: SolverSummary,
 }

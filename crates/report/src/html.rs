@@ -94,6 +94,10 @@ fn case_section(case: &CaseInfo) -> Markup {
                         th scope="row" { "Weight of the implant (gravity)" }
                         td { @if model.gravity_correction { "simulated" } @else { "not simulated" } }
                     }
+                    tr { th scope="row" { "Up (against gravity)" } td { (model.up) } }
+                    @if let Some(pocket) = &model.pocket {
+                        tr { th scope="row" { "Pocket" } td { (pocket) } }
+                    }
                     tr {
                         th scope="row" { "Solver" }
                         td {

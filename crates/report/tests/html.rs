@@ -88,6 +88,8 @@ fn minimal_content() -> ReportContent {
                     density_kg_m3: 970.0,
                 },
                 gravity_correction: true,
+                up: "the file's +y; the sternum leans 26.8° back from it".into(),
+                pocket: Some("the fill-in widened up to 40 mm over the chest".into()),
                 solver: SolverSummary {
                     vcycles: 23,
                     relative_residual: 3.1e-5,
@@ -293,6 +295,7 @@ fn a_full_report_is_well_formed_with_every_section() {
     );
     // Differences: 247.45 - 230.04 = 17.41 and 245.0 - 247.45 = -2.45, to one decimal.
     assert!(page.contains("+17.4"), "simulated change");
+    assert!(page.contains("the sternum leans 26.8° back") && page.contains("widened up to 40 mm"));
     assert!(
         page.contains("\u{2212}2.5") || page.contains("\u{2212}2.4"),
         "post-op difference"
