@@ -1435,23 +1435,12 @@ fn largest_piece(positions: &[DVec3], triangles: &[[u32; 3]]) -> (Vec<DVec3>, Ve
         sizes[c as usize] += 1;
     }
     let largest = (0..count).max_by_key(|&c| sizes[c]).unwrap_or(0) as u32;
-    let mut new_index = vec![u32::MAX; positions.len()];
-    let mut kept_positions = Vec::new();
-    let kept_triangles = triangles
-        .iter()
-        .zip(&component)
+    let kept: Vec<[u32; 3]> = (triangles.iter().zip(&component))
         .filter(|&(_, &c)| c == largest)
-        .map(|(tri, _)| {
-            tri.map(|v| {
-                if new_index[v as usize] == u32::MAX {
-                    new_index[v as usize] = kept_positions.len() as u32;
-                    kept_positions.push(positions[v as usize]);
-                }
-                new_index[v as usize]
-            })
-        })
+        .map(|(tri, _)| *tri)
         .collect();
-    (kept_positions, kept_triangles)
+    let piece = TriMesh::from_used_vertices(positions, &kept);
+    (piece.positions, piece.triangles)
 }
 
 /// Names of the planes in [`ClipBox::planes`] order, for messages.

@@ -49,6 +49,26 @@ impl TriMesh {
         }
     }
 
+    /// The mesh of `triangles` (indices into `positions`) with the vertices no triangle
+    /// uses dropped and the rest renumbered in order of first use.
+    pub fn from_used_vertices(positions: &[DVec3], triangles: &[[u32; 3]]) -> TriMesh {
+        let mut index = vec![u32::MAX; positions.len()];
+        let mut kept = Vec::new();
+        let triangles = triangles
+            .iter()
+            .map(|t| {
+                t.map(|v| {
+                    if index[v as usize] == u32::MAX {
+                        index[v as usize] = kept.len() as u32;
+                        kept.push(positions[v as usize]);
+                    }
+                    index[v as usize]
+                })
+            })
+            .collect();
+        TriMesh::new(kept, triangles)
+    }
+
     /// Number of vertices.
     pub fn vertex_count(&self) -> usize {
         self.positions.len()
@@ -201,6 +221,15 @@ mod tests {
             vec![DVec3::ZERO, DVec3::X, DVec3::new(1.0, 1.0, 0.0), DVec3::Y],
             vec![[0, 1, 2], [0, 2, 3]],
         )
+    }
+
+    #[test]
+    fn unused_vertices_are_dropped_and_the_rest_renumbered_in_order_of_use() {
+        let positions: Vec<DVec3> = (0..5).map(|i| DVec3::new(i as f64, 0.0, 0.0)).collect();
+        let mesh = TriMesh::from_used_vertices(&positions, &[[4, 2, 3], [3, 2, 0]]);
+        assert_eq!(mesh.triangles, vec![[0, 1, 2], [2, 1, 3]]);
+        let xs: Vec<f64> = mesh.positions.iter().map(|p| p.x).collect();
+        assert_eq!(xs, vec![4.0, 2.0, 3.0, 0.0]);
     }
 
     #[test]

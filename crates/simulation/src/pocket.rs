@@ -198,7 +198,7 @@ fn connected_with_fill(
     triangles: &[[u32; 3]],
     from_fill: &[bool],
 ) -> Option<PocketSurface> {
-    let candidate = compact(positions, triangles);
+    let candidate = TriMesh::from_used_vertices(positions, triangles);
     let (component, _) = Topology::new(&candidate).triangle_components();
     let fill_component = component[from_fill.iter().position(|&f| f)?];
     let (kept, kept_from_fill): (Vec<[u32; 3]>, Vec<bool>) = (candidate.triangles.iter())
@@ -207,7 +207,7 @@ fn connected_with_fill(
         .filter(|&((_, &c), _)| c == fill_component)
         .map(|((t, _), &f)| (*t, f))
         .unzip();
-    let piece = compact(&candidate.positions, &kept);
+    let piece = TriMesh::from_used_vertices(&candidate.positions, &kept);
     let loops = Topology::new(&piece).boundary_loops(&piece);
     let outer = loops
         .into_iter()
@@ -268,25 +268,6 @@ impl Ord for OrderedMm {
     fn cmp(&self, other: &Self) -> std::cmp::Ordering {
         self.0.total_cmp(&other.0)
     }
-}
-
-/// The mesh of `triangles` over `positions` with unused vertices dropped.
-fn compact(positions: &[DVec3], triangles: &[[u32; 3]]) -> TriMesh {
-    let mut index = vec![u32::MAX; positions.len()];
-    let mut kept = Vec::new();
-    let triangles = triangles
-        .iter()
-        .map(|t| {
-            t.map(|v| {
-                if index[v as usize] == u32::MAX {
-                    index[v as usize] = kept.len() as u32;
-                    kept.push(positions[v as usize]);
-                }
-                index[v as usize]
-            })
-        })
-        .collect();
-    TriMesh::new(kept, triangles)
 }
 
 fn perimeter(positions: &[DVec3], boundary: &[u32]) -> f64 {
@@ -378,7 +359,7 @@ mod tests {
             .collect();
         let base = TriMesh::new(grid.positions.clone(), base_triangles);
         // the fill-in with its boundary first: the 8 vertices round the middle square
-        let fill_piece = compact(&grid.positions, &fill_triangles);
+        let fill_piece = TriMesh::from_used_vertices(&grid.positions, &fill_triangles);
         let loops = Topology::new(&fill_piece).boundary_loops(&fill_piece);
         let (ordered, boundary_count) = boundary_first(&fill_piece, &loops[0]);
         let boundary_to_base = ordered.positions[..boundary_count]
