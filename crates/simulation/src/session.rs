@@ -442,8 +442,6 @@ pub struct Simulation {
     /// Each side's beds to try, in order: the fill-in's and the pocket's (the pocket's
     /// first where the fold is lowered); `beds` holds the one the implant lies on.
     bed_choices: [Vec<BedChoice>; 2],
-    /// Which of `bed_choices` each side's current implant lies on.
-    current_choice: [usize; 2],
     /// The limits of the pocket the current implant lies in, if it lies in one.
     pocket_bounds: [Option<PocketBounds>; 2],
     /// The template candidates' feet on each side's current bed.
@@ -935,7 +933,6 @@ impl Simulation {
             }
         });
         Ok(Simulation {
-            current_choice: [0, 0],
             pocket_bounds: bed_choices.each_ref().map(|choices| choices[0].bounds),
             feet: bed_choices
                 .each_ref()
@@ -1100,7 +1097,6 @@ impl Simulation {
         self.beds[s] = bed;
         self.feet[s] = feet;
         self.pocket_bounds[s] = bounds;
-        self.current_choice[s] = chosen;
         self.implants[s] = Some(PlacedImplant {
             shape,
             placement,
