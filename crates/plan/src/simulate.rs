@@ -147,6 +147,9 @@ pub struct SimulatedBreasts {
     pub volume_ml: PerSide<f64>,
     /// The quadrants of `volume_ml` (ml; `None` where undefined).
     pub quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,
+    /// Where `volume_ml` stands on the pre-operative fill-in joined to the moved cut
+    /// curve, because no fill-in could be rebuilt on it.
+    pub on_preoperative_fill: PerSide<bool>,
 }
 
 /// One clinical distance before and after (mm).
@@ -338,6 +341,7 @@ impl Session {
     pub fn breast_volumes(&mut self) -> Result<SimulatedBreasts> {
         let volumes = self.simulation.breast_volumes()?;
         Ok(SimulatedBreasts {
+            on_preoperative_fill: PerSide::from_fn(|side| !volumes[side as usize].rebuilt_fill),
             volume_before_ml: PerSide::from_fn(|side| volumes[side as usize].volume_before_ml),
             volume_ml: PerSide::from_fn(|side| volumes[side as usize].volume_ml),
             quadrant_volume_ml: PerSide::from_fn(|side| volumes[side as usize].quadrant_volume_ml),
@@ -570,6 +574,9 @@ pub struct SimulateReport {
     pub breast_volume_ml: PerSide<f64>,
     /// Breast volumes of the model before (ml).
     pub breast_volume_before_ml: PerSide<f64>,
+    /// Per side: `breast_volume_ml` stands on the pre-operative fill-in joined to the
+    /// moved cut curve (no fill-in could be rebuilt on it), not on a rebuilt one.
+    pub breast_volume_on_preoperative_fill: PerSide<bool>,
     /// Quadrant volumes of the simulated breasts (ml; `null` where the moved landmarks
     /// no longer bound quadrants).
     pub quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,
@@ -748,6 +755,13 @@ pub fn write_simulation(
 ) -> Result<SimulateReport> {
     let breasts = session.breast_volumes()?;
     for side in Side::BOTH {
+        if *breasts.on_preoperative_fill.get(side) {
+            progress.warn(&format!(
+                "{side} breast: the implant reaches beyond the native breast (it lies in the \
+                 pocket, or the moved cut curve folds), so its volume is measured over the \
+                 pre-operative fill-in joined to the moved curve, not over a rebuilt one"
+            ));
+        }
         if breasts.quadrant_volume_ml.get(side).is_none() {
             progress.warn(&format!(
                 "{side} breast: no quadrant volumes on the simulated scan: the moved lines from \
@@ -787,6 +801,7 @@ pub fn write_simulation(
         implants: state.implants.clone(),
         breast_volume_ml: breasts.volume_ml,
         breast_volume_before_ml: breasts.volume_before_ml,
+        breast_volume_on_preoperative_fill: breasts.on_preoperative_fill,
         quadrant_volume_ml: breasts.quadrant_volume_ml,
         distances,
         solver: state.solver.clone(),

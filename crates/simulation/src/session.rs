@@ -346,6 +346,10 @@ pub struct BreastVolume {
     /// the model's fill-in method (ml): the same measurement as on a real post-operative
     /// scan.
     pub volume_ml: f64,
+    /// Whether `volume_ml` stands on a rebuilt fill-in; `false`: on the pre-operative
+    /// fill-in joined to the moved cut curve by a strip (the curve folded seen from
+    /// every projection the fill-in method tries).
+    pub rebuilt_fill: bool,
     /// After, closed by the fill-in moved with the tissue instead (ml). The fill-in lies
     /// in front of the bed, so the implant pushes it forwards with the breast: this
     /// volume barely grows (a diagnostic, not the clinical figure).
@@ -588,6 +592,28 @@ fn closed_volume(patch: &TriMesh, fill: &TriMesh) -> (f64, DVec3) {
     let (vf, mf) = volume_and_moment(fill, origin);
     let v = vp - vf;
     (v / 1000.0, origin + (mp - mf) / v)
+}
+
+/// `fill` (its first `rim.len()` vertices its boundary loop) with a strip of triangles
+/// from that loop to `rim` (as many points, in the same order), oriented as `fill`: a
+/// surface whose boundary is `rim`.
+fn with_rim(fill: &TriMesh, rim: &[DVec3]) -> TriMesh {
+    let n = rim.len() as u32;
+    let first_rim = fill.positions.len() as u32;
+    // whether the fill runs along its loop 0 -> 1 (else 1 -> 0)
+    let forward = fill
+        .triangles
+        .iter()
+        .any(|t| (0..3).any(|k| t[k] == 0 && t[(k + 1) % 3] == 1));
+    let mut triangles = fill.triangles.clone();
+    for i in 0..n {
+        let j = (i + 1) % n;
+        let (o_i, o_j, m_i, m_j) = (i, j, first_rim + i, first_rim + j);
+        let quad = [[o_j, o_i, m_i], [o_j, m_i, m_j]];
+        triangles.extend(quad.map(|[a, b, c]| if forward { [a, b, c] } else { [a, c, b] }));
+    }
+    let positions = fill.positions.iter().chain(rim).copied().collect();
+    TriMesh::new(positions, triangles)
 }
 
 /// The breast closed by a fill-in as one outward triangle soup: `patch` and the reversed
@@ -1786,15 +1812,26 @@ impl Simulation {
             let s = side as usize;
             let data = &self.sides[s];
             let patch = moved(&data.patch, &maps.patches[s]);
-            let fill = fill_hole(&base, &data.base_loop, &params).map_err(|e| {
-                SimulationError::Volume {
-                    side,
-                    reason: format!("rebuilding the fill-in: {e}"),
+            // An implant in the pocket lies partly beyond the native breast and pushes the
+            // cut curve itself forward: a fill-in rebuilt on it would rise with it (or
+            // the curve folds seen from every plane and cylinder). There, and wherever
+            // the rebuild fails, the pre-operative fill-in, which the implant does not
+            // move (the chest wall), joined to the moved curve by a strip.
+            let moved_loop: Vec<DVec3> = (data.base_loop.iter())
+                .map(|&v| base.positions[v as usize])
+                .collect();
+            let over_chest_wall = || (with_rim(&data.fill, &moved_loop), false);
+            let (fill, rebuilt_fill) = if self.pocket_bounds[s].is_some() {
+                over_chest_wall()
+            } else {
+                match fill_hole(&base, &data.base_loop, &params) {
+                    Ok(fill) => (fill.mesh, true),
+                    Err(_) => over_chest_wall(),
                 }
-            })?;
-            let (volume_ml, centre_mm) = closed_volume(&patch, &fill.mesh);
+            };
+            let (volume_ml, centre_mm) = closed_volume(&patch, &fill);
             let quadrant_volume_ml = quadrant_volumes_ml(
-                &closed_soup(&patch, &fill.mesh),
+                &closed_soup(&patch, &fill),
                 &QuadrantLines::of_breast(side, &landmarks),
                 self.frame.sternal().anterior(),
             )
@@ -1804,6 +1841,7 @@ impl Simulation {
             out.push(BreastVolume {
                 volume_before_ml: data.volume_before_ml,
                 volume_ml,
+                rebuilt_fill,
                 volume_moved_fill_ml,
                 centre_before_mm: data.centre_before_mm,
                 centre_mm,
@@ -1879,6 +1917,35 @@ fn wall_vertices(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_fill_with_a_rim_closes_a_box_of_known_volume() {
+        // The bottom of a 20 x 10 mm box (the fill, its loop's four corners first, facing
+        // +z like the skin) and its top 7 mm higher (the patch, facing +z): joined by the
+        // strip, the closed volume is the box's, 1.4 ml, whichever way the fill runs.
+        let corners = [
+            DVec3::ZERO,
+            DVec3::new(20.0, 0.0, 0.0),
+            DVec3::new(20.0, 10.0, 0.0),
+            DVec3::new(0.0, 10.0, 0.0),
+        ];
+        let lift = DVec3::new(0.0, 0.0, 7.0);
+        let top = corners.map(|p| p + lift);
+        let patch = TriMesh::new(top.to_vec(), vec![[0, 1, 2], [0, 2, 3]]);
+        let fill = TriMesh::new(corners.to_vec(), vec![[0, 1, 2], [0, 2, 3]]);
+        let (volume_ml, centre) = closed_volume(&patch, &with_rim(&fill, &top));
+        assert!((volume_ml - 1.4).abs() < 1e-12, "{volume_ml}");
+        assert!(
+            centre.distance(DVec3::new(10.0, 5.0, 3.5)) < 1e-9,
+            "{centre}"
+        );
+        // The loop numbered the other way round (the fill runs 1 -> 0 along it).
+        let reversed = [corners[0], corners[3], corners[2], corners[1]];
+        let fill = TriMesh::new(reversed.to_vec(), vec![[0, 2, 1], [0, 3, 2]]);
+        let rim = reversed.map(|p| p + lift);
+        let (volume_ml, _) = closed_volume(&patch, &with_rim(&fill, &rim));
+        assert!((volume_ml - 1.4).abs() < 1e-12, "{volume_ml}");
+    }
 
     /// A circle of radius 70 mm drawn as 1,000 chords (unevenly spaced, as a cut curve's
     /// points are): the points come out on the circle, as many as the length asks, and
