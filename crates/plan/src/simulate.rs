@@ -338,14 +338,14 @@ impl Session {
 
     /// The breast volumes before (the model's) and after (measured on the simulated
     /// scan as on a real one), ml.
-    pub fn breast_volumes(&mut self) -> Result<SimulatedBreasts> {
-        let volumes = self.simulation.breast_volumes()?;
-        Ok(SimulatedBreasts {
+    pub fn breast_volumes(&mut self) -> SimulatedBreasts {
+        let volumes = self.simulation.breast_volumes();
+        SimulatedBreasts {
             on_preoperative_fill: PerSide::from_fn(|side| !volumes[side as usize].rebuilt_fill),
             volume_before_ml: PerSide::from_fn(|side| volumes[side as usize].volume_before_ml),
             volume_ml: PerSide::from_fn(|side| volumes[side as usize].volume_ml),
             quadrant_volume_ml: PerSide::from_fn(|side| volumes[side as usize].quadrant_volume_ml),
-        })
+        }
     }
 
     /// The model's cut-curve control points carried with the tissue onto the simulated
@@ -374,7 +374,7 @@ impl Session {
         }
         let simulated = self.simulated_scan(Path::new("simulated scan"))?;
         let after = measure(&simulated, &[], progress)?.distances;
-        let breasts = self.breast_volumes()?;
+        let breasts = self.breast_volumes();
         let before = self.distances_before.as_deref().unwrap_or_default();
         let distances = before
             .iter()
@@ -753,7 +753,7 @@ pub fn write_simulation(
     out_dir: &Path,
     progress: &dyn Progress,
 ) -> Result<SimulateReport> {
-    let breasts = session.breast_volumes()?;
+    let breasts = session.breast_volumes();
     for side in Side::BOTH {
         if *breasts.on_preoperative_fill.get(side) {
             progress.warn(&format!(

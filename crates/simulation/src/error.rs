@@ -73,7 +73,4 @@ pub enum SimulationError {
          the implant's footprint; the tetrahedral mesh is too coarse for this implant"
     )]
     EmptyTemplate { side: Side },
-    /// The fill-in could not be rebuilt on the simulated scan.
-    #[error("{side} breast: measuring the simulated breast: {reason}")]
-    Volume { side: Side, reason: String },
 }

@@ -1792,9 +1792,7 @@ impl Simulation {
 
     /// The breast volumes after the simulation (see [`BreastVolume`]). The first call
     /// locates the breast meshes in the finest level (a fraction of a second).
-    ///
-    /// Errors: the fill-in cannot be rebuilt on the moved base.
-    pub fn breast_volumes(&mut self) -> Result<[BreastVolume; 2], SimulationError> {
+    pub fn breast_volumes(&mut self) -> [BreastVolume; 2] {
         self.mesh_maps();
         let maps = self.mesh_maps.as_ref().expect("built");
         let u = &self.u;
@@ -1848,7 +1846,7 @@ impl Simulation {
                 quadrant_volume_ml,
             });
         }
-        Ok([out[0], out[1]])
+        [out[0], out[1]]
     }
 }
 

@@ -43,7 +43,7 @@ fn baseline() -> &'static Baseline {
         let report = sim.run(true).unwrap();
         println!("baseline: {report:?}");
         assert!(report.implant.converged, "{report:?}");
-        let volumes = sim.breast_volumes().unwrap();
+        let volumes = sim.breast_volumes();
         let scan = sim.scan_positions();
         Baseline { sim, volumes, scan }
     })
@@ -220,7 +220,7 @@ fn left_centres(
         sim.set_implant(Side::Left, *shape, *placement).unwrap();
         let report = sim.run(true).unwrap();
         assert!(report.implant.converged, "{report:?}");
-        out.push(sim.breast_volumes().unwrap()[0]);
+        out.push(sim.breast_volumes()[0]);
     }
     out
 }
