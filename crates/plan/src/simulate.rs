@@ -719,6 +719,14 @@ pub fn run_session(
             solver.vcycles, solver.relative_residual
         ));
     }
+    if solver.inverted_elements > 0 {
+        progress.warn(&format!(
+            "{} elements of the tissue model ended turned inside out: the predicted skin near \
+             them is less trustworthy (result.json's solver.inverted_elements; a model with \
+             more elements, model --elements, or a smaller implant may avoid it)",
+            solver.inverted_elements
+        ));
+    }
     let report = write_simulation(
         &mut session,
         &SimulationState {
