@@ -11,21 +11,12 @@ fn millimetres(value: Option<f64>) -> String {
     value.map_or_else(|| "-".to_string(), |v| format!("{v:.1}"))
 }
 
-/// The distance table.
 /// Which way was up, and the sternum's lean from it.
 pub fn up(up: &plan::UpRecord) -> String {
-    let [x, y, z] = up.direction;
-    let source = match up.source {
-        plan::UpSourceName::File => "the file's +y",
-        plan::UpSourceName::Given => "given",
-        plan::UpSourceName::Estimated => "estimated from the sternum",
-    };
-    format!(
-        "up ({x:.3}, {y:.3}, {z:.3}): {source}; the sternum leans {:.1}° back from it\n",
-        up.sternum_lean_deg
-    )
+    format!("up: {}\n", up.in_words())
 }
 
+/// The distance table.
 pub fn distances(distances: &[Distance]) -> String {
     let mut out = format!(
         "{:<14} {:>14} {:>12} {:>12}\n",

@@ -555,7 +555,7 @@ pub fn report_content(
             gravity_correction: !simulation.no_gravity,
             up: model.up.as_ref().map_or_else(
                 || "the file's +y (a model folder from before the standing frame)".to_string(),
-                up_in_words,
+                crate::UpRecord::in_words,
             ),
             pocket: simulation.pocket.as_ref().map(pocket_in_words),
             solver: report::SolverSummary {
@@ -587,20 +587,6 @@ pub fn report_content(
         comparison,
         symmetry,
     })
-}
-
-/// Which way was up, in words.
-fn up_in_words(up: &crate::UpRecord) -> String {
-    let [x, y, z] = up.direction;
-    let source = match up.source {
-        crate::UpSourceName::File => "the file's +y",
-        crate::UpSourceName::Given => "given",
-        crate::UpSourceName::Estimated => "estimated from the sternum",
-    };
-    format!(
-        "({x:.3}, {y:.3}, {z:.3}) in the scan's file, {source}; the sternum leans {:.1}° back from it",
-        up.sternum_lean_deg
-    )
 }
 
 /// A pocket's limits, in words.

@@ -198,6 +198,22 @@ impl UpRecord {
         }
     }
 
+    /// Which way was up, in words: the direction in the file, where it came from and the
+    /// sternum's lean from it.
+    pub fn in_words(&self) -> String {
+        let [x, y, z] = self.direction;
+        let source = match self.source {
+            UpSourceName::File => "the file's +y",
+            UpSourceName::Given => "given",
+            UpSourceName::Estimated => "estimated from the sternum",
+        };
+        format!(
+            "({x:.3}, {y:.3}, {z:.3}) in the scan's file, {source}; the sternum leans {:.1}° back \
+             from it",
+            self.sternum_lean_deg
+        )
+    }
+
     /// The up it records, with its source; an error if the direction is not a finite
     /// non-zero vector (an edited file).
     pub fn up(&self) -> Result<Up> {
