@@ -13,6 +13,7 @@
 //! depth).
 
 use glam::DVec3;
+use mesh::OrderedMm;
 use mesh::topology::NO_TRIANGLE;
 use mesh::{SurfaceIndex, Topology, TriMesh};
 use std::cmp::Reverse;
@@ -307,22 +308,4 @@ pub fn nearest_kept_vertices(
             None
         })
         .collect()
-}
-
-/// A finite distance ordered totally, for the priority queue.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct OrderedMm(f64);
-
-impl Eq for OrderedMm {}
-
-impl PartialOrd for OrderedMm {
-    fn partial_cmp(&self, other: &OrderedMm) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for OrderedMm {
-    fn cmp(&self, other: &OrderedMm) -> std::cmp::Ordering {
-        self.0.total_cmp(&other.0)
-    }
 }

@@ -18,6 +18,7 @@ use anatomy::closed_surface::ClipBox;
 use anatomy::fill_in::{FillIn, stitch};
 use anatomy::{AnatomicalFrame, LandmarkName, Landmarks};
 use glam::DVec3;
+use mesh::OrderedMm;
 use mesh::{Topology, TriMesh};
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
@@ -250,24 +251,6 @@ fn distances_from(mesh: &TriMesh, base_triangles: usize, sources: &[u32], limit:
         }
     }
     distance
-}
-
-/// A finite distance ordered for the heap.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct OrderedMm(f64);
-
-impl Eq for OrderedMm {}
-
-impl PartialOrd for OrderedMm {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-
-impl Ord for OrderedMm {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        self.0.total_cmp(&other.0)
-    }
 }
 
 fn perimeter(positions: &[DVec3], boundary: &[u32]) -> f64 {
