@@ -277,18 +277,21 @@ enum Command {
         /// A CSV catalog for catalog:ID specs instead of the built-in one.
         #[arg(long, value_name = "CSV")]
         catalog: Option<PathBuf>,
-        /// Default implant position, which the moves start from: footprint-centre (centred
-        /// on the breast's base) or behind-nipple (straight behind the nipple); either is
-        /// moved along the chest wall until the implant fits on the breast's base.
-        #[arg(long, value_name = "RULE", default_value = "footprint-centre")]
+        /// Default implant position, which the moves start from: on-fold (the implant's
+        /// lower edge on the planned fold, below the nipple), footprint-centre (centred on
+        /// the breast's base) or behind-nipple (straight behind the nipple); each is moved
+        /// along the chest wall until the implant fits in its pocket.
+        #[arg(long, value_name = "RULE", default_value = "on-fold")]
         anchor: plan::simulate::AnchorRule,
         /// Lower the left fold by this much (mm): the pocket reaches this far below the
-        /// native fold's lowest point (PSMFl).
-        #[arg(long, value_name = "MM", default_value_t = 0.0, value_parser = non_negative)]
-        lower_fold_left: f64,
+        /// native fold's lowest point (PSMFl). Default: as the ICE principle plans it for
+        /// the implant (half its height plus its projection, less the nipple-to-fold
+        /// distance; 0 to 30 mm).
+        #[arg(long, value_name = "MM", value_parser = non_negative)]
+        lower_fold_left: Option<f64>,
         /// Lower the right fold by this much (mm), as --lower-fold-left.
-        #[arg(long, value_name = "MM", default_value_t = 0.0, value_parser = non_negative)]
-        lower_fold_right: f64,
+        #[arg(long, value_name = "MM", value_parser = non_negative)]
+        lower_fold_right: Option<f64>,
         /// The simulation folder (created if needed).
         #[arg(long, value_name = "SIM_DIR")]
         out: PathBuf,

@@ -589,18 +589,29 @@ pub fn report_content(
     })
 }
 
+/// The anchor rule of folders written before [`AnchorRule`] was recorded.
+fn footprint_centre() -> AnchorRule {
+    AnchorRule::FootprintCentre
+}
+
 /// A pocket's limits, in words.
 fn pocket_in_words(pocket: &PerSide<crate::simulate::PocketReport>) -> String {
     let left = &pocket.left;
+    let rule = |p: &crate::simulate::PocketReport| match p.fold_lowering_rule {
+        crate::simulate::FoldLoweringRule::Ice => "ICE principle",
+        crate::simulate::FoldLoweringRule::Given => "as planned",
+    };
     format!(
-        "where the implant does not fit on the fill-in: the fill-in widened up to {:.0} mm over \
-         the chest, {:.0} mm from the midline, {:.0} mm beyond the fold's lateral end; fold \
-         lowered {:.0} mm left, {:.0} mm right",
+        "the fill-in widened up to {:.0} mm over the chest where the implant needs it, {:.0} mm \
+         from the midline, {:.0} mm beyond the fold's lateral end; fold lowered {:.0} mm left \
+         ({}), {:.0} mm right ({})",
         left.margin_mm,
         left.midline_clearance_mm,
         left.lateral_beyond_fold_mm,
         left.fold_lowering_mm,
-        pocket.right.fold_lowering_mm
+        rule(left),
+        pocket.right.fold_lowering_mm,
+        rule(&pocket.right),
     )
 }
 
@@ -617,7 +628,7 @@ struct SimulationRecord {
     solver: SolverRecord,
     no_gravity: bool,
     /// Absent from folders written before it existed: the only rule then.
-    #[serde(default)]
+    #[serde(default = "footprint_centre")]
     anchor: AnchorRule,
     /// Absent from folders written before it existed (no pocket then).
     #[serde(default)]
@@ -698,6 +709,7 @@ fn implant_choice(implant: ImplantRecord, anchor: AnchorRule) -> report::Implant
         projection_mm: implant.projection_mm,
         volume_ml: implant.volume_ml,
         default_position: match anchor {
+            AnchorRule::OnFold => "lower edge on the planned fold, below the nipple",
             AnchorRule::FootprintCentre => "centred on the breast's base",
             AnchorRule::BehindNipple => "behind the nipple",
         }

@@ -32,7 +32,7 @@ use std::time::Instant;
 use tetra::vtu::{CONSTRAINED, DISPLACEMENT, Field};
 
 pub use fem::Material;
-pub use simulation::pocket::PocketLimits;
+pub use simulation::pocket::{FoldLowering, PocketLimits};
 pub use simulation::{AnchorRule, CycleInfo, Placement, RunReport, SimulationOptions, Stage};
 
 /// An implant asked for on one side.
@@ -80,8 +80,10 @@ pub struct SimulateOptions {
     /// Where an implant's default position lies (centred on the breast's footprint, or
     /// straight behind the nipple); moves are relative to it.
     pub anchor: AnchorRule,
-    /// How far each pocket reaches below the native fold (mm, the planned lowering).
-    pub fold_lowering_mm: PerSide<f64>,
+    /// How far each pocket reaches below the native fold (mm, the planned lowering);
+    /// `None`: as the ICE principle plans it for the implant
+    /// ([`simulation::pocket::ice_fold_lowering_mm`]).
+    pub fold_lowering_mm: PerSide<Option<f64>>,
 }
 
 /// A patient's model ready for interactive simulation.
@@ -608,17 +610,38 @@ pub struct PocketReport {
     pub midline_clearance_mm: f64,
     /// Reach beyond the lateral end of the fold, towards the anterior axillary line (mm).
     pub lateral_beyond_fold_mm: f64,
-    /// The planned fold lowering (mm).
+    /// The planned fold lowering of the implant in the pocket (mm; 0 where it lies on
+    /// the fill-in's bed).
     pub fold_lowering_mm: f64,
+    /// Where the lowering comes from. Absent from folders written before it existed
+    /// (given then).
+    #[serde(default)]
+    pub fold_lowering_rule: FoldLoweringRule,
 }
 
-impl From<&PocketLimits> for PocketReport {
-    fn from(limits: &PocketLimits) -> PocketReport {
+/// Where a planned fold lowering comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FoldLoweringRule {
+    /// The ICE principle for the implant (see [`simulation::pocket::ice_fold_lowering_mm`]).
+    Ice,
+    /// Given by the user (`--lower-fold-left`, `--lower-fold-right`).
+    #[default]
+    Given,
+}
+
+impl PocketReport {
+    /// The record of `limits` with the fold lowering an implant got (mm).
+    pub fn new(limits: &PocketLimits, fold_lowering_mm: f64) -> PocketReport {
         PocketReport {
             margin_mm: limits.margin_mm,
             midline_clearance_mm: limits.midline_clearance_mm,
             lateral_beyond_fold_mm: limits.lateral_beyond_fold_mm,
-            fold_lowering_mm: limits.fold_lowering_mm,
+            fold_lowering_mm,
+            fold_lowering_rule: match limits.fold_lowering {
+                FoldLowering::ForImplant => FoldLoweringRule::Ice,
+                FoldLowering::Mm(_) => FoldLoweringRule::Given,
+            },
         }
     }
 }
@@ -660,8 +683,8 @@ pub fn simulate(
     );
     let catalog = crate::catalog::load(options.catalog.as_deref())?;
     let (marked, model) = load_model(model_dir, progress)?;
-    let limits = |lowering_mm: f64| PocketLimits {
-        fold_lowering_mm: lowering_mm,
+    let limits = |lowering_mm: Option<f64>| PocketLimits {
+        fold_lowering: lowering_mm.map_or(FoldLowering::ForImplant, FoldLowering::Mm),
         ..PocketLimits::default()
     };
     let simulation_options = SimulationOptions {
@@ -803,6 +826,9 @@ pub fn write_simulation(
     write_fe_result(&out_dir.join("fe_result.vtu"), &session.simulation)?;
     files.push("fe_result.vtu".to_string());
     files.push("result.json".to_string());
+    let lowering_of = |side: Side| {
+        (session.simulation.implant(side)).map_or(0.0, |placed| placed.fold_lowering_mm)
+    };
     let report = SimulateReport {
         model: model_dir.to_path_buf(),
         implant_volume_ml: session.implant_volumes_ml(),
@@ -815,14 +841,11 @@ pub fn write_simulation(
         solver: state.solver.clone(),
         no_gravity: state.no_gravity,
         anchor: session.simulation.options().anchor_rule,
-        pocket: session
-            .simulation
-            .options()
-            .pocket
-            .map(|limits| PerSide::from_fn(|side| PocketReport::from(&limits[side as usize]))),
+        pocket: session.simulation.options().pocket.map(|limits| {
+            PerSide::from_fn(|side| PocketReport::new(&limits[side as usize], lowering_of(side)))
+        }),
         nipple_to_fold_mm: PerSide::from_fn(|side| {
-            let lowering_mm = (session.simulation.options().pocket)
-                .map_or(0.0, |limits| limits[side as usize].fold_lowering_mm);
+            let lowering_mm = lowering_of(side);
             NippleToFold::new(
                 side,
                 &session.marked.landmarks,

@@ -491,14 +491,15 @@ impl ImplantBed {
     }
 }
 
-/// The vertex normals of `surface` turned outwards (away from the cylinder's axis) and
-/// its vertices moved `shift_mm` back along them: the bed's normals and positions.
+/// The vertex normals of `surface`, smoothed ([`smoothed_normals`]) and turned outwards
+/// (away from the cylinder's axis), and its vertices moved `shift_mm` back along them:
+/// the bed's normals and positions.
 pub fn shifted_surface(
     surface: &TriMesh,
     cylinder: &ChestCylinder,
     shift_mm: f64,
 ) -> (Vec<DVec3>, Vec<DVec3>) {
-    let mut normals = surface.vertex_normals();
+    let mut normals = smoothed_normals(surface, NORMAL_SMOOTHING_RADIUS_MM);
     let outward: f64 = (surface.positions.iter().zip(&normals))
         .map(|(p, n)| n.dot(cylinder.radial(cylinder.to_cylindrical(*p).x)))
         .sum();
@@ -509,6 +510,49 @@ pub fn shifted_surface(
         .map(|(p, n)| *p - *n * shift_mm)
         .collect();
     (normals, positions)
+}
+
+/// Radius over which the bed's normals are averaged (mm): wider than the creases an
+/// implant's thickness (up to some 50 mm) must not fold over, narrower than a breast.
+const NORMAL_SMOOTHING_RADIUS_MM: f64 = 20.0;
+
+/// Most passes of [`smoothed_normals`] (a bed of 0.5 mm edges would need 1,600).
+const MAX_NORMAL_SMOOTHING_PASSES: usize = 400;
+
+/// The vertex normals of `surface` averaged with their edge neighbours' (unit; uniform
+/// weights) over about `radius_mm` (passes: the radius over the mean edge length,
+/// squared, as a diffusion spreads): a bed offset along them by an implant's thickness
+/// does not cross itself over creases narrower than that (the fold's crease, the valley
+/// between the breasts), which raw vertex normals of a scan do. Measured in
+/// `docs/dev/standing-frame.md` (placement on the fold).
+fn smoothed_normals(surface: &TriMesh, radius_mm: f64) -> Vec<DVec3> {
+    let mut normals = surface.vertex_normals();
+    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); surface.positions.len()];
+    let (mut length_sum, mut edges) = (0.0, 0usize);
+    for tri in &surface.triangles {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            neighbours[a as usize].push(b);
+            neighbours[b as usize].push(a);
+            length_sum += surface.positions[a as usize].distance(surface.positions[b as usize]);
+            edges += 1;
+        }
+    }
+    if edges == 0 {
+        return normals;
+    }
+    let mean_edge_mm = length_sum / edges as f64;
+    let passes =
+        ((radius_mm / mean_edge_mm).powi(2).ceil() as usize).min(MAX_NORMAL_SMOOTHING_PASSES);
+    for _ in 0..passes {
+        normals = (neighbours.iter().zip(&normals))
+            .map(|(around, &n)| {
+                let around_sum: DVec3 = around.iter().map(|&v| normals[v as usize]).sum();
+                (around_sum + n * around.len() as f64).normalize_or(n)
+            })
+            .collect();
+    }
+    normals
 }
 
 /// Per triangle: whether it turns against the majority in `(u, v)` (folds over seen

@@ -2,7 +2,18 @@
 //! implant's back wall) on the bed, moved along it, and the implant's local frame there.
 //!
 //! # Default anchor
-//! [`AnchorRule::FootprintCentre`] (default): the area centroid of the bed's domain in the
+//! [`AnchorRule::OnFold`] (default): the implant's lower edge on the planned fold (the
+//! native fold's lowest point, PSMF, lowered as planned, see
+//! [`crate::pocket::ice_fold_lowering_mm`]), its vertical centre line through the nipple:
+//! the anchor is walked down the bed from behind the nipple until the footprint's lowest
+//! point lies at the planned fold's height ([`anchor_on_floor`]). This is how the
+//! inframammary-fold approach places an implant: its lower pole in the fold, the
+//! fold set for the implant's size (Mallucci and Branford 2016, Plast. Reconstr. Surg.
+//! 137:1728, the ICE principle; Tebbetts and Adams 2005, Plast. Reconstr. Surg.
+//! 116:2005, the High Five process), so the nipple lies over the implant's upper-lower
+//! divide instead of on its lower slope.
+//!
+//! [`AnchorRule::FootprintCentre`]: the area centroid of the bed's domain in the
 //! cylinder parameters `(u, v)`, i.e. the implant centred on the breast's footprint (the
 //! region inside the cut curve, seen from the body's axis). On the shared scans, whose
 //! breasts hang a little, it lies 25-30 mm above and 6-12 mm lateral of the nipple's
@@ -69,22 +80,26 @@ impl Placement {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AnchorRule {
-    /// The area centroid of the bed's domain in `(u, v)` (see the module documentation).
+    /// The implant's lower edge on the planned fold, its centre line below the nipple
+    /// (see the module documentation).
     #[default]
+    OnFold,
+    /// The area centroid of the bed's domain in `(u, v)` (see the module documentation).
     FootprintCentre,
     /// Straight behind the nipple: the nipple's `(u, v)`.
     BehindNipple,
 }
 
-/// A name that is not `footprint-centre` or `behind-nipple`.
+/// A name that is not `on-fold`, `footprint-centre` or `behind-nipple`.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown anchor \"{0}\": expected footprint-centre or behind-nipple")]
+#[error("unknown anchor \"{0}\": expected on-fold, footprint-centre or behind-nipple")]
 pub struct ParseAnchorRuleError(String);
 
 impl std::fmt::Display for AnchorRule {
     /// The name `simulate --anchor` takes.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
+            AnchorRule::OnFold => "on-fold",
             AnchorRule::FootprintCentre => "footprint-centre",
             AnchorRule::BehindNipple => "behind-nipple",
         })
@@ -96,6 +111,7 @@ impl std::str::FromStr for AnchorRule {
 
     fn from_str(name: &str) -> Result<AnchorRule, ParseAnchorRuleError> {
         match name.trim().to_ascii_lowercase().as_str() {
+            "on-fold" => Ok(AnchorRule::OnFold),
             "footprint-centre" => Ok(AnchorRule::FootprintCentre),
             "behind-nipple" => Ok(AnchorRule::BehindNipple),
             _ => Err(ParseAnchorRuleError(name.to_string())),
@@ -229,4 +245,51 @@ pub fn resolve_anchor(
         to_uv: to_local.inverse(),
         shift_mm: bed.shift_mm,
     })
+}
+
+/// Steps of [`anchor_on_floor`]'s search.
+const FLOOR_SEARCH_STEPS: usize = 12;
+
+/// The lower edge of the footprint is on the floor within this (mm).
+const FLOOR_TOLERANCE_MM: f64 = 0.25;
+
+/// The anchor on `bed` on the line walked down from `start` (bed parameters, along the
+/// frame's up projected on the bed) at which the footprint's lowest point, `half_height_mm`
+/// below the anchor along the bed's up, lies at height `floor_y_mm` (standing frame) on
+/// the bed's tangent plane. Secant steps on the walked distance (the height falls about
+/// one for one with it on a chest that is not horizontal).
+///
+/// Errors: the walk leaves the bed.
+pub fn anchor_on_floor(
+    bed: &ImplantBed,
+    frame: &AnatomicalFrame,
+    start: DVec2,
+    half_height_mm: f64,
+    floor_y_mm: f64,
+) -> Result<DVec2, SimulationError> {
+    // (walked down, anchor, lowest point's height above the floor)
+    let at = |down_mm: f64| -> Result<(f64, DVec2, f64), SimulationError> {
+        let anchor = resolve_anchor(bed, frame, start, &Placement::moved(0.0, -down_mm, 0.0))?;
+        let lowest = anchor.position - anchor.y_axis * half_height_mm;
+        Ok((down_mm, anchor.uv, frame.to_local(lowest).y - floor_y_mm))
+    };
+    let mut previous = at(0.0)?;
+    if previous.2.abs() <= FLOOR_TOLERANCE_MM {
+        return Ok(previous.1);
+    }
+    let mut current = at(previous.2)?;
+    for _ in 0..FLOOR_SEARCH_STEPS {
+        if current.2.abs() <= FLOOR_TOLERANCE_MM {
+            break;
+        }
+        let slope = (previous.2 - current.2) / (current.0 - previous.0);
+        let step = if slope > 0.1 {
+            current.2 / slope
+        } else {
+            current.2
+        };
+        previous = current;
+        current = at(current.0 + step)?;
+    }
+    Ok(current.1)
 }

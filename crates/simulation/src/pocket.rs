@@ -18,6 +18,7 @@ use anatomy::closed_surface::ClipBox;
 use anatomy::fill_in::{FillIn, stitch};
 use anatomy::{AnatomicalFrame, LandmarkName, Landmarks};
 use glam::DVec3;
+use implant::ImplantShape;
 use mesh::OrderedMm;
 use mesh::{Topology, TriMesh};
 use std::cmp::Reverse;
@@ -45,9 +46,57 @@ pub struct PocketLimits {
     pub midline_clearance_mm: f64,
     /// Reach beyond the lateral end of the fold (mm, horizontally).
     pub lateral_beyond_fold_mm: f64,
-    /// How far below the native fold's lowest point the pocket reaches (mm): the planned
+    /// How far below the native fold's lowest point the pocket reaches: the planned
     /// fold lowering.
-    pub fold_lowering_mm: f64,
+    pub fold_lowering: FoldLowering,
+}
+
+/// The planned fold lowering of one side.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum FoldLowering {
+    /// As the ICE principle plans it for the implant ([`ice_fold_lowering_mm`]).
+    #[default]
+    ForImplant,
+    /// This many millimetres below the native fold's lowest point (PSMF), whatever the
+    /// implant.
+    Mm(f64),
+}
+
+impl FoldLowering {
+    /// The lowering (mm) for an implant of `shape` in a breast whose nipple lies
+    /// `nipple_to_fold_mm` from the native fold's lowest point.
+    pub fn mm(&self, shape: &ImplantShape, nipple_to_fold_mm: f64) -> f64 {
+        match *self {
+            FoldLowering::ForImplant => ice_fold_lowering_mm(shape, nipple_to_fold_mm),
+            FoldLowering::Mm(mm) => mm,
+        }
+    }
+
+    /// The deepest lowering any implant can get (mm): how far below the native fold a
+    /// pocket is built.
+    pub fn deepest_mm(&self) -> f64 {
+        match *self {
+            FoldLowering::ForImplant => MAX_ICE_FOLD_LOWERING_MM,
+            FoldLowering::Mm(mm) => mm,
+        }
+    }
+}
+
+/// The ICE principle's planned lowering is capped here (mm): primary augmentations lower
+/// the fold by up to about 3 cm; a larger excess asks for a smaller implant, not a
+/// lower fold.
+pub const MAX_ICE_FOLD_LOWERING_MM: f64 = 30.0;
+
+/// The fold lowering (mm) the ICE principle plans (Mallucci and Branford 2016, Plast.
+/// Reconstr. Surg. 137:1728): implant dimension `I` (half the implant's height plus its
+/// projection) minus the breast's capacity `C` (nipple to fold) is the excess `E` by
+/// which the new fold lies below the native one; none when the breast already has the
+/// room, at most [`MAX_ICE_FOLD_LOWERING_MM`]. `C` is measured on the scan, straight and
+/// at rest, where the surgeon measures it along the skin under maximal stretch: it is
+/// shorter, so the lowering errs on the generous side.
+pub fn ice_fold_lowering_mm(shape: &ImplantShape, nipple_to_fold_mm: f64) -> f64 {
+    let implant_dimension_mm = shape.height_mm() / 2.0 + shape.projection_mm();
+    (implant_dimension_mm - nipple_to_fold_mm).clamp(0.0, MAX_ICE_FOLD_LOWERING_MM)
 }
 
 impl Default for PocketLimits {
@@ -56,7 +105,7 @@ impl Default for PocketLimits {
             margin_mm: DEFAULT_POCKET_MARGIN_MM,
             midline_clearance_mm: DEFAULT_MIDLINE_CLEARANCE_MM,
             lateral_beyond_fold_mm: DEFAULT_LATERAL_BEYOND_FOLD_MM,
-            fold_lowering_mm: 0.0,
+            fold_lowering: FoldLowering::default(),
         }
     }
 }
@@ -75,16 +124,18 @@ pub struct PocketBounds {
 }
 
 impl PocketBounds {
-    /// The bounds of one side's pocket from the landmarks.
+    /// The bounds of one side's pocket from the landmarks, with the fold lowered by
+    /// `fold_lowering_mm`.
     pub fn new(
         side: Side,
         frame: &AnatomicalFrame,
         landmarks: &Landmarks,
         limits: &PocketLimits,
+        fold_lowering_mm: f64,
     ) -> PocketBounds {
-        let (lateral, lowest) = match side {
-            Side::Left => (LandmarkName::PSMFll, LandmarkName::PSMFl),
-            Side::Right => (LandmarkName::PSMFlr, LandmarkName::PSMFr),
+        let lateral = match side {
+            Side::Left => LandmarkName::PSMFll,
+            Side::Right => LandmarkName::PSMFlr,
         };
         PocketBounds {
             side_sign: match side {
@@ -94,7 +145,7 @@ impl PocketBounds {
             medial_x_mm: limits.midline_clearance_mm,
             lateral_x_mm: frame.to_local(landmarks.get(lateral)).x.abs()
                 + limits.lateral_beyond_fold_mm,
-            floor_y_mm: frame.to_local(landmarks.get(lowest)).y - limits.fold_lowering_mm,
+            floor_y_mm: native_fold_y_mm(side, frame, landmarks) - fold_lowering_mm,
         }
     }
 
@@ -109,6 +160,29 @@ impl PocketBounds {
         .into_iter()
         .filter(|&(_, beyond)| beyond > 0.0)
         .max_by(|a, b| a.1.total_cmp(&b.1))
+    }
+}
+
+/// The native fold's lowest point (PSMF): its height in the standing frame (mm).
+pub fn native_fold_y_mm(side: Side, frame: &AnatomicalFrame, landmarks: &Landmarks) -> f64 {
+    frame.to_local(landmarks.get(fold_lowest(side))).y
+}
+
+/// The straight distance from the nipple to the native fold's lowest point (mm).
+pub fn nipple_to_fold_mm(side: Side, landmarks: &Landmarks) -> f64 {
+    let nipple = match side {
+        Side::Left => LandmarkName::Pnl,
+        Side::Right => LandmarkName::Pnr,
+    };
+    landmarks
+        .get(nipple)
+        .distance(landmarks.get(fold_lowest(side)))
+}
+
+fn fold_lowest(side: Side) -> LandmarkName {
+    match side {
+        Side::Left => LandmarkName::PSMFl,
+        Side::Right => LandmarkName::PSMFr,
     }
 }
 

@@ -62,11 +62,13 @@
 use crate::bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 use crate::error::SimulationError;
 use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap, SurfaceSmoother};
-use crate::placement::{Anchor, AnchorRule, Placement, resolve_anchor};
-use crate::pocket::{PocketBounds, PocketLimits, pocket_surface};
+use crate::placement::{Anchor, AnchorRule, Placement, anchor_on_floor, resolve_anchor};
+use crate::pocket::{
+    FoldLowering, PocketBounds, PocketLimits, native_fold_y_mm, nipple_to_fold_mm, pocket_surface,
+};
 use crate::template::{
-    BedFeet, ImplantTemplate, SideCandidates, SmoothedThickness, TemplateIndex, TemplateRules,
-    build_template, check_footprint, fit_footprint,
+    BedFeet, FOOTPRINT_TOLERANCE_MM, ImplantTemplate, SideCandidates, SmoothedThickness,
+    TemplateIndex, TemplateRules, build_template, check_footprint, fit_footprint,
 };
 use anatomy::breast::{
     BreastModel, ControlPoints, QuadrantLines, QuadrantVolumes, Side, quadrant_volumes_ml,
@@ -293,6 +295,9 @@ pub struct PlacedImplant {
     /// on the bed (mm, in the requested anchor's `x'` (patient's left) and `y'` (up);
     /// zero when it fitted where asked, see [`SimulationOptions::fit_footprint`]).
     pub fit_shift_mm: DVec2,
+    /// How far below the native fold's lowest point the pocket reaches for this implant
+    /// (mm; 0 on the fill-in's bed, which ends at the native fold).
+    pub fold_lowering_mm: f64,
     pub template: ImplantTemplate,
     /// Time to place the implant and build its template (ms).
     pub setup_ms: f64,
@@ -366,8 +371,15 @@ pub struct BreastVolume {
 }
 
 /// What [`Simulation::fit_on`] found: bed, feet, pocket bounds, requested and fitted
-/// anchor.
-type FittedOn = (ImplantBed, BedFeet, Option<PocketBounds>, Anchor, Anchor);
+/// anchor, fold lowering (mm).
+type FittedOn = (
+    ImplantBed,
+    BedFeet,
+    Option<PocketBounds>,
+    Anchor,
+    Anchor,
+    f64,
+);
 
 /// An implant that does not fit its pocket because it reaches past one of the pocket's
 /// anatomical limits gets the error naming that limit; other errors pass.
@@ -389,6 +401,27 @@ fn pocket_limit_error(
         },
         None => error,
     }
+}
+
+/// The footprint's lowest point may lie this far below a fold lowered by a given amount
+/// (mm): the footprint's own tolerance on the bed's edge.
+const FLOOR_TOLERANCE_MM: f64 = FOOTPRINT_TOLERANCE_MM;
+
+/// Outline points of the footprint checked against the planned fold.
+const FLOOR_CHECK_POINTS: usize = 72;
+
+/// The height (standing frame, mm) of the lowest point of the footprint of `shape`
+/// anchored at `anchor` on `bed`.
+fn lowest_footprint_y_mm(
+    bed: &ImplantBed,
+    anchor: &Anchor,
+    shape: &ImplantShape,
+    frame: &AnatomicalFrame,
+) -> f64 {
+    (shape.footprint_outline_mm(FLOOR_CHECK_POINTS).into_iter())
+        .filter_map(|local| bed.at(anchor.uv_of(local)))
+        .map(|at| frame.to_local(at.position).y)
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// A bed an implant may lie on, with the template candidates' feet on it.
@@ -780,7 +813,10 @@ impl Simulation {
         };
         let pockets = Side::BOTH.map(|side| {
             let limits = options.pocket?[side as usize];
-            let bounds = PocketBounds::new(side, &frame, input.landmarks, &limits);
+            // as deep as any implant's planned fold; each implant's own bounds are
+            // checked when it is placed
+            let deepest = limits.fold_lowering.deepest_mm();
+            let bounds = PocketBounds::new(side, &frame, input.landmarks, &limits, deepest);
             let surface = pocket_surface(
                 &input.breasts.base.mesh,
                 &input.breasts.breast(side).fill,
@@ -819,7 +855,8 @@ impl Simulation {
             let bed = &beds[side as usize];
             let uv = match options.anchor_rule {
                 AnchorRule::FootprintCentre => bed.centroid_uv(),
-                AnchorRule::BehindNipple => {
+                // on-fold walks down from behind the nipple for each implant
+                AnchorRule::BehindNipple | AnchorRule::OnFold => {
                     let nipple = input.landmarks.get(match side {
                         Side::Left => LandmarkName::Pnl,
                         Side::Right => LandmarkName::Pnr,
@@ -837,17 +874,6 @@ impl Simulation {
                     ),
                 });
             }
-            // a lowered fold takes the implant down with it, over the pocket
-            let lowering_mm = options
-                .pocket
-                .map_or(0.0, |l| l[side as usize].fold_lowering_mm);
-            let uv = match &pocket_beds[side as usize] {
-                Some((pocket, _)) if lowering_mm > 0.0 => {
-                    let down = Placement::moved(0.0, -lowering_mm, 0.0);
-                    resolve_anchor(pocket, &frame, uv, &down)?.uv
-                }
-                _ => uv,
-            };
             sides[side as usize].default_uv = uv;
         }
 
@@ -951,9 +977,7 @@ impl Simulation {
                     bounds: Some(*bounds),
                 },
             );
-            let lowered = options.pocket.is_some_and(|l| l[s].fold_lowering_mm > 0.0);
             match pocket {
-                Some(pocket) if lowered => vec![pocket, fill],
                 Some(pocket) => vec![fill, pocket],
                 None => vec![fill],
             }
@@ -1054,6 +1078,15 @@ impl Simulation {
         self.sides[side as usize].default_uv
     }
 
+    /// The fold lowering (mm) the pocket of `side` is planned with for an implant of
+    /// `shape` (0 without pockets).
+    pub fn fold_lowering_mm(&self, side: Side, shape: &ImplantShape) -> f64 {
+        self.options.pocket.map_or(0.0, |limits| {
+            let capacity_mm = nipple_to_fold_mm(side, &self.landmarks);
+            limits[side as usize].fold_lowering.mm(shape, capacity_mm)
+        })
+    }
+
     /// Places (or replaces) the implant of one side and rebuilds its template; the
     /// session drops back to stage 1 and keeps its displacement as the warm start. On
     /// error nothing changes.
@@ -1089,16 +1122,22 @@ impl Simulation {
         }
         // the fill-in's bed first, then the pocket's (or the other way round where the
         // fold is lowered): the first on which the implant fits
+        let fold_lowering_mm = self.fold_lowering_mm(side, &shape);
+        let mut order: Vec<usize> = (0..self.bed_choices[s].len()).collect();
+        if fold_lowering_mm > 0.0 {
+            order.sort_by_key(|&k| self.bed_choices[s][k].bounds.is_none());
+        }
         let mut outcome = Err(SimulationError::BadModel("no bed".into()));
         let mut chosen = 0;
-        for (k, choice) in self.bed_choices[s].iter().enumerate() {
-            outcome = self.fit_on(side, choice, shift, &shape, &placement);
+        for k in order {
+            let choice = &self.bed_choices[s][k];
+            outcome = self.fit_on(side, choice, shift, &shape, &placement, fold_lowering_mm);
             chosen = k;
             if matches!(outcome, Ok(_) | Err(SimulationError::PocketLimit { .. })) {
                 break;
             }
         }
-        let (bed, feet, bounds, requested, anchor) = outcome?;
+        let (bed, feet, bounds, requested, anchor, fold_lowering_mm) = outcome?;
         let radius = self
             .options
             .rim_smoothing_mm
@@ -1128,6 +1167,7 @@ impl Simulation {
             placement,
             anchor,
             fit_shift_mm: requested.local(anchor.uv),
+            fold_lowering_mm,
             template,
             setup_ms: elapsed_ms(start),
         });
@@ -1763,6 +1803,7 @@ impl Simulation {
         shift: f64,
         shape: &ImplantShape,
         placement: &Placement,
+        fold_lowering_mm: f64,
     ) -> Result<FittedOn, SimulationError> {
         let (bed, feet) = if choice.bed.shift_mm == shift {
             (choice.bed.clone(), choice.feet.clone())
@@ -1771,8 +1812,19 @@ impl Simulation {
             let feet = choice.candidates.feet(&bed);
             (bed, feet)
         };
-        let limit_error = |error| pocket_limit_error(side, choice.bounds.as_ref(), error);
-        let default_uv = self.sides[side as usize].default_uv;
+        // the pocket as planned for this implant (it was built for the deepest fold)
+        let bounds = choice.bounds.and_then(|_| {
+            let limits = self.options.pocket?[side as usize];
+            Some(PocketBounds::new(
+                side,
+                &self.frame,
+                &self.landmarks,
+                &limits,
+                fold_lowering_mm,
+            ))
+        });
+        let limit_error = |error| pocket_limit_error(side, bounds.as_ref(), error);
+        let default_uv = self.default_uv_on(side, &bed, shape, bounds.as_ref())?;
         let requested = resolve_anchor(&bed, &self.frame, default_uv, placement)?;
         let moved = placement.move_mm.truncate() != glam::DVec2::ZERO;
         if moved
@@ -1787,7 +1839,55 @@ impl Simulation {
             check_footprint(&bed, &requested, shape, &self.frame).map(|()| requested)
         }
         .map_err(limit_error)?;
-        Ok((bed, feet, choice.bounds, requested, anchor))
+        // a lowering planned for the implant follows it where the fit moved it (the new
+        // fold lies at its lower edge); a given one holds
+        let below_mm = bounds.map_or(0.0, |b| {
+            b.floor_y_mm - lowest_footprint_y_mm(&bed, &anchor, shape, &self.frame)
+        });
+        let fold_lowering_mm = match self.options.pocket.map(|l| l[side as usize].fold_lowering) {
+            Some(FoldLowering::ForImplant) if bounds.is_some() => {
+                (fold_lowering_mm + below_mm).max(0.0)
+            }
+            Some(FoldLowering::Mm(_)) if below_mm > FLOOR_TOLERANCE_MM => {
+                return Err(SimulationError::PocketLimit {
+                    side,
+                    limit: "the planned fold",
+                    beyond_mm: below_mm,
+                });
+            }
+            _ if bounds.is_some() => fold_lowering_mm,
+            _ => 0.0,
+        };
+        Ok((bed, feet, bounds, requested, anchor, fold_lowering_mm))
+    }
+
+    /// The default anchor of `side` for an implant of `shape` on `bed` (bed parameters):
+    /// the rule's, on a pocket with a lowered fold taken down with it (see
+    /// [`AnchorRule`]).
+    fn default_uv_on(
+        &self,
+        side: Side,
+        bed: &ImplantBed,
+        shape: &ImplantShape,
+        bounds: Option<&PocketBounds>,
+    ) -> Result<DVec2, SimulationError> {
+        let start = self.sides[side as usize].default_uv;
+        let floor_y_mm = bounds.map_or_else(
+            || native_fold_y_mm(side, &self.frame, &self.landmarks),
+            |b| b.floor_y_mm,
+        );
+        let lowering_mm = native_fold_y_mm(side, &self.frame, &self.landmarks) - floor_y_mm;
+        match self.options.anchor_rule {
+            AnchorRule::OnFold => {
+                let half_height_mm = shape.footprint().height_mm() / 2.0;
+                anchor_on_floor(bed, &self.frame, start, half_height_mm, floor_y_mm)
+            }
+            _ if lowering_mm > 0.0 => {
+                let down = Placement::moved(0.0, -lowering_mm, 0.0);
+                Ok(resolve_anchor(bed, &self.frame, start, &down)?.uv)
+            }
+            _ => Ok(start),
+        }
     }
 
     /// The breast volumes after the simulation (see [`BreastVolume`]). The first call

@@ -345,12 +345,51 @@ pub fn check_footprint(
 /// [`FIT_OVERSHOOT_MM`]); the implant's frame is re-resolved at every new anchor with
 /// the requested rotation. A breast footprint is not convex (a small breast's cut curve
 /// can be kidney-shaped), so the centroid or the point behind the nipple may leave too
-/// little room on one side although the implant fits a little further in.
+/// little room on one side although the implant fits a little further in. Where the
+/// outline overhangs on opposite sides (the bed too narrow at that height), the pushes
+/// start again from anchors walked up and down the bed in steps of
+/// [`HEIGHT_SEARCH_STEP_MM`], nearest first (the chest is wider where it curves more).
 ///
 /// Errors: [`SimulationError::ImplantLargerThanFootprint`] for the anchor with the
 /// smallest overhang found when the outline overhangs on opposite sides (the implant is
 /// wider than the footprint there) or the pushes do not settle.
 pub fn fit_footprint(
+    bed: &ImplantBed,
+    frame: &anatomy::AnatomicalFrame,
+    requested: Anchor,
+    rotation_deg: f64,
+    shape: &ImplantShape,
+) -> Result<Anchor, SimulationError> {
+    let pushed = push_to_fit(bed, frame, requested, rotation_deg, shape);
+    if pushed.is_ok() {
+        return pushed;
+    }
+    // too wide at this height: the nearest height at which it fits, higher first
+    for k in 1..=HEIGHT_SEARCH_STEPS {
+        for sign in [1.0, -1.0] {
+            let walk = Placement {
+                move_mm: glam::DVec3::new(0.0, sign * k as f64 * HEIGHT_SEARCH_STEP_MM, 0.0),
+                rotation_deg,
+            };
+            let Ok(start) = resolve_anchor(bed, frame, requested.uv, &walk) else {
+                continue;
+            };
+            if let Ok(anchor) = push_to_fit(bed, frame, start, rotation_deg, shape) {
+                return Ok(anchor);
+            }
+        }
+    }
+    pushed
+}
+
+/// Step of [`fit_footprint`]'s search over heights (mm along the bed).
+const HEIGHT_SEARCH_STEP_MM: f64 = 5.0;
+
+/// Steps of [`fit_footprint`]'s search over heights, each way.
+const HEIGHT_SEARCH_STEPS: usize = 12;
+
+/// [`fit_footprint`]'s pushes from `requested`.
+fn push_to_fit(
     bed: &ImplantBed,
     frame: &anatomy::AnatomicalFrame,
     requested: Anchor,
