@@ -5,8 +5,9 @@
 //!
 //! - [`bed`]: the implant bed (the fill-in shifted back) and its cylindrical
 //!   (Mercator-like) parameterisation about the body's axis.
-//! - [`placement`]: the anchor (default: centred on the breast's footprint), moves along
+//! - [`placement`]: the anchor (default: lower edge on the planned fold), moves along
 //!   the bed, rotation, the implant's local frame.
+//! - [`pocket`]: where the implant may lie beyond the fill-in, and the planned fold.
 //! - [`template`]: fill-in elements, implant vertices, fixed vertices, implant elements.
 //! - [`session`]: [`Simulation`], the session: set or move implants, one V-cycle or
 //!   solve to convergence, the gravity correction, the moved scan, landmarks and breast
