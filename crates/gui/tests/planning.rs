@@ -172,7 +172,6 @@ fn an_implant_slider_changes_the_simulated_scan() {
     let mut harness = with_implants();
     let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
     let frame = marked.frame;
-    let nipple = marked.landmarks.get(anatomy::LandmarkName::Pnl);
     let notch = marked.landmarks.get(anatomy::LandmarkName::Pj);
     let nearest = |p: DVec3| {
         (0..marked.scan.mesh.vertex_count())
@@ -182,7 +181,7 @@ fn an_implant_slider_changes_the_simulated_scan() {
             })
             .unwrap()
     };
-    let (nipple, notch) = (nearest(nipple), nearest(notch));
+    let notch = nearest(notch);
     let before = positions(harness.state());
 
     // The same implant as custom dimensions, then a larger projection.
@@ -206,9 +205,13 @@ fn an_implant_slider_changes_the_simulated_scan() {
     // 11.5 mm more projection (33.5 -> 45): the implant's apex pushes the tissue in front
     // of it forward by about half of that (the nipple rode forward 0.51 x projection at
     // 60,000 elements); at least 3 mm here, well beyond the solver's tolerance (a
-    // relative residual of 1e-3 leaves differences of a few hundredths of a mm).
-    let forward = (after[nipple] - before[nipple]).dot(frame.anterior());
-    assert!(forward > 3.0, "the nipple moved {forward} mm forward");
+    // relative residual of 1e-3 leaves differences of a few hundredths of a mm). Not
+    // necessarily at the nipple: the ICE rule lowers the fold, and the implant with it,
+    // by the added projection.
+    let forward = (after.iter().zip(&before))
+        .map(|(a, b)| (*a - *b).dot(frame.anterior()))
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(forward > 3.0, "the skin moved at most {forward} mm forward");
     // Far from the breasts, nothing moves (the sternal notch is outside the model).
     let notch_moved = after[notch].distance(before[notch]);
     assert!(notch_moved < 0.05, "the notch moved {notch_moved} mm");

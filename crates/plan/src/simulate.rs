@@ -259,7 +259,11 @@ impl Session {
             .shape
             .footprint_outline_mm(segments)
             .into_iter()
-            .filter_map(|local| bed.at(placed.anchor.uv_of(local)))
+            .filter_map(|local| {
+                // an outline point within the fit's tolerance off the bed: its edge
+                let uv = placed.anchor.uv_of(local);
+                bed.at(uv).or_else(|| bed.at(bed.nearest_on_boundary(uv)))
+            })
             .map(|at| {
                 index
                     .cast_ray(at.position, at.normal, SKIN_SEARCH_MM)

@@ -527,21 +527,18 @@ const MAX_NORMAL_SMOOTHING_PASSES: usize = 400;
 /// `docs/dev/standing-frame.md` (placement on the fold).
 fn smoothed_normals(surface: &TriMesh, radius_mm: f64) -> Vec<DVec3> {
     let mut normals = surface.vertex_normals();
+    let mean_edge_mm = surface.mean_edge_length();
+    if mean_edge_mm <= 0.0 {
+        return normals;
+    }
     let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); surface.positions.len()];
-    let (mut length_sum, mut edges) = (0.0, 0usize);
     for tri in &surface.triangles {
         for k in 0..3 {
             let (a, b) = (tri[k], tri[(k + 1) % 3]);
             neighbours[a as usize].push(b);
             neighbours[b as usize].push(a);
-            length_sum += surface.positions[a as usize].distance(surface.positions[b as usize]);
-            edges += 1;
         }
     }
-    if edges == 0 {
-        return normals;
-    }
-    let mean_edge_mm = length_sum / edges as f64;
     let passes =
         ((radius_mm / mean_edge_mm).powi(2).ceil() as usize).min(MAX_NORMAL_SMOOTHING_PASSES);
     for _ in 0..passes {

@@ -5,8 +5,8 @@
 //! [`AnchorRule::OnFold`] (default): the implant's lower edge on the planned fold (the
 //! native fold's lowest point, PSMF, lowered as planned, see
 //! [`crate::pocket::ice_fold_lowering_mm`]), its vertical centre line through the nipple:
-//! the anchor is walked down the bed from behind the nipple until the footprint's lowest
-//! point lies at the planned fold's height ([`anchor_on_floor`]). This is how the
+//! the anchor is walked along the bed to the nipple's position across and down until the
+//! footprint's lowest point lies at the planned fold's height ([`anchor_on_floor`]). This is how the
 //! inframammary-fold approach places an implant: its lower pole in the fold, the
 //! fold set for the implant's size (Mallucci and Branford 2016, Plast. Reconstr. Surg.
 //! 137:1728, the ICE principle; Tebbetts and Adams 2005, Plast. Reconstr. Surg.
@@ -247,49 +247,38 @@ pub fn resolve_anchor(
     })
 }
 
-/// Steps of [`anchor_on_floor`]'s search.
-const FLOOR_SEARCH_STEPS: usize = 12;
+/// Most steps of [`anchor_on_floor`]'s walk.
+const FLOOR_SEARCH_STEPS: usize = 24;
 
-/// The lower edge of the footprint is on the floor within this (mm).
+/// [`anchor_on_floor`] stops within this of its targets (mm).
 const FLOOR_TOLERANCE_MM: f64 = 0.25;
 
-/// The anchor on `bed` on the line walked down from `start` (bed parameters, along the
-/// frame's up projected on the bed) at which the footprint's lowest point, `half_height_mm`
-/// below the anchor along the bed's up, lies at height `floor_y_mm` (standing frame) on
-/// the bed's tangent plane. Secant steps on the walked distance (the height falls about
-/// one for one with it on a chest that is not horizontal).
+/// The anchor on `bed` (bed parameters), walked from `start`, that lies at height
+/// `centre_x_mm` across (standing frame) and at which the footprint's lowest point,
+/// `half_height_mm` below the anchor along the bed's up, lies at height `floor_y_mm`
+/// (standing frame, on the bed's tangent plane). Each step walks the bed by the
+/// remaining differences (a walk of `d` along the bed moves a coordinate by `d` times
+/// the cosine of the bed's slope, so the steps close in from one side).
 ///
 /// Errors: the walk leaves the bed.
 pub fn anchor_on_floor(
     bed: &ImplantBed,
     frame: &AnatomicalFrame,
     start: DVec2,
+    centre_x_mm: f64,
     half_height_mm: f64,
     floor_y_mm: f64,
 ) -> Result<DVec2, SimulationError> {
-    // (walked down, anchor, lowest point's height above the floor)
-    let at = |down_mm: f64| -> Result<(f64, DVec2, f64), SimulationError> {
-        let anchor = resolve_anchor(bed, frame, start, &Placement::moved(0.0, -down_mm, 0.0))?;
-        let lowest = anchor.position - anchor.y_axis * half_height_mm;
-        Ok((down_mm, anchor.uv, frame.to_local(lowest).y - floor_y_mm))
-    };
-    let mut previous = at(0.0)?;
-    if previous.2.abs() <= FLOOR_TOLERANCE_MM {
-        return Ok(previous.1);
-    }
-    let mut current = at(previous.2)?;
+    let mut uv = start;
     for _ in 0..FLOOR_SEARCH_STEPS {
-        if current.2.abs() <= FLOOR_TOLERANCE_MM {
+        let anchor = resolve_anchor(bed, frame, uv, &Placement::default())?;
+        let lowest = anchor.position - anchor.y_axis * half_height_mm;
+        let across_mm = centre_x_mm - frame.to_local(anchor.position).x;
+        let up_mm = floor_y_mm - frame.to_local(lowest).y;
+        if across_mm.abs() <= FLOOR_TOLERANCE_MM && up_mm.abs() <= FLOOR_TOLERANCE_MM {
             break;
         }
-        let slope = (previous.2 - current.2) / (current.0 - previous.0);
-        let step = if slope > 0.1 {
-            current.2 / slope
-        } else {
-            current.2
-        };
-        previous = current;
-        current = at(current.0 + step)?;
+        uv = resolve_anchor(bed, frame, uv, &Placement::moved(across_mm, up_mm, 0.0))?.uv;
     }
-    Ok(current.1)
+    Ok(uv)
 }

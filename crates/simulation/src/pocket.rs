@@ -170,13 +170,17 @@ pub fn native_fold_y_mm(side: Side, frame: &AnatomicalFrame, landmarks: &Landmar
 
 /// The straight distance from the nipple to the native fold's lowest point (mm).
 pub fn nipple_to_fold_mm(side: Side, landmarks: &Landmarks) -> f64 {
-    let nipple = match side {
+    landmarks
+        .get(nipple_of(side))
+        .distance(landmarks.get(fold_lowest(side)))
+}
+
+/// The nipple landmark of `side`.
+pub(crate) fn nipple_of(side: Side) -> LandmarkName {
+    match side {
         Side::Left => LandmarkName::Pnl,
         Side::Right => LandmarkName::Pnr,
-    };
-    landmarks
-        .get(nipple)
-        .distance(landmarks.get(fold_lowest(side)))
+    }
 }
 
 fn fold_lowest(side: Side) -> LandmarkName {
@@ -475,5 +479,24 @@ mod tests {
         let pocket = pocket_surface(&base, &fill, &frame, &floored, None, 10.0).unwrap();
         assert!(pocket.mesh.positions.iter().all(|p| p.y >= -10.0 - 1e-9));
         assert_eq!(pocket.mesh.triangles.len(), 21);
+    }
+
+    /// `E = I - C` with `I` half the height plus the projection (Mallucci and Branford
+    /// 2016), clamped to 0..=30 mm: by hand for a 115 x 32 mm round implant.
+    #[test]
+    fn the_ice_lowering_is_the_implant_dimension_less_the_capacity() {
+        let round = ImplantShape::Round(implant::RoundImplant::new(115.0, 32.0).unwrap());
+        for (capacity_mm, expected_mm) in [(77.5, 12.0), (89.5, 0.0), (100.0, 0.0), (40.0, 30.0)] {
+            let lowering_mm = ice_fold_lowering_mm(&round, capacity_mm);
+            assert!(
+                (lowering_mm - expected_mm).abs() < 1e-9,
+                "{capacity_mm}: {lowering_mm}"
+            );
+        }
+        assert_eq!(FoldLowering::Mm(7.0).mm(&round, 50.0), 7.0);
+        assert_eq!(
+            FoldLowering::ForImplant.deepest_mm(),
+            MAX_ICE_FOLD_LOWERING_MM
+        );
     }
 }

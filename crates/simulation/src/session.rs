@@ -64,7 +64,8 @@ use crate::error::SimulationError;
 use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap, SurfaceSmoother};
 use crate::placement::{Anchor, AnchorRule, Placement, anchor_on_floor, resolve_anchor};
 use crate::pocket::{
-    FoldLowering, PocketBounds, PocketLimits, native_fold_y_mm, nipple_to_fold_mm, pocket_surface,
+    FoldLowering, PocketBounds, PocketLimits, native_fold_y_mm, nipple_of, nipple_to_fold_mm,
+    pocket_surface,
 };
 use crate::template::{
     BedFeet, FOOTPRINT_TOLERANCE_MM, ImplantTemplate, SideCandidates, SmoothedThickness,
@@ -857,10 +858,7 @@ impl Simulation {
                 AnchorRule::FootprintCentre => bed.centroid_uv(),
                 // on-fold walks down from behind the nipple for each implant
                 AnchorRule::BehindNipple | AnchorRule::OnFold => {
-                    let nipple = input.landmarks.get(match side {
-                        Side::Left => LandmarkName::Pnl,
-                        Side::Right => LandmarkName::Pnr,
-                    });
+                    let nipple = input.landmarks.get(nipple_of(side));
                     let c = bed.cylinder.to_cylindrical(nipple);
                     DVec2::new(c.x, c.y)
                 }
@@ -1880,7 +1878,17 @@ impl Simulation {
         match self.options.anchor_rule {
             AnchorRule::OnFold => {
                 let half_height_mm = shape.footprint().height_mm() / 2.0;
-                anchor_on_floor(bed, &self.frame, start, half_height_mm, floor_y_mm)
+                // straight down from behind the nipple (on the chest's radius through it)
+                let behind = resolve_anchor(bed, &self.frame, start, &Placement::default())?;
+                let across_mm = self.frame.to_local(behind.position).x;
+                anchor_on_floor(
+                    bed,
+                    &self.frame,
+                    start,
+                    across_mm,
+                    half_height_mm,
+                    floor_y_mm,
+                )
             }
             _ if lowering_mm > 0.0 => {
                 let down = Placement::moved(0.0, -lowering_mm, 0.0);

@@ -305,9 +305,14 @@ fn bad_implants_are_refused_clearly() {
         .set_implant(Side::Left, huge, Placement::default())
         .unwrap_err();
     println!("{e}");
+    // wider than the fill-in, and than the pocket between the midline and the anterior
+    // axillary line (the pocket is tried first: the ICE rule lowers the fold for it)
     assert!(matches!(
         e,
         SimulationError::ImplantLargerThanFootprint {
+            side: Side::Left,
+            ..
+        } | SimulationError::PocketLimit {
             side: Side::Left,
             ..
         }
@@ -439,9 +444,9 @@ fn the_scan_displacement_equals_the_smoothing_over_the_whole_scan() {
 }
 
 /// `AnchorRule::BehindNipple` (`simulate --anchor behind-nipple`): the default anchor is
-/// the nipple's own bed parameters `(u, v)` (a known answer, exact), where the default
-/// rule centres the implant on the footprint, which on the phantom lies 34 mm above the
-/// nipple. The phantom's nipple sits so low that even a 90 mm implant overhangs the fold
+/// the nipple's own bed parameters `(u, v)` (a known answer, exact), where
+/// `AnchorRule::FootprintCentre` centres the implant on the footprint, which on the
+/// phantom lies 34 mm above the nipple. The phantom's nipple sits so low that even a 90 mm implant overhangs the fold
 /// there, so the session moves it up until it fits: the placed anchor lies about the
 /// reported fit shift (mm along the bed) away from the nipple's parameters (arc lengths
 /// on the chest's cylinder, which the bed's tilt against the cylinder stretches by up to
@@ -453,7 +458,10 @@ fn the_behind_nipple_rule_starts_from_behind_the_nipple() {
         anchor_rule: AnchorRule::BehindNipple,
         ..Default::default()
     });
-    let centred = &baseline().sim;
+    let centred = p.session(SimulationOptions {
+        anchor_rule: AnchorRule::FootprintCentre,
+        ..Default::default()
+    });
     let small = *Catalog::builtin().get("R-MOD-90").unwrap().shape();
     for side in Side::BOTH {
         let nipple = common::nipple(p.landmarks(), side);
