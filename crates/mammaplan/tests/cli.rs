@@ -706,7 +706,7 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
         &std::fs::read_to_string(dir.path().join("simulation/result.json")).unwrap(),
     )
     .unwrap();
-    assert_eq!(demo_result["anchor"], "footprint-centre");
+    assert_eq!(demo_result["anchor"], "on-fold");
 
     // The demo's report, and one with the follow-up scan as the post-operative scan.
     let demo_report = std::fs::read_to_string(dir.path().join("report.html")).unwrap();

@@ -404,6 +404,10 @@ fn pocket_limit_error(
     }
 }
 
+/// A move may take the implant this much further past a pocket's limit than its
+/// default position lies before it is refused (mm): the pushes of the fit undo that much.
+const MOVE_PAST_LIMIT_TOLERANCE_MM: f64 = 2.0;
+
 /// The footprint's lowest point may lie this far below a fold lowered by a given amount
 /// (mm): the footprint's own tolerance on the bed's edge.
 const FLOOR_TOLERANCE_MM: f64 = FOOTPRINT_TOLERANCE_MM;
@@ -1125,15 +1129,29 @@ impl Simulation {
         if fold_lowering_mm > 0.0 {
             order.sort_by_key(|&k| self.bed_choices[s][k].bounds.is_none());
         }
+        // a move the user asked for past a pocket's limit ends the search; where no bed
+        // takes the implant, a pocket's limit it reached is the clearest error
+        let moved = placement.move_mm.truncate() != DVec2::ZERO;
         let mut outcome = Err(SimulationError::BadModel("no bed".into()));
+        let mut limit_reached = None;
         let mut chosen = 0;
         for k in order {
             let choice = &self.bed_choices[s][k];
             outcome = self.fit_on(side, choice, shift, &shape, &placement, fold_lowering_mm);
             chosen = k;
-            if matches!(outcome, Ok(_) | Err(SimulationError::PocketLimit { .. })) {
-                break;
+            match &outcome {
+                Ok(_) => break,
+                Err(limit @ SimulationError::PocketLimit { .. }) => {
+                    if moved {
+                        break;
+                    }
+                    limit_reached.get_or_insert_with(|| limit.clone());
+                }
+                Err(_) => {}
             }
+        }
+        if let (Err(_), Some(limit)) = (&outcome, limit_reached) {
+            outcome = Err(limit);
         }
         let (bed, feet, bounds, requested, anchor, fold_lowering_mm) = outcome?;
         let radius = self
@@ -1824,12 +1842,30 @@ impl Simulation {
         let limit_error = |error| pocket_limit_error(side, bounds.as_ref(), error);
         let default_uv = self.default_uv_on(side, &bed, shape, bounds.as_ref())?;
         let requested = resolve_anchor(&bed, &self.frame, default_uv, placement)?;
+        // a move that takes the implant further past a limit than its default position
+        // lies (the fit would undo it) is refused, naming the limit
+        let beyond_limit_mm =
+            |anchor: &Anchor| match check_footprint(&bed, anchor, shape, &self.frame)
+                .map_err(limit_error)
+            {
+                Err(limit @ SimulationError::PocketLimit { beyond_mm, .. }) => {
+                    Some((beyond_mm, limit))
+                }
+                _ => None,
+            };
         let moved = placement.move_mm.truncate() != glam::DVec2::ZERO;
-        if moved
-            && let Err(error) = check_footprint(&bed, &requested, shape, &self.frame)
-            && let limit @ SimulationError::PocketLimit { .. } = limit_error(error)
-        {
-            return Err(limit);
+        if moved && let Some((beyond_mm, limit)) = beyond_limit_mm(&requested) {
+            let unmoved = Placement {
+                move_mm: DVec3::new(0.0, 0.0, placement.move_mm.z),
+                ..*placement
+            };
+            let default_beyond_mm = resolve_anchor(&bed, &self.frame, default_uv, &unmoved)
+                .ok()
+                .and_then(|anchor| beyond_limit_mm(&anchor))
+                .map_or(0.0, |(mm, _)| mm);
+            if beyond_mm > default_beyond_mm + MOVE_PAST_LIMIT_TOLERANCE_MM {
+                return Err(limit);
+            }
         }
         let anchor = if self.options.fit_footprint {
             fit_footprint(&bed, &self.frame, requested, placement.rotation_deg, shape)
