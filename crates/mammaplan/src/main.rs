@@ -278,7 +278,7 @@ enum Command {
         #[arg(long, value_name = "CSV")]
         catalog: Option<PathBuf>,
         /// Default implant position, which the moves start from: on-fold (the implant's
-        /// lower edge on the planned fold, below the nipple), footprint-centre (centred on
+        /// lower edge on the planned fold, straight down from behind the nipple), footprint-centre (centred on
         /// the breast's base) or behind-nipple (straight behind the nipple); each is moved
         /// along the chest wall until the implant fits in its pocket.
         #[arg(long, value_name = "RULE", default_value = "on-fold")]

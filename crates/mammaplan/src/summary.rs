@@ -304,11 +304,16 @@ fn simulation_figures(report: &plan::simulate::SimulateReport) -> String {
             |i| {
                 let [x, y] = i.fit_shift_mm;
                 let fitted = if x != 0.0 || y != 0.0 {
-                    format!(", moved {x:+.1} mm left, {y:+.1} mm up to fit the breast base")
+                    format!(", moved {x:+.1} mm left, {y:+.1} mm up to fit its pocket")
                 } else {
                     String::new()
                 };
-                format!("{} ({:.0} ml{fitted})", i.spec, i.volume_ml)
+                let lowered = if i.fold_lowering_mm > 0.05 {
+                    format!(", fold lowered {:.1} mm", i.fold_lowering_mm)
+                } else {
+                    String::new()
+                };
+                format!("{} ({:.0} ml{lowered}{fitted})", i.spec, i.volume_ml)
             },
         );
         let _ = writeln!(

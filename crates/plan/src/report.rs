@@ -709,7 +709,9 @@ fn implant_choice(implant: ImplantRecord, anchor: AnchorRule) -> report::Implant
         projection_mm: implant.projection_mm,
         volume_ml: implant.volume_ml,
         default_position: match anchor {
-            AnchorRule::OnFold => "lower edge on the planned fold, below the nipple",
+            AnchorRule::OnFold => {
+                "lower edge on the planned fold, below the point behind the nipple"
+            }
             AnchorRule::FootprintCentre => "centred on the breast's base",
             AnchorRule::BehindNipple => "behind the nipple",
         }

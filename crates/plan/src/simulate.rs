@@ -507,6 +507,9 @@ pub struct ImplantSummary {
     /// The further move of the anchor along the bed that made the footprint fit (mm,
     /// implant's `x'` to the patient's left and `y'` up; zero when it fitted as asked).
     pub fit_shift_mm: [f64; 2],
+    /// How far the fold is lowered for this implant (mm below the native fold's lowest
+    /// point; 0 on the fill-in's bed).
+    pub fold_lowering_mm: f64,
     /// Where the implant's anchor (the centre of its back) ended up on the bed (mm, the
     /// scan's frame).
     pub anchor_mm: [f64; 3],
@@ -533,6 +536,7 @@ impl ImplantSummary {
             move_mm: request.move_mm.to_array(),
             rotation_deg: request.rotation_deg,
             fit_shift_mm: placed.fit_shift_mm.to_array(),
+            fold_lowering_mm: placed.fold_lowering_mm,
             anchor_mm: placed.anchor.position.to_array(),
         }
     }

@@ -46,6 +46,15 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         &path("simulation"),
         &SimulateOptions {
             left: Some(left),
+            // centred on the native breast's base at the native fold: the carried cut
+            // curve then still bounds the breast, so the simulated scan cut again along
+            // it measures the simulation's volume (checked below); an implant reaching
+            // below the fold would be cut through
+            anchor: plan::simulate::AnchorRule::FootprintCentre,
+            fold_lowering_mm: plan::model::PerSide {
+                left: Some(0.0),
+                right: Some(0.0),
+            },
             ..Default::default()
         },
         &Silent,
@@ -115,7 +124,7 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         (115.0, 110.0, 38.0)
     );
     assert_eq!(implant.offset_mm, [2.0, -3.0, 0.0]);
-    // result.json's anchor rule, the default one here.
+    // result.json's anchor rule, as asked.
     assert_eq!(result["anchor"], "footprint-centre");
     assert_eq!(implant.default_position, "centred on the breast's base");
     assert!(implant.catalog.is_none());

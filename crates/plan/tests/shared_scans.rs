@@ -211,13 +211,23 @@ fn the_simulated_pair1_pre_has_every_surface_distance() {
 }
 
 /// The session of the shared scan `name` with the implant `spec` on both sides, run to
-/// convergence as `mammaplan simulate` runs it (gravity included).
+/// convergence as `mammaplan simulate` runs it (gravity included), at the native fold:
+/// the carried cut curve then still bounds the breast, so the simulated scan cut again
+/// along it measures the simulation's volume (below a lowered fold it would cut through
+/// the implant).
 fn simulated(dir: &std::path::Path, name: &str, spec: &str) -> plan::simulate::Session {
+    let native_fold = plan::simulate::PocketLimits {
+        fold_lowering: plan::simulate::FoldLowering::Mm(0.0),
+        ..Default::default()
+    };
     let mut session = plan::simulate::Session::build(
         load(dir, name),
         &plan::model::ModelOptions::default(),
         plan::catalog::Catalog::builtin(),
-        plan::simulate::SimulationOptions::default(),
+        plan::simulate::SimulationOptions {
+            pocket: Some([native_fold; 2]),
+            ..Default::default()
+        },
         &Silent,
     )
     .unwrap();

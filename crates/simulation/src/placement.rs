@@ -4,14 +4,18 @@
 //! # Default anchor
 //! [`AnchorRule::OnFold`] (default): the implant's lower edge on the planned fold (the
 //! native fold's lowest point, PSMF, lowered as planned, see
-//! [`crate::pocket::ice_fold_lowering_mm`]), its vertical centre line through the nipple:
-//! the anchor is walked along the bed to the nipple's position across and down until the
-//! footprint's lowest point lies at the planned fold's height ([`anchor_on_floor`]). This is how the
-//! inframammary-fold approach places an implant: its lower pole in the fold, the
-//! fold set for the implant's size (Mallucci and Branford 2016, Plast. Reconstr. Surg.
-//! 137:1728, the ICE principle; Tebbetts and Adams 2005, Plast. Reconstr. Surg.
-//! 116:2005, the High Five process), so the nipple lies over the implant's upper-lower
-//! divide instead of on its lower slope.
+//! [`crate::pocket::ice_fold_lowering_mm`]), its centre line straight down the bed from
+//! the point behind the nipple (the nipple's parameters on the chest's cylinder, as
+//! [`AnchorRule::BehindNipple`]): the anchor keeps that point's place across and is
+//! walked until the footprint's lowest point lies at the planned fold's height
+//! ([`anchor_on_floor`]). This is how the inframammary-fold approach places an implant:
+//! its lower pole in the fold, the fold set for the implant's size (Mallucci and
+//! Branford 2016, Plast. Reconstr. Surg. 137:1728, the ICE principle; Tebbetts and
+//! Adams 2005, Plast. Reconstr. Surg. 116:2005, the High Five process), so the nipple
+//! lies over the implant's upper-lower divide instead of on its lower slope. The point
+//! behind the nipple lies medial of the nipple's own `x` on a curved chest, which keeps
+//! the implant inside the model where the scans' sides (and the model's lateral clip
+//! planes) end close beside the nipple (see `docs/dev/standing-frame.md`).
 //!
 //! [`AnchorRule::FootprintCentre`]: the area centroid of the bed's domain in the
 //! cylinder parameters `(u, v)`, i.e. the implant centred on the breast's footprint (the
@@ -80,8 +84,8 @@ impl Placement {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AnchorRule {
-    /// The implant's lower edge on the planned fold, its centre line below the nipple
-    /// (see the module documentation).
+    /// The implant's lower edge on the planned fold, its centre line straight down from
+    /// the point behind the nipple (see the module documentation).
     #[default]
     OnFold,
     /// The area centroid of the bed's domain in `(u, v)` (see the module documentation).

@@ -716,8 +716,13 @@ impl GuiApp {
                     } else {
                         String::new()
                     };
+                    let fold_note = if placed.fold_lowering_mm > 0.05 {
+                        format!(", fold lowered {:.0} mm", placed.fold_lowering_mm)
+                    } else {
+                        String::new()
+                    };
                     ui.label(format!(
-                        "{side}: {}, {:.0} ml{fit_note}",
+                        "{side}: {}, {:.0} ml{fold_note}{fit_note}",
                         placed.spec, placed.volume_ml
                     ));
                 }
