@@ -1,3 +1,7 @@
+"""Where the skin's fold crease lies before and after simulations with the fold lowered
+by 0 and 10 mm (docs/dev/standing-frame.md, "Does the simulated skin show the new
+fold?"). Run in a folder holding ph.ply and ph.json (`mammaplan phantom`) and the
+simulation folders sim0/ and sim10/. Needs numpy and plyfile."""
 import json,numpy as np
 from plyfile import PlyData
 def load(p):
