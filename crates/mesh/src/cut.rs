@@ -245,7 +245,10 @@ impl CutMesh {
 
 /// Renumbers the indices (below `count`) that `triangles` use densely, in order of first
 /// use: the renumbered triangles and, for each new index, the old one.
-fn compact(triangles: impl Iterator<Item = [u32; 3]>, count: usize) -> (Vec<[u32; 3]>, Vec<u32>) {
+pub fn compact(
+    triangles: impl Iterator<Item = [u32; 3]>,
+    count: usize,
+) -> (Vec<[u32; 3]>, Vec<u32>) {
     let mut new_index = vec![u32::MAX; count];
     let mut old_index = Vec::new();
     let renumbered = triangles

@@ -21,7 +21,7 @@ pub mod topology;
 pub mod trimesh;
 pub mod untangle;
 
-pub use cut::{CutError, CutMesh, MeshPart, Region, cut_along_curves};
+pub use cut::{CutError, CutMesh, MeshPart, Region, compact, cut_along_curves};
 pub use error::MeshError;
 pub use geodesic::{GeodesicSolver, PathError, SurfacePath, SurfacePoint};
 pub use glam::{DVec2, DVec3};

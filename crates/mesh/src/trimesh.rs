@@ -52,20 +52,8 @@ impl TriMesh {
     /// The mesh of `triangles` (indices into `positions`) with the vertices no triangle
     /// uses dropped and the rest renumbered in order of first use.
     pub fn from_used_vertices(positions: &[DVec3], triangles: &[[u32; 3]]) -> TriMesh {
-        let mut index = vec![u32::MAX; positions.len()];
-        let mut kept = Vec::new();
-        let triangles = triangles
-            .iter()
-            .map(|t| {
-                t.map(|v| {
-                    if index[v as usize] == u32::MAX {
-                        index[v as usize] = kept.len() as u32;
-                        kept.push(positions[v as usize]);
-                    }
-                    index[v as usize]
-                })
-            })
-            .collect();
+        let (triangles, used) = crate::compact(triangles.iter().copied(), positions.len());
+        let kept = used.iter().map(|&v| positions[v as usize]).collect();
         TriMesh::new(kept, triangles)
     }
 

@@ -115,20 +115,7 @@ impl TetMesh {
             .filter(|group| group.len() == 1)
             .map(|group| group[0].1)
             .collect();
-        let mut local = vec![u32::MAX; self.positions.len()];
-        let mut tet_vertex = Vec::new();
-        let triangles = once
-            .iter()
-            .map(|face| {
-                face.map(|v| {
-                    if local[v as usize] == u32::MAX {
-                        local[v as usize] = tet_vertex.len() as u32;
-                        tet_vertex.push(v);
-                    }
-                    local[v as usize]
-                })
-            })
-            .collect();
+        let (triangles, tet_vertex) = mesh::compact(once.into_iter(), self.positions.len());
         let positions = tet_vertex
             .iter()
             .map(|&v| self.positions[v as usize])
