@@ -274,6 +274,10 @@ enum Command {
         /// Skip the gravity correction.
         #[arg(long)]
         no_gravity: bool,
+        /// Simulate homogeneous tissue up to the surface (the paper's model) instead of
+        /// a stiff skin layer over it.
+        #[arg(long)]
+        no_skin: bool,
         /// A CSV catalog for catalog:ID specs instead of the built-in one.
         #[arg(long, value_name = "CSV")]
         catalog: Option<PathBuf>,
@@ -564,6 +568,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             rotate_left,
             rotate_right,
             no_gravity,
+            no_skin,
             catalog,
             anchor,
             lower_fold_left,
@@ -589,6 +594,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                     left: lower_fold_left,
                     right: lower_fold_right,
                 },
+                no_skin,
             };
             let report = plan::simulate::simulate(&model, &out, &options, progress)?;
             progress.finish();

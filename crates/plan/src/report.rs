@@ -552,6 +552,12 @@ pub fn report_content(
             rear_wall_offset_mm: model.rear_wall_offset_mm,
             tissue: material(&simulation.materials.tissue),
             implant_material: material(&simulation.materials.implant),
+            skin: simulation.materials.skin.map(|skin| {
+                format!(
+                    "{:.0} kPa, {:.2} mm thick, carried by the outer elements",
+                    skin.young_kpa, skin.thickness_mm
+                )
+            }),
             gravity_correction: !simulation.no_gravity,
             up: model.up.as_ref().map_or_else(
                 || "the file's +y (a model folder from before the standing frame)".to_string(),

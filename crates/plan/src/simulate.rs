@@ -84,6 +84,9 @@ pub struct SimulateOptions {
     /// `None`: as the ICE principle plans it for the implant
     /// ([`simulation::pocket::ice_fold_lowering_mm`]).
     pub fold_lowering_mm: PerSide<Option<f64>>,
+    /// Homogeneous tissue up to the surface (the paper's model) instead of the default
+    /// skin layer ([`simulation::skin`]).
+    pub no_skin: bool,
 }
 
 /// A patient's model ready for interactive simulation.
@@ -550,11 +553,22 @@ pub struct MaterialReport {
     pub density_kg_m3: f64,
 }
 
+/// The skin layer of the simulation ([`simulation::skin`]).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct SkinReport {
+    pub young_kpa: f64,
+    pub thickness_mm: f64,
+}
+
 /// The materials of the simulation.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 pub struct MaterialsReport {
     pub tissue: MaterialReport,
     pub implant: MaterialReport,
+    /// The skin over the tissue; `null`: homogeneous tissue up to the surface (older
+    /// results and `--no-skin`).
+    #[serde(default)]
+    pub skin: Option<SkinReport>,
 }
 
 impl MaterialsReport {
@@ -571,6 +585,10 @@ impl MaterialsReport {
                 poisson_ratio: options.implant_poisson_ratio,
                 density_kg_m3: options.implant_density_kg_m3,
             },
+            skin: options.skin.map(|skin| SkinReport {
+                young_kpa: skin.young_kpa,
+                thickness_mm: skin.thickness_mm,
+            }),
         }
     }
 }
@@ -701,6 +719,11 @@ pub fn simulate(
             limits(options.fold_lowering_mm.left),
             limits(options.fold_lowering_mm.right),
         ]),
+        skin: if options.no_skin {
+            None
+        } else {
+            SimulationOptions::default().skin
+        },
         ..SimulationOptions::default()
     };
     let session = Session::new(marked, model, catalog, simulation_options)?;

@@ -3,7 +3,8 @@
 //! finest system after one corotated cycle of the session: the multigrid (as the
 //! preconditioner of CG) and the direct sparse Cholesky solver agree to 1e-6 relative;
 //! bare V(2,1) cycles from zero reduce the residual per cycle and reach the direct
-//! solution, with the barycentric and the smoothed prolongation.
+//! solution, with the barycentric and the smoothed prolongation, on the homogeneous
+//! tissue (with the default skin layer, PCG still agrees with the direct solver).
 
 use glam::DVec3;
 use plan::model::{ModelOptions, build_model};
@@ -47,30 +48,25 @@ fn multigrid_matches_the_direct_solver_on_shared_scans() {
             session.cycle().unwrap();
             session
         };
+        // the default model, with its stiff skin layer: PCG against the direct solver
         let mut session = session_with(simulation::SimulationOptions::default());
         let mg = session.simulation.multigrid_mut().expect("assembled");
-        let b = mg.system().rhs.clone();
-        let matrix = mg.system().matrix.clone();
-        let direct = fem::DirectSolver::new(&matrix)
-            .unwrap()
-            .solve(&matrix, &b)
-            .unwrap();
-        let mut x = vec![DVec3::ZERO; b.len()];
-        let result = mg.pcg(&b, &mut x, 1e-10, 200);
-        let norm = |v: &[DVec3]| v.iter().map(|d| d.length_squared()).sum::<f64>().sqrt();
-        let difference: Vec<DVec3> = x.iter().zip(&direct).map(|(a, b)| *a - *b).collect();
-        let relative = norm(&difference) / norm(&direct);
+        pcg_matches_direct(name, "with skin", mg);
         println!(
-            "{name}: {} unknowns, PCG {} iterations (residual {:.1e}), |x_mg - x_direct| / \
-             |x_direct| = {relative:.1e}",
-            b.len(),
-            result.iterations,
-            result.relative_residual
+            "{name}: with skin, barycentric P: {}",
+            bare_cycles(mg, false)
         );
-        assert!(result.converged, "{name}: {result:?}");
-        // PCG stops at 1e-10 relative residual; the system's condition number (soft
-        // implant elements at 1% of the tissue) leaves the error well under 1e-6.
-        assert!(relative < 1e-6, "{name}: {relative}");
+
+        // issue 5's bounds on bare cycles stand for the homogeneous tissue (the paper's
+        // model): a skin 40-150 times stiffer in the outer elements is a coefficient jump
+        // the coarse levels do not resolve (docs/dev/skin.md)
+        let homogeneous = || simulation::SimulationOptions {
+            skin: None,
+            ..Default::default()
+        };
+        let mut session = session_with(homogeneous());
+        let mg = session.simulation.multigrid_mut().expect("assembled");
+        pcg_matches_direct(name, "homogeneous", mg);
         let plain = bare_cycles(mg, false);
         println!("{name}: barycentric P: {plain}");
         // the issue's bound: five cycles within 1e-3 of the converged answer (measured
@@ -83,7 +79,7 @@ fn multigrid_matches_the_direct_solver_on_shared_scans() {
         println!("{name}: barycentric P, optimal step: {stepped}");
         assert!(stepped.error < 0.5 * plain.error, "{name}: {stepped}");
 
-        let mut options = simulation::SimulationOptions::default();
+        let mut options = homogeneous();
         options.multigrid.prolongation_smoothing = 0.5;
         let mut session = session_with(options);
         let mg = session.simulation.multigrid_mut().expect("assembled");
@@ -96,6 +92,34 @@ fn multigrid_matches_the_direct_solver_on_shared_scans() {
             "{name}: {smoothed}"
         );
     }
+}
+
+/// PCG with the multigrid as preconditioner solves the finest system to 1e-10 and agrees
+/// with the direct sparse Cholesky solution.
+fn pcg_matches_direct(name: &str, what: &str, mg: &mut fem::multigrid::Multigrid) {
+    let b = mg.system().rhs.clone();
+    let matrix = mg.system().matrix.clone();
+    let direct = fem::DirectSolver::new(&matrix)
+        .unwrap()
+        .solve(&matrix, &b)
+        .unwrap();
+    let mut x = vec![DVec3::ZERO; b.len()];
+    let result = mg.pcg(&b, &mut x, 1e-10, 200);
+    let norm = |v: &[DVec3]| v.iter().map(|d| d.length_squared()).sum::<f64>().sqrt();
+    let difference: Vec<DVec3> = x.iter().zip(&direct).map(|(a, b)| *a - *b).collect();
+    let relative = norm(&difference) / norm(&direct);
+    println!(
+        "{name}, {what}: {} unknowns, PCG {} iterations (residual {:.1e}), \
+         |x_mg - x_direct| / |x_direct| = {relative:.1e}",
+        b.len(),
+        result.iterations,
+        result.relative_residual
+    );
+    assert!(result.converged, "{name}, {what}: {result:?}");
+    // PCG stops at 1e-10 relative residual; the system's condition number (soft implant
+    // elements at 1% of the tissue, skin elements up to 150 times it) leaves the error
+    // well under 1e-6.
+    assert!(relative < 1e-6, "{name}, {what}: {relative}");
 }
 
 /// Five bare V(2,1) cycles from zero on the multigrid's finest system `A x = b` (with

@@ -20,12 +20,16 @@ fn options() -> ModelOptions {
 }
 
 fn session() -> Session {
+    session_with(SimulationOptions::default())
+}
+
+fn session_with(simulation_options: SimulationOptions) -> Session {
     let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
     let mut session = Session::build(
         marked,
         &options(),
         plan::catalog::Catalog::builtin(),
-        SimulationOptions::default(),
+        simulation_options,
         &Silent,
     )
     .unwrap();
@@ -206,13 +210,22 @@ fn advance_to_the_end(session: &mut Session, no_gravity: bool) -> Vec<plan::simu
         if advance.state != SolveState::Running {
             return cycles;
         }
-        assert!(cycles.len() < 200, "no end");
+        assert!(cycles.len() < 700, "no end");
     }
 }
 
 #[test]
 fn one_hierarchy_serves_both_stages_and_later_changes() {
-    let mut live = session();
+    // solved to 1e-5, so that two starts agree closely (at the default 1e-3 the skin
+    // layer's slow modes leave 0.1-0.2 mm between them)
+    let tight = || {
+        session_with(SimulationOptions {
+            relative_tolerance: 1e-5,
+            max_cycles: 300,
+            ..Default::default()
+        })
+    };
+    let mut live = tight();
     let first = advance_to_the_end(&mut live, false);
     assert_eq!(first.last().unwrap().cycle.stage, Stage::Gravity);
     assert_eq!(live.simulation.multigrid_builds(), 1);
@@ -235,10 +248,10 @@ fn one_hierarchy_serves_both_stages_and_later_changes() {
     assert_eq!(live.simulation.multigrid_builds(), 1);
 
     // Independent path: a fresh session solving the moved implant from scratch. Both
-    // stop at a relative residual of 1e-3 from different starts, so the scans agree to
-    // the solver's tolerance, not to round-off: measured 0.01 mm, bound 0.1 mm (the
-    // implant moves the nipple by about 20 mm).
-    let mut fresh = session();
+    // stop at a relative residual of 1e-5 from different starts, so the scans agree to
+    // the solver's tolerance, not to round-off: bound 0.1 mm (the implant moves the
+    // nipple by about 20 mm).
+    let mut fresh = tight();
     fresh
         .set_implant(Side::Left, &moved.spec, moved.placement())
         .unwrap();

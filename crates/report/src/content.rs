@@ -74,6 +74,9 @@ pub struct ModelParameters {
     pub rear_wall_offset_mm: f64,
     pub tissue: MaterialParameters,
     pub implant_material: MaterialParameters,
+    /// The skin layer over the tissue in words; `None`: homogeneous tissue up to the
+    /// surface.
+    pub skin: Option<String>,
     /// Whether the weight of the implant was simulated (paper V-B).
     pub gravity_correction: bool,
     /// Which way was up in the scan (the direction gravity acts against), in words.

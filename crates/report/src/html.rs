@@ -91,6 +91,10 @@ fn case_section(case: &CaseInfo) -> Markup {
                     tr { th scope="row" { "Breast tissue" } td { (material(&model.tissue)) } }
                     tr { th scope="row" { "Implant material" } td { (material(&model.implant_material)) } }
                     tr {
+                        th scope="row" { "Skin" }
+                        td { (model.skin.as_deref().unwrap_or("not modelled (homogeneous tissue up to the surface)")) }
+                    }
+                    tr {
                         th scope="row" { "Weight of the implant (gravity)" }
                         td { @if model.gravity_correction { "simulated" } @else { "not simulated" } }
                     }

@@ -9,6 +9,7 @@
 //!   the bed, rotation, the implant's local frame.
 //! - [`pocket`]: where the implant may lie beyond the fill-in, and the planned fold.
 //! - [`template`]: fill-in elements, implant vertices, fixed vertices, implant elements.
+//! - [`skin`]: the skin as a stiff layer carried by the finest elements on the surface.
 //! - [`session`]: [`Simulation`], the session: set or move implants, one V-cycle or
 //!   solve to convergence, the gravity correction, the moved scan, landmarks and breast
 //!   volumes.
@@ -46,6 +47,7 @@ pub mod field;
 pub mod placement;
 pub mod pocket;
 pub mod session;
+pub mod skin;
 pub mod template;
 
 pub use bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
@@ -56,4 +58,5 @@ pub use session::{
     BreastVolume, CARRIED_CONTROL_POINT_SPACING_MM, CycleInfo, PatientInput, PlacedImplant,
     RunReport, Simulation, SimulationOptions, SolveReport, Stage,
 };
+pub use skin::SkinLayer;
 pub use template::ImplantTemplate;

@@ -67,6 +67,7 @@ use crate::pocket::{
     FoldLowering, PocketBounds, PocketLimits, native_fold_y_mm, nipple_of, nipple_to_fold_mm,
     pocket_surface,
 };
+use crate::skin::SkinLayer;
 use crate::template::{
     BedFeet, FOOTPRINT_TOLERANCE_MM, ImplantTemplate, SideCandidates, SmoothedThickness,
     TemplateIndex, TemplateRules, build_template, check_footprint, fit_footprint,
@@ -180,6 +181,9 @@ pub struct SimulationOptions {
     pub template_layer_mm: Option<f64>,
     /// Breast tissue.
     pub tissue: Material,
+    /// The skin over it ([`crate::skin`]); `None`: tissue up to the surface (the
+    /// paper's homogeneous model).
+    pub skin: Option<SkinLayer>,
     /// Implant elements' Young's modulus over the tissue's.
     pub implant_young_ratio: f64,
     /// Implant elements' Poisson ratio.
@@ -244,6 +248,7 @@ impl Default for SimulationOptions {
             rim_smoothing_mm: None,
             template_layer_mm: None,
             tissue: Material::default(),
+            skin: Some(SkinLayer::default()),
             implant_young_ratio: DEFAULT_IMPLANT_YOUNG_RATIO,
             implant_poisson_ratio: 0.3,
             implant_density_kg_m3: DEFAULT_IMPLANT_DENSITY_KG_M3,
@@ -766,6 +771,10 @@ impl Simulation {
             .tissue
             .check()
             .map_err(|what| SimulationError::BadModel(format!("tissue material: {what}")))?;
+        if let Some(skin) = &options.skin {
+            skin.check(&options.tissue)
+                .map_err(|what| SimulationError::BadModel(format!("skin: {what}")))?;
+        }
         let frame = *input.frame;
         let Some(level0) = input.tets.levels.first() else {
             return Err(SimulationError::BadModel(
@@ -906,30 +915,46 @@ impl Simulation {
         });
         // the band is held except where a clip plane cuts through breast tissue in front
         // of an implant bed
-        let held = |mesh: &TetMesh, spacing: f64| -> Result<Vec<u32>, SimulationError> {
-            Ok(
-                wall_vertices(mesh, closed, spacing * WALL_TOLERANCE_FACTOR)?
-                    .into_iter()
-                    .filter(|&(v, band)| {
-                        !band
-                            || !beds.iter().any(|bed| {
-                                let c = bed.cylinder.to_cylindrical(mesh.positions[v as usize]);
-                                bed.at(DVec2::new(c.x, c.y)).is_some_and(|b| c.z > b.w)
-                            })
-                    })
-                    .map(|(v, _)| v)
-                    .collect(),
-            )
+        let held = |mesh: &TetMesh, wall_and_band: &[(u32, bool)]| -> Vec<u32> {
+            wall_and_band
+                .iter()
+                .filter(|&&(v, band)| {
+                    !band
+                        || !beds.iter().any(|bed| {
+                            let c = bed.cylinder.to_cylindrical(mesh.positions[v as usize]);
+                            bed.at(DVec2::new(c.x, c.y)).is_some_and(|b| c.z > b.w)
+                        })
+                })
+                .map(|&(v, _)| v)
+                .collect()
         };
-        let wall = held(&finest, spacing_mm)?;
+        let finest_wall_and_band =
+            wall_vertices(&finest, closed, spacing_mm * WALL_TOLERANCE_FACTOR)?;
+        if let Some(skin) = options.skin {
+            let mut not_skin = vec![false; finest.positions.len()];
+            for &(v, _) in &finest_wall_and_band {
+                not_skin[v as usize] = true;
+            }
+            let materials = skin.materials(&finest, options.tissue, &not_skin);
+            for (e, material) in materials.into_iter().enumerate() {
+                if material != options.tissue {
+                    levels[0].set_material(e, material)?;
+                }
+            }
+        }
+        let wall = held(&finest, &finest_wall_and_band);
         let mut on_wall = vec![false; finest.positions.len()];
         for &v in &wall {
             on_wall[v as usize] = true;
         }
         let coarse_walls = input.tets.levels[1..levels.len()]
             .iter()
-            .map(|l| held(&l.mesh, l.spacing_mm))
-            .collect::<Result<Vec<_>, _>>()?;
+            .map(|l| {
+                let wall_and_band =
+                    wall_vertices(&l.mesh, closed, l.spacing_mm * WALL_TOLERANCE_FACTOR)?;
+                Ok(held(&l.mesh, &wall_and_band))
+            })
+            .collect::<Result<Vec<_>, SimulationError>>()?;
 
         let locator = FieldLocator::new(&finest, spacing_mm).ok_or_else(|| {
             SimulationError::BadModel("the finest level has no tetrahedra".into())
@@ -1340,7 +1365,8 @@ impl Simulation {
             .flat_map(|i| i.template.implant_elements.iter().copied())
             .collect();
         for &e in &stage.soft_elements {
-            stage.multigrid.set_material(e as usize, t)?;
+            let own = self.levels[0].materials()[e as usize];
+            stage.multigrid.set_material(e as usize, own)?;
         }
         for &e in &current {
             stage.multigrid.set_material(e as usize, soft)?;
