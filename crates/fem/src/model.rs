@@ -58,8 +58,12 @@ pub enum Tangent {
 pub struct InversionBarrier {
     /// Volume ratio `J_min` below which the barrier acts, in (0, 1).
     pub min_volume_ratio: f64,
-    /// Its modulus `κ` (kPa), positive.
+    /// Its modulus `κ` (kPa), positive: the least of every element's.
     pub modulus_kpa: f64,
+    /// An element's `κ` is at least this multiple of its own Young's modulus
+    /// (non-negative), so that stiff elements (a skin layer) are held as firmly relative
+    /// to what pushes them.
+    pub young_multiple: f64,
 }
 
 /// Rest-state data of one linear tetrahedron.
@@ -277,13 +281,15 @@ impl FemModel {
             && !(b.min_volume_ratio > 0.0
                 && b.min_volume_ratio < 1.0
                 && b.modulus_kpa > 0.0
-                && b.modulus_kpa.is_finite())
+                && b.modulus_kpa.is_finite()
+                && b.young_multiple >= 0.0
+                && b.young_multiple.is_finite())
         {
             return Err(FemError::InvalidOptions {
                 what: format!(
-                    "inversion barrier: volume ratio {} must lie in (0, 1) and modulus {} kPa \
-                     be positive",
-                    b.min_volume_ratio, b.modulus_kpa
+                    "inversion barrier: volume ratio {} must lie in (0, 1), modulus {} kPa \
+                     be positive and the multiple {} of Young's modulus not negative",
+                    b.min_volume_ratio, b.modulus_kpa, b.young_multiple
                 ),
             });
         }
@@ -313,7 +319,10 @@ impl FemModel {
         }
         let b = self.barrier?;
         let gap = b.min_volume_ratio - (DMat3::IDENTITY + du).determinant();
-        (gap > 0.0).then(|| (gap, 2.0 * b.modulus_kpa * self.elements[e].volume_mm3))
+        let modulus = b
+            .modulus_kpa
+            .max(b.young_multiple * self.materials[e].young_kpa);
+        (gap > 0.0).then(|| (gap, 2.0 * modulus * self.elements[e].volume_mm3))
     }
 
     /// Consistent nodal gravity forces (mN) for the acceleration `gravity_m_s2` (m/s²,

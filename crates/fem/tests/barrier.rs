@@ -13,6 +13,7 @@ use glam::DVec3;
 const BARRIER: InversionBarrier = InversionBarrier {
     min_volume_ratio: 0.5,
     modulus_kpa: 50.0,
+    young_multiple: 0.0,
 };
 
 /// Volume ratio `det F` of every element.
@@ -128,4 +129,30 @@ fn barrier_keeps_squeezed_elements_positive_and_leaves_others_alone() {
     let (a, _) = solve(None, false);
     let (b, _) = solve(Some(BARRIER), false);
     assert_eq!(a.displacement, b.displacement);
+}
+
+/// One tetrahedron of a stiff material (1000 kPa) shrunk uniformly to a volume ratio of
+/// 0.3: the barrier adds exactly `κ V (J_min - J)²`, with `κ` the larger of the barrier's
+/// modulus (100 kPa) and 40 times the element's Young's modulus (40,000 kPa).
+#[test]
+fn a_stiff_element_gets_a_barrier_in_proportion_to_its_modulus() {
+    let mesh = fem::box_mesh(DVec3::ZERO, DVec3::splat(10.0), [1, 1, 1]);
+    let mut model = FemModel::homogeneous(&mesh, Material::new(1000.0, 0.45)).unwrap();
+    let scale = 0.3f64.cbrt();
+    let u: Vec<DVec3> = mesh.positions.iter().map(|x| *x * (scale - 1.0)).collect();
+    let without = model.potential_energy(&u, &[], Formulation::Corotated);
+    model
+        .set_inversion_barrier(Some(InversionBarrier {
+            min_volume_ratio: 0.5,
+            modulus_kpa: 100.0,
+            young_multiple: 40.0,
+        }))
+        .unwrap();
+    let with = model.potential_energy(&u, &[], Formulation::Corotated);
+    let expected = 40_000.0 * 1000.0 * (0.5f64 - 0.3).powi(2);
+    assert!(
+        ((with - without) - expected).abs() < 1e-9 * expected,
+        "{} {expected}",
+        with - without
+    );
 }

@@ -99,7 +99,8 @@ pub const DEFAULT_IMPLANT_YOUNG_RATIO: f64 = 0.01;
 
 /// Default inversion barrier of the finest level: elements squeezed below half their
 /// volume resist with a modulus of 100 kPa (about forty times the tissue's Young's
-/// modulus), whatever their material (the soft implant elements too). Measured on the
+/// modulus), the soft implant elements too, and stiffer elements (the skin's) with forty
+/// times their own modulus (docs/dev/skin.md). Measured on the
 /// shared scans with base-sized round implants (no gravity): inverted elements 3, 7 and
 /// 10 (v02_average, pair1_post, pair1_pre) without it; with 50 kPa 1, 0, 0; with
 /// 100 kPa none (stage 1 in 14 cycles on v02_average instead of 10); 200 kPa took 34
@@ -107,6 +108,7 @@ pub const DEFAULT_IMPLANT_YOUNG_RATIO: f64 = 0.01;
 pub const DEFAULT_INVERSION_BARRIER: InversionBarrier = InversionBarrier {
     min_volume_ratio: 0.5,
     modulus_kpa: 100.0,
+    young_multiple: 40.0,
 };
 
 /// Default radius of the implant rim's mollifier in finest lattice spacings. Linear
@@ -497,6 +499,8 @@ pub struct Simulation {
     wall: Vec<u32>,
     /// Per finest vertex: on the wall (held at every stage).
     on_wall: Vec<bool>,
+    /// Per finest vertex: on the clip planes' band (held or not).
+    on_band: Vec<bool>,
     /// Held wall and band vertices of each coarser level (for rediscretised operators).
     coarse_walls: Vec<Vec<u32>>,
     /// The coarse operator in use, and how often Galerkin failed.
@@ -943,6 +947,10 @@ impl Simulation {
             }
         }
         let wall = held(&finest, &finest_wall_and_band);
+        let mut on_band = vec![false; finest.positions.len()];
+        for &(v, band) in &finest_wall_and_band {
+            on_band[v as usize] = band;
+        }
         let mut on_wall = vec![false; finest.positions.len()];
         for &v in &wall {
             on_wall[v as usize] = true;
@@ -1029,6 +1037,7 @@ impl Simulation {
             sides,
             wall,
             on_wall,
+            on_band,
             implants: [None, None],
             stage: Stage::Implant,
             multigrid: None,
@@ -1290,9 +1299,14 @@ impl Simulation {
             for &v in &implant.template.fixed_vertices {
                 c.fix(v);
             }
-            if with_implant_vertices {
-                for &(v, d) in &implant.template.implant_vertices {
+            for &(v, d) in &implant.template.implant_vertices {
+                if with_implant_vertices {
                     c.prescribe(v, d);
+                } else if self.on_band[v as usize] {
+                    // where the model is cut through the body, the holding force includes
+                    // the unmodelled tissue's: released, the vertex would hang on the soft
+                    // implant elements alone, so it keeps its stage-1 place
+                    c.fix(v);
                 }
             }
         }
