@@ -307,6 +307,10 @@ pub struct PlacedImplant {
     /// (mm; 0 on the fill-in's bed, which ends at the native fold).
     pub fold_lowering_mm: f64,
     pub template: ImplantTemplate,
+    /// Skin vertices of the finest level along the planned fold, under the implant's
+    /// lower half: held to the chest at every stage, as the inframammary fold's
+    /// attachment (re-formed at the planned fold) holds the skin there.
+    pub fold_vertices: Vec<u32>,
     /// Time to place the implant and build its template (ms).
     pub setup_ms: f64,
 }
@@ -501,6 +505,8 @@ pub struct Simulation {
     on_wall: Vec<bool>,
     /// Per finest vertex: on the clip planes' band (held or not).
     on_band: Vec<bool>,
+    /// Per finest vertex: on the skin (a boundary vertex off the wall and the band).
+    on_skin: Vec<bool>,
     /// Held wall and band vertices of each coarser level (for rediscretised operators).
     coarse_walls: Vec<Vec<u32>>,
     /// The coarse operator in use, and how often Galerkin failed.
@@ -948,8 +954,13 @@ impl Simulation {
         }
         let wall = held(&finest, &finest_wall_and_band);
         let mut on_band = vec![false; finest.positions.len()];
+        let mut on_skin = vec![false; finest.positions.len()];
+        for &v in &finest.boundary().tet_vertex {
+            on_skin[v as usize] = true;
+        }
         for &(v, band) in &finest_wall_and_band {
             on_band[v as usize] = band;
+            on_skin[v as usize] = false;
         }
         let mut on_wall = vec![false; finest.positions.len()];
         for &v in &wall {
@@ -1038,6 +1049,7 @@ impl Simulation {
             wall,
             on_wall,
             on_band,
+            on_skin,
             implants: [None, None],
             stage: Stage::Implant,
             multigrid: None,
@@ -1209,6 +1221,7 @@ impl Simulation {
                 on_wall: &self.on_wall,
             },
         )?;
+        let fold_vertices = self.fold_line(side, fold_lowering_mm, &template);
         self.beds[s] = bed;
         self.feet[s] = feet;
         self.pocket_bounds[s] = bounds;
@@ -1219,10 +1232,57 @@ impl Simulation {
             fit_shift_mm: requested.local(anchor.uv),
             fold_lowering_mm,
             template,
+            fold_vertices,
             setup_ms: elapsed_ms(start),
         });
         self.constraints_changed();
         Ok(self.implants[s].as_ref().expect("just set"))
+    }
+
+    /// The skin vertices along the planned fold of `side` ([`PlacedImplant::fold_vertices`]):
+    /// on the skin, up to one finest spacing below the planned fold's height (standing
+    /// frame), across the width of the template's vertices below the implant's middle,
+    /// and neither template vertices nor their neighbours (a held vertex next to one
+    /// pushed by the implant folds the element between them over).
+    fn fold_line(&self, side: Side, fold_lowering_mm: f64, template: &ImplantTemplate) -> Vec<u32> {
+        let local = |v: u32| self.frame.to_local(self.finest.positions[v as usize]);
+        let fold_y_mm = native_fold_y_mm(side, &self.frame, &self.landmarks) - fold_lowering_mm;
+        let pushed: Vec<DVec3> = template
+            .implant_vertices
+            .iter()
+            .map(|&(v, _)| local(v))
+            .collect();
+        let Some(middle_y_mm) = pushed
+            .iter()
+            .map(|p| p.y)
+            .reduce(f64::max)
+            .zip(pushed.iter().map(|p| p.y).reduce(f64::min))
+            .map(|(top, bottom)| 0.5 * (top + bottom))
+        else {
+            return Vec::new();
+        };
+        let (x_lo, x_hi) = pushed
+            .iter()
+            .filter(|p| p.y < middle_y_mm)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p.x), hi.max(p.x))
+            });
+        let in_template: std::collections::HashSet<u32> =
+            template.implant_vertices.iter().map(|&(v, _)| v).collect();
+        let pushed_near = |v: u32| {
+            let v = v as usize;
+            in_template.contains(&(v as u32))
+                || self.neighbours[self.neighbour_ptr[v]..self.neighbour_ptr[v + 1]]
+                    .iter()
+                    .any(|w| in_template.contains(w))
+        };
+        (0..self.finest.positions.len() as u32)
+            .filter(|&v| self.on_skin[v as usize] && !pushed_near(v))
+            .filter(|&v| {
+                let p = local(v);
+                p.y <= fold_y_mm && p.y > fold_y_mm - self.spacing_mm && p.x >= x_lo && p.x <= x_hi
+            })
+            .collect()
     }
 
     /// Removes the implant of one side (back to stage 1).
@@ -1259,7 +1319,12 @@ impl Simulation {
             zero[v as usize] = true;
         }
         for implant in self.implants.iter().flatten() {
-            for &v in &implant.template.fixed_vertices {
+            for &v in implant
+                .template
+                .fixed_vertices
+                .iter()
+                .chain(&implant.fold_vertices)
+            {
                 zero[v as usize] = true;
             }
         }
@@ -1296,7 +1361,12 @@ impl Simulation {
             c.fix(v);
         }
         for implant in self.implants.iter().flatten() {
-            for &v in &implant.template.fixed_vertices {
+            for &v in implant
+                .template
+                .fixed_vertices
+                .iter()
+                .chain(&implant.fold_vertices)
+            {
                 c.fix(v);
             }
             for &(v, d) in &implant.template.implant_vertices {
