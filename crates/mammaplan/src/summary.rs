@@ -322,6 +322,32 @@ fn simulation_figures(report: &plan::simulate::SimulateReport) -> String {
             after - before
         );
     }
+    for (side, implant, fold) in [
+        (
+            "left",
+            &report.implants.left,
+            &report.nipple_to_fold_mm.left,
+        ),
+        (
+            "right",
+            &report.implants.right,
+            &report.nipple_to_fold_mm.right,
+        ),
+    ] {
+        if implant.is_none() {
+            continue;
+        }
+        let below = fold
+            .simulated_fold_lowering_mm
+            .map_or_else(String::new, |mm| {
+                format!(" (the fold {mm:.1} mm below the native one)")
+            });
+        let _ = writeln!(
+            out,
+            "{side:<6} nipple to fold: {:.1} mm before, {:.1} mm planned, {:.1} mm simulated{below}",
+            fold.before_mm, fold.planned_mm, fold.simulated_mm
+        );
+    }
     let s = &report.solver;
     let _ = writeln!(
         out,

@@ -676,22 +676,41 @@ impl PocketReport {
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct NippleToFold {
     pub before_mm: f64,
+    /// The distance before plus the fold lowering.
     pub planned_mm: f64,
+    /// From the moved nipple to the simulated fold
+    /// ([`simulation::Simulation::simulated_fold`]; to the carried PSMF landmark where no
+    /// skin moved forward on its section).
     pub simulated_mm: f64,
+    /// How far the simulated fold lies below the native one (mm, standing frame);
+    /// `null` where no skin moved forward on its section.
+    pub simulated_fold_lowering_mm: Option<f64>,
 }
 
 impl NippleToFold {
-    fn new(side: Side, before: &Landmarks, after: &Landmarks, lowering_mm: f64) -> NippleToFold {
+    fn new(
+        side: Side,
+        simulation: &simulation::Simulation,
+        before: &Landmarks,
+        after: &Landmarks,
+        lowering_mm: f64,
+    ) -> NippleToFold {
         use anatomy::LandmarkName::{PSMFl, PSMFr, Pnl, Pnr};
         let (nipple, fold) = match side {
             Side::Left => (Pnl, PSMFl),
             Side::Right => (Pnr, PSMFr),
         };
-        let distance = |l: &Landmarks| l.get(nipple).distance(l.get(fold));
+        let before_mm = before.get(nipple).distance(before.get(fold));
+        let simulated_fold = simulation.simulated_fold(side);
+        let frame = simulation.frame();
         NippleToFold {
-            before_mm: distance(before),
-            planned_mm: distance(before) + lowering_mm,
-            simulated_mm: distance(after),
+            before_mm,
+            planned_mm: before_mm + lowering_mm,
+            simulated_mm: after
+                .get(nipple)
+                .distance(simulated_fold.unwrap_or_else(|| after.get(fold))),
+            simulated_fold_lowering_mm: simulated_fold
+                .map(|p| frame.to_local(before.get(fold)).y - frame.to_local(p).y),
         }
     }
 }
@@ -879,6 +898,7 @@ pub fn write_simulation(
             let lowering_mm = lowering_of(side);
             NippleToFold::new(
                 side,
+                &session.simulation,
                 &session.marked.landmarks,
                 &simulated.landmarks,
                 lowering_mm,

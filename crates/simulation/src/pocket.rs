@@ -183,7 +183,8 @@ pub(crate) fn nipple_of(side: Side) -> LandmarkName {
     }
 }
 
-fn fold_lowest(side: Side) -> LandmarkName {
+/// The native fold's lowest point of `side` (PSMF).
+pub(crate) fn fold_lowest(side: Side) -> LandmarkName {
     match side {
         Side::Left => LandmarkName::PSMFl,
         Side::Right => LandmarkName::PSMFr,

@@ -64,8 +64,8 @@ use crate::error::SimulationError;
 use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap, SurfaceSmoother};
 use crate::placement::{Anchor, AnchorRule, Placement, anchor_on_floor, resolve_anchor};
 use crate::pocket::{
-    FoldLowering, PocketBounds, PocketLimits, native_fold_y_mm, nipple_of, nipple_to_fold_mm,
-    pocket_surface,
+    FoldLowering, PocketBounds, PocketLimits, fold_lowest, native_fold_y_mm, nipple_of,
+    nipple_to_fold_mm, pocket_surface,
 };
 use crate::skin::SkinLayer;
 use crate::template::{
@@ -131,6 +131,14 @@ pub const MAX_SCAN_SMOOTHING_MM: f64 = 20.0;
 
 /// Default implant density (kg/m³): silicone gel, 0.97 g/cm³.
 pub const DEFAULT_IMPLANT_DENSITY_KG_M3: f64 = 970.0;
+
+/// Half the width of the vertical section [`Simulation::simulated_fold`] looks on (mm).
+pub const FOLD_SECTION_HALF_WIDTH_MM: f64 = 3.0;
+
+/// How far forward the skin must have moved to count as breast in
+/// [`Simulation::simulated_fold`] (mm): above the scan's noise and the gravity
+/// correction's small shifts of the chest.
+pub const FOLD_MOVED_FORWARD_MM: f64 = 2.0;
 
 /// Default relative residual at which [`Simulation::solve`] stops.
 pub const DEFAULT_RELATIVE_TOLERANCE: f64 = 1e-3;
@@ -1116,6 +1124,11 @@ impl Simulation {
         self.implants[side as usize].as_ref()
     }
 
+    /// The patient's anatomical frame (its `to_local` is the standing frame).
+    pub fn frame(&self) -> &AnatomicalFrame {
+        &self.frame
+    }
+
     /// The current stage.
     pub fn stage(&self) -> Stage {
         self.stage
@@ -1814,6 +1827,28 @@ impl Simulation {
             .zip(&self.scan_rest)
             .map(|(d, p)| *p + d)
             .collect()
+    }
+
+    /// Where the simulated fold of `side` lies (mm, file frame): on the vertical plane
+    /// through the native fold's lowest point (standing frame, within
+    /// [`FOLD_SECTION_HALF_WIDTH_MM`]), the lowest scan vertex up to 60 mm below it that
+    /// moved more than [`FOLD_MOVED_FORWARD_MM`] forward: the junction of the breast the
+    /// implant pushes out and the chest that stays. `None` where nothing moved there.
+    pub fn simulated_fold(&self, side: Side) -> Option<DVec3> {
+        let native = self.frame.to_local(self.landmarks.get(fold_lowest(side)));
+        let moved = self.scan_positions();
+        self.scan_rest
+            .iter()
+            .zip(&moved)
+            .filter_map(|(rest, now)| {
+                let (a, b) = (self.frame.to_local(*rest), self.frame.to_local(*now));
+                let on_section = (a.x - native.x).abs() <= FOLD_SECTION_HALF_WIDTH_MM
+                    && a.y > native.y - 60.0
+                    && a.y < native.y + 60.0;
+                (on_section && b.z - a.z > FOLD_MOVED_FORWARD_MM).then_some((b.y, *now))
+            })
+            .min_by(|p, q| p.0.total_cmp(&q.0))
+            .map(|(_, now)| now)
     }
 
     /// The displacement of each scan vertex (mm): the finest level's, smoothed over the
