@@ -42,6 +42,9 @@ pub struct ImplantDesign {
     /// Turn about the chest wall's normal, counter-clockwise seen from the front
     /// (degrees).
     pub rotation_deg: f64,
+    /// How far the fold is lowered for this implant (mm); `None`: as the ICE principle
+    /// plans it for the implant.
+    pub fold_lowering_mm: Option<f64>,
 }
 
 impl Default for ImplantDesign {
@@ -58,6 +61,7 @@ impl Default for ImplantDesign {
             projection_mm: 33.5,
             move_mm: DVec3::ZERO,
             rotation_deg: 0.0,
+            fold_lowering_mm: None,
         }
     }
 }
@@ -103,6 +107,7 @@ impl ImplantDesign {
             spec: self.spec(catalog)?,
             move_mm: self.move_mm,
             rotation_deg: self.rotation_deg,
+            fold_lowering_mm: self.fold_lowering_mm,
         }))
     }
 
@@ -113,6 +118,7 @@ impl ImplantDesign {
             enabled: true,
             move_mm: request.move_mm,
             rotation_deg: request.rotation_deg,
+            fold_lowering_mm: request.fold_lowering_mm,
             ..ImplantDesign::default()
         };
         let shape = match ImplantSpec::parse(&request.spec).map_err(|e| e.to_string())? {
@@ -354,9 +360,15 @@ mod tests {
         plan.step(MoveDirection::Up);
         plan.step(MoveDirection::Back);
         plan.edited().rotation_deg = 10.0;
+        plan.edited().fold_lowering_mm = Some(8.0);
         let requests = plan.requests(&catalog).unwrap();
         let left = requests.left.unwrap();
         let right = requests.right.unwrap();
+        // the fold lowering is a depth below each side's own fold: the same on both
+        assert_eq!(
+            (left.fold_lowering_mm, right.fold_lowering_mm),
+            (Some(8.0), Some(8.0))
+        );
         assert_eq!(left.spec, "catalog:R-MOD-120");
         assert_eq!(right.spec, left.spec);
         // Known answer: one 5 mm step left, two up, one back.

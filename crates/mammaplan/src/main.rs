@@ -579,9 +579,9 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             let request =
                 |spec: Option<String>, move_mm: Option<[f64; 3]>, rotation: Option<f64>| {
                     spec.map(|spec| plan::simulate::ImplantRequest {
-                        spec,
                         move_mm: move_mm.unwrap_or_default().into(),
                         rotation_deg: rotation.unwrap_or(0.0),
+                        ..plan::simulate::ImplantRequest::new(spec)
                     })
                 };
             let options = plan::simulate::SimulateOptions {

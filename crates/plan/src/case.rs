@@ -14,7 +14,8 @@
 //!   "simulation": {"gravity": true},
 //!   "implants": {
 //!     "linked": false,
-//!     "left": {"spec": "catalog:R-MOD-120", "move_mm": [0, 5, 0], "rotation_deg": 0},
+//!     "left": {"spec": "catalog:R-MOD-120", "move_mm": [0, 5, 0], "rotation_deg": 0,
+//!              "fold_lowering_mm": 10},
 //!     "right": null
 //!   }
 //! }
@@ -26,7 +27,8 @@
 //! be missing while they are being placed); `control_points` is `null` until a model was
 //! built. A relative scan path is read relative to the case file's folder; saving writes
 //! the absolute path. Implant specs are the command line's (`round:...`, `anatomic:...`,
-//! `catalog:ID`), moves in the anatomical frame (mm) from the default position.
+//! `catalog:ID`), moves in the anatomical frame (mm) from the default position; an
+//! implant's `fold_lowering_mm` is optional (absent: as planned for the implant).
 
 use crate::model::{DEFAULT_ELEMENTS, ModelOptions, PerSide};
 use crate::simulate::{ImplantRequest, Material, SimulationOptions};
@@ -227,6 +229,7 @@ impl PlanningCase {
                 spec: r.spec.clone(),
                 move_mm: r.move_mm.to_array(),
                 rotation_deg: r.rotation_deg,
+                fold_lowering_mm: r.fold_lowering_mm,
             })
         };
         let record = CaseRecord {
@@ -356,6 +359,9 @@ struct ImplantRecord {
     spec: String,
     move_mm: [f64; 3],
     rotation_deg: f64,
+    /// Absent or `null`: the fold lowered as planned for the implant.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    fold_lowering_mm: Option<f64>,
 }
 
 impl ImplantRecord {
@@ -364,10 +370,16 @@ impl ImplantRecord {
         if let Err(error) = ImplantSpec::parse(&self.spec) {
             bail!("implants.{side}.spec: {error}");
         }
+        if let Some(mm) = self.fold_lowering_mm
+            && !(mm.is_finite() && mm >= 0.0)
+        {
+            bail!("implants.{side}.fold_lowering_mm: {mm} mm; expected a length of at least 0");
+        }
         Ok(ImplantRequest {
             spec: self.spec,
             move_mm: DVec3::from_array(self.move_mm),
             rotation_deg: self.rotation_deg,
+            fold_lowering_mm: self.fold_lowering_mm,
         })
     }
 }
@@ -400,6 +412,7 @@ mod tests {
             spec: "catalog:R-MOD-120".into(),
             move_mm: DVec3::new(-5.0, 10.0, 2.5),
             rotation_deg: 15.0,
+            fold_lowering_mm: Some(12.5),
         });
         case.implants.right = Some(ImplantRequest::new(
             "anatomic:width=120,height=113,projection=42",

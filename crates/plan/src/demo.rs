@@ -155,11 +155,7 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
         implant::Catalog::builtin(),
         simulation::SimulationOptions::default(),
     )?;
-    let request = Some(ImplantRequest {
-        spec: DEMO_IMPLANT.to_string(),
-        move_mm: DVec3::ZERO,
-        rotation_deg: 0.0,
-    });
+    let request = Some(ImplantRequest::new(DEMO_IMPLANT));
     let simulation = run_session(
         session,
         &path("model"),

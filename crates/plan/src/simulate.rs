@@ -32,7 +32,7 @@ use std::time::Instant;
 use tetra::vtu::{CONSTRAINED, DISPLACEMENT, Field};
 
 pub use fem::Material;
-pub use simulation::pocket::{FoldLowering, PocketLimits};
+pub use simulation::pocket::{FoldLowering, MAX_ICE_FOLD_LOWERING_MM, PocketLimits};
 pub use simulation::{AnchorRule, CycleInfo, Placement, RunReport, SimulationOptions, Stage};
 
 /// An implant asked for on one side.
@@ -47,6 +47,10 @@ pub struct ImplantRequest {
     /// Turn about the bed's normal, counter-clockwise seen from the front (degrees; for
     /// anatomic implants).
     pub rotation_deg: f64,
+    /// How far to lower the fold for this implant (mm, 0 to the pocket's depth, 30 mm
+    /// by default); `None`: as the side's rule plans it (the ICE principle, or the
+    /// `--lower-fold-*` given).
+    pub fold_lowering_mm: Option<f64>,
 }
 
 impl ImplantRequest {
@@ -56,6 +60,7 @@ impl ImplantRequest {
             spec: spec.into(),
             move_mm: DVec3::ZERO,
             rotation_deg: 0.0,
+            fold_lowering_mm: None,
         }
     }
 
@@ -64,6 +69,7 @@ impl ImplantRequest {
         Placement {
             move_mm: self.move_mm,
             rotation_deg: self.rotation_deg,
+            fold_lowering_mm: self.fold_lowering_mm,
         }
     }
 }

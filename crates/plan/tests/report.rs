@@ -37,9 +37,8 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
     let model = build_model(&marked, &options, &Silent).unwrap();
     write_model(&path("model"), &model, &Silent).unwrap();
     let left = ImplantRequest {
-        spec: "anatomic:width=115,height=110,projection=38".into(),
         move_mm: [2.0, -3.0, 0.0].into(),
-        rotation_deg: 0.0,
+        ..ImplantRequest::new("anatomic:width=115,height=110,projection=38")
     };
     simulate(
         &path("model"),

@@ -68,6 +68,10 @@ pub struct Placement {
     pub move_mm: DVec3,
     /// Turn about the bed's normal, counter-clockwise seen from the front (degrees).
     pub rotation_deg: f64,
+    /// How far below the native fold the pocket reaches for this implant (mm, from 0 to
+    /// the depth the pockets were built for); `None`: the side's
+    /// [`crate::pocket::FoldLowering`] rule.
+    pub fold_lowering_mm: Option<f64>,
 }
 
 impl Placement {
@@ -75,7 +79,7 @@ impl Placement {
     pub fn moved(x_mm: f64, y_mm: f64, z_mm: f64) -> Placement {
         Placement {
             move_mm: DVec3::new(x_mm, y_mm, z_mm),
-            rotation_deg: 0.0,
+            ..Placement::default()
         }
     }
 }

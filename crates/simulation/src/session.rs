@@ -1140,11 +1140,48 @@ impl Simulation {
     }
 
     /// The fold lowering (mm) the pocket of `side` is planned with for an implant of
-    /// `shape` (0 without pockets).
+    /// `shape` by the side's rule (0 without pockets).
     pub fn fold_lowering_mm(&self, side: Side, shape: &ImplantShape) -> f64 {
-        self.options.pocket.map_or(0.0, |limits| {
-            let capacity_mm = nipple_to_fold_mm(side, &self.landmarks);
-            limits[side as usize].fold_lowering.mm(shape, capacity_mm)
+        self.fold_rule(side, &Placement::default())
+            .map_or(0.0, |rule| {
+                rule.mm(shape, nipple_to_fold_mm(side, &self.landmarks))
+            })
+    }
+
+    /// The fold lowering rule for an implant placed with `placement`: its own lowering
+    /// if it gives one, else the side's; `None` without pockets.
+    fn fold_rule(&self, side: Side, placement: &Placement) -> Option<FoldLowering> {
+        let side_rule = self.options.pocket?[side as usize].fold_lowering;
+        Some(
+            placement
+                .fold_lowering_mm
+                .map_or(side_rule, FoldLowering::Mm),
+        )
+    }
+
+    /// Checks an implant's own fold lowering: finite, and from 0 to the depth the side's
+    /// pocket was built for.
+    fn check_fold_lowering(
+        &self,
+        side: Side,
+        placement: &Placement,
+    ) -> Result<(), SimulationError> {
+        let Some(mm) = placement.fold_lowering_mm else {
+            return Ok(());
+        };
+        let deepest_mm = self.options.pocket.map_or(0.0, |limits| {
+            limits[side as usize].fold_lowering.deepest_mm()
+        });
+        if mm.is_finite() && (0.0..=deepest_mm).contains(&mm) {
+            return Ok(());
+        }
+        Err(SimulationError::BadPlacement {
+            side,
+            what: "fold lowering (mm)",
+            value: mm,
+            expected: format!(
+                "from 0 to {deepest_mm:.0} mm, as deep as the side's pocket was built"
+            ),
         })
     }
 
@@ -1183,7 +1220,10 @@ impl Simulation {
         }
         // the fill-in's bed first, then the pocket's (or the other way round where the
         // fold is lowered): the first on which the implant fits
-        let fold_lowering_mm = self.fold_lowering_mm(side, &shape);
+        self.check_fold_lowering(side, &placement)?;
+        let fold_lowering_mm = self.fold_rule(side, &placement).map_or(0.0, |rule| {
+            rule.mm(&shape, nipple_to_fold_mm(side, &self.landmarks))
+        });
         let mut order: Vec<usize> = (0..self.bed_choices[s].len()).collect();
         if fold_lowering_mm > 0.0 {
             order.sort_by_key(|&k| self.bed_choices[s][k].bounds.is_none());
@@ -2023,7 +2063,7 @@ impl Simulation {
         let below_mm = bounds.map_or(0.0, |b| {
             b.floor_y_mm - lowest_footprint_y_mm(&bed, &anchor, shape, &self.frame)
         });
-        let fold_lowering_mm = match self.options.pocket.map(|l| l[side as usize].fold_lowering) {
+        let fold_lowering_mm = match self.fold_rule(side, placement) {
             Some(FoldLowering::ForImplant) if bounds.is_some() => {
                 (fold_lowering_mm + below_mm).max(0.0)
             }

@@ -370,6 +370,7 @@ pub fn fit_footprint(
             let walk = Placement {
                 move_mm: glam::DVec3::new(0.0, sign * k as f64 * HEIGHT_SEARCH_STEP_MM, 0.0),
                 rotation_deg,
+                fold_lowering_mm: None,
             };
             let Ok(start) = resolve_anchor(bed, frame, requested.uv, &walk) else {
                 continue;
@@ -402,8 +403,8 @@ fn push_to_fit(
         return Ok(anchor);
     };
     let placement = Placement {
-        move_mm: glam::DVec3::ZERO,
         rotation_deg,
+        ..Placement::default()
     };
     for _ in 0..FIT_ITERATIONS {
         let Some(worst) = deepest(&over).copied() else {

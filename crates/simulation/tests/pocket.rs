@@ -193,3 +193,46 @@ fn the_ice_rule_plans_the_lowering_for_the_implant() {
         "the smallest cup has no room for a 115 mm implant"
     );
 }
+
+/// An implant's own fold lowering overrides the side's rule (the GUI's and a planning
+/// case's per-implant choice): the lower edge lies on the fold it asks for, within the
+/// footprint's tolerance (2 mm) plus the outline's sampling; deeper than the pocket was
+/// built (30 mm for the ICE rule) is refused with the error naming the value.
+#[test]
+fn an_implant_carries_its_own_fold_lowering() {
+    let patient = small_cup();
+    let fold_y = patient
+        .frame()
+        .to_local(patient.marked.landmarks.get(LandmarkName::PSMFl))
+        .y;
+    let mut session = patient.session(SimulationOptions::default());
+    let implant = *implant::Catalog::builtin()
+        .get("R-MOD-100")
+        .unwrap()
+        .shape();
+    let own = |mm: f64| Placement {
+        fold_lowering_mm: Some(mm),
+        ..Placement::default()
+    };
+    let placed = session
+        .set_implant(Side::Left, implant, own(12.0))
+        .unwrap()
+        .clone();
+    assert_eq!(placed.fold_lowering_mm, 12.0);
+    let bed = session.bed(Side::Left);
+    let lowest_mm = (placed.shape.footprint_outline_mm(90).into_iter())
+        .filter_map(|local| bed.at(placed.anchor.uv_of(local)))
+        .map(|at| patient.frame().to_local(at.position).y)
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        (lowest_mm - (fold_y - 12.0)).abs() <= 2.1,
+        "lower edge {lowest_mm:.1}, planned fold {:.1}",
+        fold_y - 12.0
+    );
+    match session.set_implant(Side::Left, implant, own(31.0)) {
+        Err(SimulationError::BadPlacement { what, value, .. }) => {
+            assert_eq!((what, value), ("fold lowering (mm)", 31.0));
+        }
+        other => panic!("{other:?}"),
+    }
+}

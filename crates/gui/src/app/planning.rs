@@ -683,6 +683,7 @@ impl GuiApp {
                 "about the chest wall's normal, counter-clockwise seen from the front \
                  (anatomic implants; a round one looks the same turned)",
             );
+        fold_lowering_control(ui, design);
         let moved = design.move_mm;
         ui.horizontal(|ui| {
             ui.label(format!(
@@ -1011,5 +1012,27 @@ fn stage_name(stage: Stage) -> &'static str {
     match stage {
         Stage::Implant => "implant",
         Stage::Gravity => "gravity",
+    }
+}
+
+/// The fold lowering of the edited implant: as planned for it (the ICE principle), or a
+/// given depth below the native fold.
+fn fold_lowering_control(ui: &mut egui::Ui, design: &mut crate::implant_plan::ImplantDesign) {
+    let mut for_implant = design.fold_lowering_mm.is_none();
+    ui.checkbox(&mut for_implant, "Fold lowered as planned for the implant")
+        .on_hover_text(
+            "the ICE principle: half the implant's height plus its projection, less the \
+             nipple-to-fold distance (0 to 30 mm)",
+        );
+    if for_implant {
+        design.fold_lowering_mm = None;
+    } else {
+        let mut mm = design.fold_lowering_mm.unwrap_or(0.0);
+        ui.add(
+            egui::Slider::new(&mut mm, 0.0..=plan::simulate::MAX_ICE_FOLD_LOWERING_MM)
+                .text("Fold lowering (mm)"),
+        )
+        .on_hover_text("how far the pocket and the new fold reach below the native fold");
+        design.fold_lowering_mm = Some(mm);
     }
 }
