@@ -23,9 +23,10 @@ fn run(name: &str) {
     // largest moderate-profile round implant of the catalog below that (from 120 mm
     // down; under the catalog's 90 mm the same profile, projection 0.28 x width).
     let catalog = Catalog::builtin();
-    // the homogeneous tissue of the paper: with the skin layer the tissue under the
-    // stretched skin is compressed (Poisson ratio 0.45), and the gain no longer follows
-    // the template (docs/dev/skin.md); the envelope measures the default model
+    // the homogeneous tissue of the paper: with the skin layer the tissue squeezed
+    // between implant and skin loses volume the corotated energy does not see, and the
+    // gain no longer follows the template (docs/dev/skin.md); the envelope measures the
+    // default model
     let mut sim = p.session(SimulationOptions {
         skin: None,
         ..Default::default()
@@ -164,9 +165,10 @@ fn pair1_pre_with_a_clinically_sized_implant() {
         return;
     };
     let shape = *Catalog::builtin().get("R-MOD-95").unwrap().shape();
-    // the homogeneous tissue of the paper: with the skin layer the tissue under the
-    // stretched skin is compressed (Poisson ratio 0.45), and the gain no longer follows
-    // the template (docs/dev/skin.md); the envelope measures the default model
+    // the homogeneous tissue of the paper: with the skin layer the tissue squeezed
+    // between implant and skin loses volume the corotated energy does not see, and the
+    // gain no longer follows the template (docs/dev/skin.md); the envelope measures the
+    // default model
     let mut sim = p.session(SimulationOptions {
         skin: None,
         ..Default::default()
