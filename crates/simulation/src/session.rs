@@ -329,8 +329,8 @@ pub struct CycleInfo {
     pub stage: Stage,
     /// `‖f_ext - f_int(u)‖` at the free vertices before the cycle (mN).
     pub residual_mn: f64,
-    /// That over the load scale (the reaction forces at the held vertices plus the
-    /// external loads).
+    /// That over the load scale: in stage 1 the reaction forces at the held vertices
+    /// plus the external loads, in stage 2 the norm of the stage's right-hand side.
     pub relative_residual: f64,
     /// Whether stage 1's multigrid hierarchy was built for this cycle (the session's
     /// first cycle, or after a switch of coarse operator); a new constraint set alone
@@ -536,8 +536,9 @@ pub struct Simulation {
     u_before_gravity: Option<Vec<DVec3>>,
     /// Stage 2's linear system `K Δu = r` at the stage-1 displacement (its right-hand
     /// side the added implant weight and what is left of stage 1's residual) and its
-    /// conjugate gradient iteration, once the stage's first cycle assembled it.
-    gravity: Option<PcgIteration>,
+    /// conjugate gradient iteration, once the stage's first cycle assembled it, with the
+    /// norm of that right-hand side (mN), which the stage's residual is relative to.
+    gravity: Option<(PcgIteration, f64)>,
     last_relative_residual: f64,
     stage_cycles: usize,
     /// The constraints or loads changed since the last cycle (no line search then).
@@ -1112,6 +1113,12 @@ impl Simulation {
     /// The current implant bed of one side.
     pub fn bed(&self, side: Side) -> &ImplantBed {
         &self.beds[side as usize]
+    }
+
+    /// The limits of the pocket the implant of `side` lies in (with its own fold
+    /// lowering); `None` where it lies on the fill-in's bed.
+    pub fn pocket_bounds(&self, side: Side) -> Option<&PocketBounds> {
+        self.pocket_bounds[side as usize].as_ref()
     }
 
     /// The finest vertices held at the posterior wall and the clip faces.
@@ -1718,10 +1725,12 @@ impl Simulation {
         if self.gravity.is_none() {
             mg.assemble(u1, &self.f_ext, Formulation::Corotated)?;
             let rhs = mg.system().rhs.clone();
+            let rhs_norm = rhs.iter().map(|d| d.length_squared()).sum::<f64>().sqrt();
             let zero = vec![DVec3::ZERO; rhs.len()];
-            self.gravity = Some(PcgIteration::new(mg, &rhs, zero));
+            self.gravity = Some((PcgIteration::new(mg, &rhs, zero), rhs_norm));
         }
-        let cg = self.gravity.as_mut().expect("assembled above");
+        let (cg, rhs_norm) = self.gravity.as_mut().expect("assembled above");
+        let rhs_norm = *rhs_norm;
         let residual = cg.residual_norm();
         cg.step(mg);
         self.u.copy_from_slice(u1);
@@ -1734,7 +1743,10 @@ impl Simulation {
         self.last_energy = None;
         self.last_step = 1.0;
         self.fresh = false;
-        let relative = residual / self.load_scale();
+        // relative to the stage's own load: against stage 1's reaction forces (the
+        // wall's, the fold's) the added weight's residual started below the tolerance
+        // and the correction stopped after one conjugate gradient step
+        let relative = residual / rhs_norm.max(f64::MIN_POSITIVE);
         self.last_relative_residual = relative;
         self.stage_cycles += 1;
         Ok(CycleInfo {
