@@ -127,6 +127,9 @@ pub struct SideState {
     /// The outline of the implant's footprint on the scan as loaded, to be carried onto
     /// the simulated frames (empty without an implant).
     pub outline: Vec<SurfaceAnchor>,
+    /// The outline of the pocket the implant lies in, likewise (empty without an
+    /// implant or where it lies on the fill-in's bed).
+    pub pocket_outline: Vec<SurfaceAnchor>,
 }
 
 /// The solver's figures after the latest cycle.
@@ -598,7 +601,14 @@ impl<W: Fn()> Worker<W> {
                 .session
                 .implant_outline_on_scan(side, OUTLINE_SEGMENTS)
                 .unwrap_or_default();
-            self.sides.get_mut(side).outline = anchors(&self.session.marked.scan.index, &outline);
+            let pocket = self
+                .session
+                .pocket_outline_on_scan(side)
+                .unwrap_or_default();
+            let index = &self.session.marked.scan.index;
+            let state = self.sides.get_mut(side);
+            state.outline = anchors(index, &outline);
+            state.pocket_outline = anchors(index, &pocket);
         }
         let restart = changed || gravity_changed || self.frame == 0;
         if restart {

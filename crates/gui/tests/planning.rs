@@ -567,7 +567,7 @@ fn control_points_are_dragged_and_inserted_on_the_surface_and_the_rebuild_cuts_a
 #[test]
 fn landmarks_cut_curves_and_implant_outlines_are_drawn_on_the_shown_surface() {
     let mut harness = with_implants();
-    click(&mut harness, "Show implant outlines");
+    click(&mut harness, "Show implant and pocket outlines");
     wait_until(&mut harness, "the prepared simulated scan", deviation_ready);
     let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
     let frame = marked.frame;
@@ -598,7 +598,13 @@ fn landmarks_cut_curves_and_implant_outlines_are_drawn_on_the_shown_surface() {
     assert!(forward > 5.0, "the nipple moved {forward} mm forward");
     assert_eq!(overlay.curves.len(), 2);
     assert_eq!(overlay.outlines.len(), 2);
-    for point in overlay.curves.iter().chain(&overlay.outlines).flatten() {
+    // the phantom's fold is lowered for the implant, so both lie in their pockets
+    assert_eq!(overlay.pockets.len(), 2);
+    for point in (overlay.curves.iter())
+        .chain(&overlay.outlines)
+        .chain(&overlay.pockets)
+        .flatten()
+    {
         assert!(on_simulated(*point) < 1e-6, "{point}");
     }
 
@@ -639,6 +645,26 @@ fn landmarks_cut_curves_and_implant_outlines_are_drawn_on_the_shown_surface() {
                 "{width} mm across for a {diameter} mm implant"
             );
         }
+    }
+    // The pocket holds its implant: seen on the skin, its outline reaches at least as
+    // far across and down as the implant's, within the fit's 2 mm tolerance.
+    for (pocket, outline) in overlay.pockets.iter().zip(&overlay.outlines) {
+        for point in pocket {
+            assert!(marked.scan.index.closest_point(*point).distance < 1e-6);
+        }
+        let range = |points: &[DVec3], axis: DVec3| {
+            (points.iter().map(|p| p.dot(axis)))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+                    (l.min(v), h.max(v))
+                })
+        };
+        let (pocket_x, implant_x) = (range(pocket, frame.left()), range(outline, frame.left()));
+        assert!(pocket_x.0 <= implant_x.0 + 2.0 && pocket_x.1 >= implant_x.1 - 2.0);
+        let (pocket_y, implant_y) = (range(pocket, frame.up()), range(outline, frame.up()));
+        assert!(
+            pocket_y.0 <= implant_y.0 + 2.0,
+            "{pocket_y:?} {implant_y:?}"
+        );
     }
 }
 

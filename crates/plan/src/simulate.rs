@@ -259,11 +259,8 @@ impl Session {
     /// along the bed's normal to the scan as loaded (the closest scan point where the
     /// normal misses it). `None` without an implant on that side.
     pub fn implant_outline_on_scan(&self, side: Side, segments: usize) -> Option<Vec<DVec3>> {
-        /// How far in front of the bed the skin may be (mm): beyond any breast's depth.
-        const SKIN_SEARCH_MM: f64 = 300.0;
         let placed = self.simulation.implant(side)?;
         let bed = self.simulation.bed(side);
-        let index = &self.marked.scan.index;
         let outline = placed
             .shape
             .footprint_outline_mm(segments)
@@ -273,13 +270,39 @@ impl Session {
                 let uv = placed.anchor.uv_of(local);
                 bed.at(uv).or_else(|| bed.at(bed.nearest_on_boundary(uv)))
             })
-            .map(|at| {
-                index
-                    .cast_ray(at.position, at.normal, SKIN_SEARCH_MM)
-                    .map_or_else(|| index.closest_point(at.position).point, |hit| hit.point)
-            })
+            .map(|at| self.on_scan(&at))
             .collect();
         Some(outline)
+    }
+
+    /// The outline of the pocket one side's implant lies in, seen on the skin (mm, file
+    /// frame): the pocket's edge on the chest within the implant's limits (the midline
+    /// clearance, the anterior axillary line, its planned fold), carried along the bed's
+    /// normal to the scan as loaded. `None` without an implant or where it lies on the
+    /// fill-in's bed (its outline is the cut curve's).
+    pub fn pocket_outline_on_scan(&self, side: Side) -> Option<Vec<DVec3>> {
+        self.simulation.implant(side)?;
+        let bounds = self.simulation.pocket_bounds(side)?;
+        let bed = self.simulation.bed(side);
+        let frame = self.simulation.frame();
+        Some(
+            (bed.boundary.iter())
+                .filter_map(|&uv| bed.at(uv))
+                .filter(|at| bounds.violation(frame.to_local(at.position)).is_none())
+                .map(|at| self.on_scan(&at))
+                .collect(),
+        )
+    }
+
+    /// A point of the bed carried along its normal to the scan as loaded (the closest
+    /// scan point where the normal misses it).
+    fn on_scan(&self, at: &simulation::bed::BedPoint) -> DVec3 {
+        /// How far in front of the bed the skin may be (mm): beyond any breast's depth.
+        const SKIN_SEARCH_MM: f64 = 300.0;
+        let index = &self.marked.scan.index;
+        index
+            .cast_ray(at.position, at.normal, SKIN_SEARCH_MM)
+            .map_or_else(|| index.closest_point(at.position).point, |hit| hit.point)
     }
 
     /// Removes the implant of one side.

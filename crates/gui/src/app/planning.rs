@@ -701,8 +701,11 @@ impl GuiApp {
         }
         ui.checkbox(&mut self.implants.gravity, "Gravity correction")
             .on_hover_text("the implant's weight lets the breast sag (paper V-B)");
-        ui.checkbox(&mut self.show_outlines, "Show implant outlines")
-            .on_hover_text("the footprint of each implant, seen through the skin");
+        ui.checkbox(&mut self.show_outlines, "Show implant and pocket outlines")
+            .on_hover_text(
+                "the footprint of each implant (cyan) and, where it lies beyond the native \
+                 breast, its pocket within the planned limits (pink), seen through the skin",
+            );
 
         if let Some(error) = &self.implant_error {
             ui.colored_label(ERROR_COLOR, error);

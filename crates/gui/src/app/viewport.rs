@@ -28,6 +28,8 @@ use super::postoperative::DeviationReference;
 const CONTROL_POINT_COLOR: Color32 = Color32::from_rgb(255, 150, 40);
 /// Colour of the implant outlines.
 const OUTLINE_COLOR: Color32 = Color32::from_rgb(80, 220, 235);
+/// Colour of the pocket outlines.
+const POCKET_COLOR: Color32 = Color32::from_rgb(235, 120, 200);
 /// A click inserts a control point into a cut curve passing at most this far from the
 /// clicked surface point (mm).
 const INSERT_DISTANCE_MM: f64 = 25.0;
@@ -77,6 +79,8 @@ pub struct Overlay {
     pub landmarks: Vec<(String, DVec3)>,
     /// The implants' footprint outlines (closed).
     pub outlines: Vec<Vec<DVec3>>,
+    /// The outlines of the pockets the implants lie in (closed).
+    pub pockets: Vec<Vec<DVec3>>,
     /// Landmarks and control points can be placed and moved (the pre-operative scan).
     pub editable: bool,
 }
@@ -209,6 +213,9 @@ impl GuiApp {
         }
         for outline in &overlay.outlines {
             closed_line(outline, Stroke::new(CURVE_WIDTH, OUTLINE_COLOR));
+        }
+        for pocket in &overlay.pockets {
+            closed_line(pocket, Stroke::new(CURVE_WIDTH, POCKET_COLOR));
         }
         for &(_, _, point) in &overlay.control_points {
             let Some(at) = on_screen(point) else {
@@ -378,14 +385,22 @@ impl GuiApp {
         };
         let model = self.model.as_ref().filter(|_| self.show_curves);
         let triangles = &document.scan.mesh.triangles;
-        // The implant outlines on a scan whose vertices are at `positions`.
-        let outlines = |positions: &[DVec3]| -> Vec<Vec<DVec3>> {
+        // The implant (or, with `pockets`, the pocket) outlines on a scan whose vertices
+        // are at `positions`.
+        let outlines = |positions: &[DVec3], pockets: bool| -> Vec<Vec<DVec3>> {
             let Some(live) = self.live.as_ref().filter(|_| self.show_outlines) else {
                 return Vec::new();
             };
             Side::BOTH
                 .iter()
-                .map(|&side| &live.sides.get(side).outline)
+                .map(|&side| {
+                    let state = live.sides.get(side);
+                    if pockets {
+                        &state.pocket_outline
+                    } else {
+                        &state.outline
+                    }
+                })
                 .filter(|outline| !outline.is_empty())
                 .map(|outline| carried(outline, triangles, positions))
                 .collect()
@@ -418,7 +433,8 @@ impl GuiApp {
                     curves,
                     control_points,
                     landmarks: owned(document.landmarks.iter()),
-                    outlines: outlines(&document.scan.mesh.positions),
+                    outlines: outlines(&document.scan.mesh.positions, false),
+                    pockets: outlines(&document.scan.mesh.positions, true),
                     editable: true,
                 }
             }
@@ -438,7 +454,8 @@ impl GuiApp {
                 Overlay {
                     curves,
                     landmarks: owned(frame.landmarks.iter()),
-                    outlines: outlines(&frame.positions),
+                    outlines: outlines(&frame.positions, false),
+                    pockets: outlines(&frame.positions, true),
                     ..Overlay::default()
                 }
             }
