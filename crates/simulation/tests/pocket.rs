@@ -130,12 +130,18 @@ fn placed_with_lowering(rule: AnchorRule, lowering_mm: f64) -> (DVec3, f64) {
         .unwrap()
         .clone();
     assert_eq!(placed.fold_lowering_mm, lowering_mm);
-    let bed = session.bed(Side::Left);
-    let lowest_mm = (placed.shape.footprint_outline_mm(90).into_iter())
-        .filter_map(|local| bed.at(placed.anchor.uv_of(local)))
-        .map(|at| patient.frame().to_local(at.position).y)
-        .fold(f64::INFINITY, f64::min);
+    let lowest_mm = lowest_edge_mm(&session, &placed);
     (patient.frame().to_local(placed.anchor.position), lowest_mm)
+}
+
+/// The lowest point of a left implant's footprint on its bed (standing frame, mm), from
+/// 90 outline points.
+fn lowest_edge_mm(session: &simulation::Simulation, placed: &simulation::PlacedImplant) -> f64 {
+    let bed = session.bed(Side::Left);
+    (placed.shape.footprint_outline_mm(90).into_iter())
+        .filter_map(|local| bed.at(placed.anchor.uv_of(local)))
+        .map(|at| small_cup().frame().to_local(at.position).y)
+        .fold(f64::INFINITY, f64::min)
 }
 
 #[test]
@@ -219,11 +225,7 @@ fn an_implant_carries_its_own_fold_lowering() {
         .unwrap()
         .clone();
     assert_eq!(placed.fold_lowering_mm, 12.0);
-    let bed = session.bed(Side::Left);
-    let lowest_mm = (placed.shape.footprint_outline_mm(90).into_iter())
-        .filter_map(|local| bed.at(placed.anchor.uv_of(local)))
-        .map(|at| patient.frame().to_local(at.position).y)
-        .fold(f64::INFINITY, f64::min);
+    let lowest_mm = lowest_edge_mm(&session, &placed);
     assert!(
         (lowest_mm - (fold_y - 12.0)).abs() <= 2.1,
         "lower edge {lowest_mm:.1}, planned fold {:.1}",
