@@ -24,6 +24,10 @@ pub const DEFAULT_PC_RATIO: f64 = 1.0 / 3.0;
 /// it on the surface starts (mm): beyond any breast's projection.
 const RAY_START_MM: f64 = 400.0;
 
+/// How far (mm, along the anterior direction) the lateral and medial default control
+/// points may lie behind the deeper of the two border points they lie between.
+const BORDER_DEPTH_MARGIN_MM: f64 = 10.0;
+
 /// How far below PSMFm and PSMF (mm, along the frame's down direction) the default curve
 /// runs: on the chest wall rather than in the fold's crease, whose walls would give the
 /// fill-in the tangents of the crease instead of the chest's. PSMFl is kept: on real
@@ -69,8 +73,8 @@ impl ControlPoints {
     /// bisector of the directions to the upper point and PSMFl (through the lateral side),
     /// at the mean of their distances from Pn; the medial point lies likewise between the
     /// upper point and PSMFm, as the breasts approach each other over the sternum. Both
-    /// are put on the surface by a ray from the front. Landmarks are expected on the
-    /// surface.
+    /// are put on the surface by a ray from the front (see [`AroundNipple::between`] for
+    /// where it misses). Landmarks are expected on the surface.
     pub fn from_landmarks(
         surface: &MeasuredSurface<'_>,
         frame: &AnatomicalFrame,
@@ -206,10 +210,20 @@ struct AroundNipple<'a> {
 
 impl AroundNipple<'_> {
     /// The surface point seen from the front on the bisector of the directions from the
-    /// nipple to `a` and `b` that points towards `side` (a coronal direction), at the
-    /// mean of their distances from the nipple (in the coronal plane).
+    /// nipple to `a` and `b` (both on the surface) that points towards `side` (a coronal
+    /// direction), at the mean of their distances from the nipple (in the coronal
+    /// plane). Where the ray from the front misses the surface, or meets it more than
+    /// [`BORDER_DEPTH_MARGIN_MM`] behind both `a` and `b`, the surface point nearest to
+    /// that target instead.
+    ///
+    /// The depth bound treats a ray that grazes the breast's side and meets the flank or
+    /// the arm far behind it like one that misses the body: which of the two happens turns
+    /// on millimetres of asymmetry, and the lateral point ended 100 mm deeper on one side
+    /// of a symmetric body than on the other.
     fn between(&self, a: DVec3, b: DVec3, side: DVec3) -> DVec3 {
         let anterior = self.frame.anterior();
+        let depth = |p: DVec3| (p - self.nipple).dot(anterior);
+        let deepest_mm = depth(a).min(depth(b)) - BORDER_DEPTH_MARGIN_MM;
         let coronal = |p: DVec3| {
             let d = p - self.nipple;
             d - anterior * d.dot(anterior)
@@ -223,12 +237,15 @@ impl AroundNipple<'_> {
         } else {
             bisector
         };
-        self.seen_from_front(self.nipple + bisector * 0.5 * (a.length() + b.length()))
+        let target = self.nipple + bisector * 0.5 * (a.length() + b.length());
+        self.seen_from_front(target)
+            .filter(|&point| depth(point) >= deepest_mm)
+            .unwrap_or_else(|| self.surface.index.closest_point(target).point)
     }
 
-    /// The first surface point on the ray along the posterior direction through `target`
-    /// (or, if that misses the surface, the point nearest to `target`).
-    fn seen_from_front(&self, target: DVec3) -> DVec3 {
+    /// The first surface point on the ray along the posterior direction through `target`,
+    /// if the ray meets the surface.
+    fn seen_from_front(&self, target: DVec3) -> Option<DVec3> {
         let anterior = self.frame.anterior();
         self.surface
             .index
@@ -237,10 +254,7 @@ impl AroundNipple<'_> {
                 -anterior,
                 2.0 * RAY_START_MM,
             )
-            .map_or_else(
-                || self.surface.index.closest_point(target).point,
-                |hit| hit.point,
-            )
+            .map(|hit| hit.point)
     }
 }
 
@@ -274,6 +288,90 @@ fn point_along(path: &SurfacePath, fraction: f64) -> DVec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::frame::UpSource;
+    use glam::DMat3;
+    use mesh::{SurfaceIndex, Topology, TriMesh};
+
+    /// A chest over x in [-130, 130] mm (z = 0) with a round breast of radius 60 mm about
+    /// (±70, 0) rising to 40 mm, and on the left only a flank panel 150 mm behind, past
+    /// the chest's edge.
+    fn chest_with_a_flank_on_the_left() -> TriMesh {
+        let height = |x: f64, y: f64| {
+            let r2 = ((x.abs() - 70.0).powi(2) + y * y) / 3600.0;
+            40.0 * (1.0 - r2).max(0.0).powi(2)
+        };
+        let (columns, rows) = (131, 101);
+        let mut positions = Vec::new();
+        for row in 0..rows {
+            for column in 0..columns {
+                let (x, y) = (-130.0 + 2.0 * column as f64, -100.0 + 2.0 * row as f64);
+                positions.push(DVec3::new(x, y, height(x, y)));
+            }
+        }
+        let mut triangles = Vec::new();
+        let at = |row: usize, column: usize| (row * columns + column) as u32;
+        for row in 0..rows - 1 {
+            for column in 0..columns - 1 {
+                let (a, b) = (at(row, column), at(row, column + 1));
+                let (c, d) = (at(row + 1, column + 1), at(row + 1, column));
+                triangles.extend([[a, b, c], [a, c, d]]);
+            }
+        }
+        let panel = positions.len() as u32;
+        for (x, y) in [
+            (131.0, -200.0),
+            (300.0, -200.0),
+            (300.0, 200.0),
+            (131.0, 200.0),
+        ] {
+            positions.push(DVec3::new(x, y, -150.0));
+        }
+        triangles.extend([[panel, panel + 1, panel + 2], [panel, panel + 2, panel + 3]]);
+        TriMesh::new(positions, triangles)
+    }
+
+    #[test]
+    fn a_lateral_point_past_the_breast_does_not_reach_round_the_flank() {
+        let mesh = chest_with_a_flank_on_the_left();
+        let topology = Topology::new(&mesh);
+        let index = SurfaceIndex::new(&mesh).unwrap();
+        let surface = MeasuredSurface {
+            mesh: &mesh,
+            topology: &topology,
+            index: &index,
+        };
+        let frame = AnatomicalFrame {
+            origin: DVec3::ZERO,
+            axes: DMat3::IDENTITY,
+            sternal_axes: DMat3::IDENTITY,
+            up_source: UpSource::FileVertical,
+        };
+        // Upper point and fold's lateral end on the chest; their bisector's target lies
+        // at x = ±150, beyond the chest: the left ray meets the panel 190 mm behind the
+        // nipple, the right one nothing.
+        let point = |sign: f64| {
+            let around = AroundNipple {
+                surface: &surface,
+                frame: &frame,
+                nipple: DVec3::new(70.0 * sign, 0.0, 40.0),
+            };
+            let upper = DVec3::new(110.0 * sign, 90.0, 0.0);
+            let lateral_end = DVec3::new(125.0 * sign, -40.0, 0.0);
+            let lateral = DVec3::X * sign;
+            around.between(upper, lateral_end, lateral)
+        };
+        let (left, right) = (point(1.0), point(-1.0));
+        // Both are the chest's nearest point to the target, on its lateral edge: mirror
+        // images to round-off.
+        assert!(
+            left.distance(right * DVec3::new(-1.0, 1.0, 1.0)) < 1e-9,
+            "{left} {right}"
+        );
+        assert!(
+            (left.x - 130.0).abs() < 1e-9 && left.z.abs() < 1e-9,
+            "{left}"
+        );
+    }
 
     #[test]
     fn the_file_round_trips() {
