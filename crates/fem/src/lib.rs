@@ -59,7 +59,9 @@ pub use material::{
     DEFAULT_DENSITY_KG_M3, DEFAULT_POISSON_RATIO, DEFAULT_YOUNG_KPA, Material,
     STANDARD_GRAVITY_M_S2,
 };
-pub use model::{ElementRest, ElementState, FemModel, Formulation, InversionBarrier, Tangent};
+pub use model::{
+    CompressionPenalty, ElementRest, ElementState, FemModel, Formulation, InversionBarrier, Tangent,
+};
 pub use polar::{polar_rotation, rotation_variant_svd};
 pub use solve::{SolveOptions, StaticSolution, StaticSolver, solve_static};
 pub use system::{BlockCsr, Constraints, NOT_FREE, ReducedSystem, block_mul};

@@ -66,6 +66,46 @@ pub struct InversionBarrier {
     pub young_multiple: f64,
 }
 
+/// Resistance to large volume loss added to the corotated energy (beyond the paper):
+/// below the volume ratio `J₀` an element gains the energy `m λ V (J₀ - J)²` (`λ` its
+/// first Lamé parameter, `V` its rest volume). The corotated energy measures volume
+/// change by `tr(RᵀF) - 3`, which is first-order exact but blind to large anisotropic
+/// compression: an element squeezed to principal stretches 0.42, 1.15 and 1.34 has lost
+/// 35% of its volume while `tr(S) - 3 = -0.09`, so soft tissue pressed over an implant
+/// loses volume no real tissue loses. With `m = ½` and `J₀ = 1` the term would be the
+/// volumetric energy of the fixed-corotated model (Stomakhin et al. 2012); an onset
+/// below one keeps small strains exactly linear-elastic. Like the
+/// [`InversionBarrier`], it acts on the [`Formulation::Corotated`] only, and the
+/// stiffness gains its Gauss-Newton term `2 m λ V (∂J/∂xₐ)(∂J/∂x_b)ᵀ`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CompressionPenalty {
+    /// Volume ratio `J₀` below which the penalty acts, in (0, 1].
+    pub onset_volume_ratio: f64,
+    /// Its modulus as a multiple `m` of the element's first Lamé parameter, positive.
+    pub lambda_multiple: f64,
+}
+
+/// The volume terms (barrier and compression penalty) of one element where they act:
+/// energy `Ψ`, its derivative `-dΨ/dJ` and second derivative `d²Ψ/dJ²` in the volume
+/// ratio (mN·mm).
+struct VolumeTerms {
+    energy: f64,
+    force_coef: f64,
+    stiffness: f64,
+}
+
+impl VolumeTerms {
+    /// Adds `k V (onset - J)²`, `k V` given as `modulus_volume`, where `J < onset`.
+    fn add(&mut self, onset: f64, volume_ratio: f64, modulus_volume: f64) {
+        let gap = onset - volume_ratio;
+        if gap > 0.0 {
+            self.energy += modulus_volume * gap * gap;
+            self.force_coef += 2.0 * modulus_volume * gap;
+            self.stiffness += 2.0 * modulus_volume;
+        }
+    }
+}
+
 /// Rest-state data of one linear tetrahedron.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ElementRest {
@@ -97,9 +137,9 @@ pub struct ElementState {
     pub twist: [[DVec3; 4]; 3],
     /// Volume-scaled coefficients of the twist term (mN·mm); zero for none.
     pub twist_coef: [f64; 3],
-    /// `2κV` of the [`InversionBarrier`] when it acts on the element (mN·mm), else zero:
-    /// the block `(a, b)` gains `barrier_stiffness · bₐ b_bᵀ` with
-    /// `b = FemModel::volume_gradients`.
+    /// `d²Ψ/dJ²` of the volume terms ([`InversionBarrier`], [`CompressionPenalty`]) where
+    /// they act on the element (mN·mm; `2κV` for the barrier), else zero: the block
+    /// `(a, b)` gains `barrier_stiffness · bₐ b_bᵀ` with `b = FemModel::volume_gradients`.
     pub barrier_stiffness: f64,
 }
 
@@ -119,6 +159,7 @@ pub struct FemModel {
     materials: Vec<Material>,
     elements: Vec<ElementRest>,
     barrier: Option<InversionBarrier>,
+    compression: Option<CompressionPenalty>,
 }
 
 /// Rest data of one tetrahedron; `Err` with its signed volume if it is not positive.
@@ -217,6 +258,7 @@ impl FemModel {
             materials,
             elements: rest_elements,
             barrier: None,
+            compression: None,
         })
     }
 
@@ -302,6 +344,37 @@ impl FemModel {
         self.barrier
     }
 
+    /// Sets (or, with `None`, removes) the [`CompressionPenalty`] of every element; none by
+    /// default (the paper's corotated energy).
+    ///
+    /// Errors: an onset outside (0, 1] or a multiple that is not positive and finite.
+    pub fn set_compression_penalty(
+        &mut self,
+        penalty: Option<CompressionPenalty>,
+    ) -> Result<(), FemError> {
+        if let Some(p) = penalty
+            && !(p.onset_volume_ratio > 0.0
+                && p.onset_volume_ratio <= 1.0
+                && p.lambda_multiple > 0.0
+                && p.lambda_multiple.is_finite())
+        {
+            return Err(FemError::InvalidOptions {
+                what: format!(
+                    "compression penalty: onset volume ratio {} must lie in (0, 1] and the \
+                     multiple {} of the first Lamé parameter be positive",
+                    p.onset_volume_ratio, p.lambda_multiple
+                ),
+            });
+        }
+        self.compression = penalty;
+        Ok(())
+    }
+
+    /// The model's [`CompressionPenalty`], if any.
+    pub fn compression_penalty(&self) -> Option<CompressionPenalty> {
+        self.compression
+    }
+
     /// `∂J/∂xᵢ = cof(F) gᵢ` for the four vertices of element `e` at displacement `u`
     /// (mm²; `J = det F` its volume ratio): the directions of the [`InversionBarrier`].
     pub fn volume_gradients(&self, e: usize, u: &[DVec3]) -> [DVec3; 4] {
@@ -309,20 +382,41 @@ impl FemModel {
         self.elements[e].grad.map(|g| cof * g)
     }
 
-    /// The [`InversionBarrier`]'s `(J_min - J, 2κV)` for element `e` with displacement
-    /// gradient `du`, when it acts (the corotated formulation only: the small-strain one
-    /// knows nothing of large volume changes).
+    /// The volume terms ([`InversionBarrier`], [`CompressionPenalty`]) of element `e`
+    /// with displacement gradient `du`, when one acts (the corotated formulation only:
+    /// the small-strain one knows nothing of large volume changes).
     #[inline]
-    fn barrier_gap(&self, e: usize, formulation: Formulation, du: DMat3) -> Option<(f64, f64)> {
-        if formulation == Formulation::Linear {
+    fn volume_terms(&self, e: usize, formulation: Formulation, du: DMat3) -> Option<VolumeTerms> {
+        if formulation == Formulation::Linear
+            || (self.barrier.is_none() && self.compression.is_none())
+        {
             return None;
         }
-        let b = self.barrier?;
-        let gap = b.min_volume_ratio - (DMat3::IDENTITY + du).determinant();
-        let modulus = b
-            .modulus_kpa
-            .max(b.young_multiple * self.materials[e].young_kpa);
-        (gap > 0.0).then(|| (gap, 2.0 * modulus * self.elements[e].volume_mm3))
+        let volume_ratio = (DMat3::IDENTITY + du).determinant();
+        let element = &self.elements[e];
+        let mut terms = VolumeTerms {
+            energy: 0.0,
+            force_coef: 0.0,
+            stiffness: 0.0,
+        };
+        if let Some(b) = self.barrier {
+            let modulus = b
+                .modulus_kpa
+                .max(b.young_multiple * self.materials[e].young_kpa);
+            terms.add(
+                b.min_volume_ratio,
+                volume_ratio,
+                modulus * element.volume_mm3,
+            );
+        }
+        if let Some(c) = self.compression {
+            terms.add(
+                c.onset_volume_ratio,
+                volume_ratio,
+                c.lambda_multiple * element.vol_lambda,
+            );
+        }
+        (terms.stiffness > 0.0).then_some(terms)
     }
 
     /// Consistent nodal gravity forces (mN) for the acceleration `gravity_m_s2` (m/s²,
@@ -544,10 +638,10 @@ impl FemModel {
             DMat3::from_diagonal(DVec3::splat(el.vol_lambda * tr)) + eps * (2.0 * el.vol_mu);
         let mut rs = r * vsigma;
         let mut barrier_stiffness = 0.0;
-        if let Some((gap, stiffness)) = self.barrier_gap(e, formulation, du) {
-            // f += -2κV (J_min - J) cof(F) g
-            rs -= cofactor_matrix(DMat3::IDENTITY + du) * (stiffness * gap);
-            barrier_stiffness = stiffness;
+        if let Some(terms) = self.volume_terms(e, formulation, du) {
+            // f += (dΨ/dJ) cof(F) g
+            rs -= cofactor_matrix(DMat3::IDENTITY + du) * terms.force_coef;
+            barrier_stiffness = terms.stiffness;
         }
         let [_, g1, g2, g3] = el.grad;
         let (h1, h2, h3) = (r * g1, r * g2, r * g3);
@@ -585,8 +679,8 @@ impl FemModel {
         let norm2 =
             eps.x_axis.length_squared() + eps.y_axis.length_squared() + eps.z_axis.length_squared();
         let barrier = self
-            .barrier_gap(e, formulation, du)
-            .map_or(0.0, |(gap, stiffness)| 0.5 * stiffness * gap * gap);
+            .volume_terms(e, formulation, du)
+            .map_or(0.0, |terms| terms.energy);
         el.vol_mu * norm2 + 0.5 * el.vol_lambda * tr * tr + barrier
     }
 

@@ -278,6 +278,10 @@ enum Command {
         /// a stiff skin layer over it.
         #[arg(long)]
         no_skin: bool,
+        /// Leave large volume loss to the corotated energy (the paper's model) instead
+        /// of resisting it beyond 10% (see docs/dev/volume-loss.md).
+        #[arg(long)]
+        no_compression_penalty: bool,
         /// A CSV catalog for catalog:ID specs instead of the built-in one.
         #[arg(long, value_name = "CSV")]
         catalog: Option<PathBuf>,
@@ -569,6 +573,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             rotate_right,
             no_gravity,
             no_skin,
+            no_compression_penalty,
             catalog,
             anchor,
             lower_fold_left,
@@ -595,6 +600,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                     right: lower_fold_right,
                 },
                 no_skin,
+                no_compression_penalty,
             };
             let report = plan::simulate::simulate(&model, &out, &options, progress)?;
             progress.finish();

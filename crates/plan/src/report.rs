@@ -558,6 +558,13 @@ pub fn report_content(
                     skin.young_kpa, skin.thickness_mm
                 )
             }),
+            compression_penalty: simulation.materials.compression_penalty.map(|penalty| {
+                format!(
+                    "resisted beyond {:.0}% with {} times the first Lamé parameter",
+                    100.0 * (1.0 - penalty.onset_volume_ratio),
+                    penalty.lambda_multiple
+                )
+            }),
             gravity_correction: !simulation.no_gravity,
             up: model.up.as_ref().map_or_else(
                 || "the file's +y (a model folder from before the standing frame)".to_string(),

@@ -93,6 +93,9 @@ pub struct SimulateOptions {
     /// Homogeneous tissue up to the surface (the paper's model) instead of the default
     /// skin layer ([`simulation::skin`]).
     pub no_skin: bool,
+    /// The paper's corotated energy alone, without the resistance to large volume loss
+    /// ([`fem::CompressionPenalty`]).
+    pub no_compression_penalty: bool,
 }
 
 /// A patient's model ready for interactive simulation.
@@ -589,6 +592,13 @@ pub struct SkinReport {
     pub thickness_mm: f64,
 }
 
+/// The resistance to large volume loss ([`fem::CompressionPenalty`]).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct CompressionPenaltyReport {
+    pub onset_volume_ratio: f64,
+    pub lambda_multiple: f64,
+}
+
 /// The materials of the simulation.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 pub struct MaterialsReport {
@@ -598,6 +608,10 @@ pub struct MaterialsReport {
     /// results and `--no-skin`).
     #[serde(default)]
     pub skin: Option<SkinReport>,
+    /// `null`: the paper's corotated energy (older results and
+    /// `--no-compression-penalty`).
+    #[serde(default)]
+    pub compression_penalty: Option<CompressionPenaltyReport>,
 }
 
 impl MaterialsReport {
@@ -617,6 +631,12 @@ impl MaterialsReport {
             skin: options.skin.map(|skin| SkinReport {
                 young_kpa: skin.young_kpa,
                 thickness_mm: skin.thickness_mm,
+            }),
+            compression_penalty: options.compression_penalty.map(|penalty| {
+                CompressionPenaltyReport {
+                    onset_volume_ratio: penalty.onset_volume_ratio,
+                    lambda_multiple: penalty.lambda_multiple,
+                }
             }),
         }
     }
@@ -771,6 +791,11 @@ pub fn simulate(
             None
         } else {
             SimulationOptions::default().skin
+        },
+        compression_penalty: if options.no_compression_penalty {
+            None
+        } else {
+            SimulationOptions::default().compression_penalty
         },
         ..SimulationOptions::default()
     };

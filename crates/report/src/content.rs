@@ -77,6 +77,9 @@ pub struct ModelParameters {
     /// The skin layer over the tissue in words; `None`: homogeneous tissue up to the
     /// surface.
     pub skin: Option<String>,
+    /// The resistance to large volume loss added to the corotated energy, in words;
+    /// `None`: the paper's corotated energy.
+    pub compression_penalty: Option<String>,
     /// Whether the weight of the implant was simulated (paper V-B).
     pub gravity_correction: bool,
     /// Which way was up in the scan (the direction gravity acts against), in words.

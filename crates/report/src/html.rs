@@ -95,6 +95,10 @@ fn case_section(case: &CaseInfo) -> Markup {
                         td { (model.skin.as_deref().unwrap_or("not modelled (homogeneous tissue up to the surface)")) }
                     }
                     tr {
+                        th scope="row" { "Large volume loss" }
+                        td { (model.compression_penalty.as_deref().unwrap_or("as the corotated energy measures it (the paper's model)")) }
+                    }
+                    tr {
                         th scope="row" { "Weight of the implant (gravity)" }
                         td { @if model.gravity_correction { "simulated" } @else { "not simulated" } }
                     }

@@ -88,6 +88,9 @@ fn minimal_content() -> ReportContent {
                     density_kg_m3: 970.0,
                 },
                 skin: Some("344 kPa, 1.55 mm thick, on the outer elements".into()),
+                compression_penalty: Some(
+                    "resisted beyond 10% with the first Lamé parameter".into(),
+                ),
                 gravity_correction: true,
                 up: "the file's +y; the sternum leans 26.8° back from it".into(),
                 pocket: Some("the fill-in widened up to 40 mm over the chest".into()),

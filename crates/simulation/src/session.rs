@@ -79,7 +79,9 @@ use anatomy::closed_surface::ClosedSurface;
 use anatomy::fill_in::{FillInParams, fill_hole};
 use anatomy::{AnatomicalFrame, LandmarkName, Landmarks};
 use fem::multigrid::{CoarseOperator, Multigrid, MultigridOptions, PcgIteration};
-use fem::{Constraints, FemModel, Formulation, InversionBarrier, Material, Tangent};
+use fem::{
+    CompressionPenalty, Constraints, FemModel, Formulation, InversionBarrier, Material, Tangent,
+};
 use glam::{DVec2, DVec3};
 use implant::ImplantShape;
 use mesh::TriMesh;
@@ -109,6 +111,15 @@ pub const DEFAULT_INVERSION_BARRIER: InversionBarrier = InversionBarrier {
     min_volume_ratio: 0.5,
     modulus_kpa: 100.0,
     young_multiple: 40.0,
+};
+
+/// Default compression penalty of the finest level: beyond 10% volume loss an element
+/// resists with its own first Lamé parameter, `λ V (0.9 - J)²`, so small strains stay
+/// linear-elastic and tissue squeezed over an implant keeps its volume
+/// (docs/dev/volume-loss.md).
+pub const DEFAULT_COMPRESSION_PENALTY: CompressionPenalty = CompressionPenalty {
+    onset_volume_ratio: 0.9,
+    lambda_multiple: 1.0,
 };
 
 /// Default radius of the implant rim's mollifier in finest lattice spacings. Linear
@@ -232,6 +243,10 @@ pub struct SimulationOptions {
     /// [`fem::InversionBarrier`]; `None`: the paper's plain corotated energy). Default
     /// [`DEFAULT_INVERSION_BARRIER`].
     pub inversion_barrier: Option<InversionBarrier>,
+    /// The finest level's resistance to large volume loss (see
+    /// [`fem::CompressionPenalty`]; `None`: the paper's corotated energy). Default
+    /// [`DEFAULT_COMPRESSION_PENALTY`].
+    pub compression_penalty: Option<CompressionPenalty>,
     /// Use at most this many levels of the hierarchy, finest first (`None`: all).
     pub max_levels: Option<usize>,
     /// Cycle limit and relative residual of [`Simulation::solve`].
@@ -265,6 +280,7 @@ impl Default for SimulationOptions {
             gravity_m_s2: fem::STANDARD_GRAVITY_M_S2,
             multigrid: MultigridOptions::default(),
             inversion_barrier: Some(DEFAULT_INVERSION_BARRIER),
+            compression_penalty: Some(DEFAULT_COMPRESSION_PENALTY),
             max_levels: None,
             line_search: true,
             linear_warmup_cycles: 6,
@@ -811,6 +827,7 @@ impl Simulation {
             .map(|l| FemModel::homogeneous(&l.mesh, options.tissue))
             .collect::<Result<Vec<_>, _>>()?;
         levels[0].set_inversion_barrier(options.inversion_barrier)?;
+        levels[0].set_compression_penalty(options.compression_penalty)?;
         let closed = input.closed_surface;
 
         // one cylinder about the body's axis through both fill-ins
