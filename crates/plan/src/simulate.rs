@@ -534,6 +534,10 @@ pub struct ImplantSummary {
     /// the shared scans with the implants of their tests, 0.89-0.91 for R-MOD-100 on
     /// `pair1_pre`, nearly as wide as its breasts' base.
     pub template_volume_ml: f64,
+    /// The implant's volume over the part of its footprint the finest mesh reaches (ml):
+    /// less than `volume_ml` where the footprint lies beyond the model's side, where the
+    /// scan ends; that part is left out of the prediction.
+    pub covered_volume_ml: f64,
     /// The move asked for (mm, anatomical frame).
     pub move_mm: [f64; 3],
     /// The turn asked for about the bed's normal (degrees, counter-clockwise from the
@@ -568,6 +572,7 @@ impl ImplantSummary {
             projection_mm: placed.shape.projection_mm(),
             volume_ml: placed.shape.volume_ml(),
             template_volume_ml: placed.template.template_volume_ml,
+            covered_volume_ml: placed.template.covered_volume_ml,
             move_mm: request.move_mm.to_array(),
             rotation_deg: request.rotation_deg,
             fit_shift_mm: placed.fit_shift_mm.to_array(),
@@ -803,6 +808,10 @@ pub fn simulate(
     run_session(session, model_dir, out_dir, options, progress)
 }
 
+/// The share of an implant's volume beyond the finest mesh above which `simulate` warns
+/// (see [`ImplantSummary::covered_volume_ml`]).
+const UNCOVERED_WARNING_SHARE: f64 = 0.05;
+
 /// Sets the implants of `options` on a prepared session, solves, and writes the
 /// simulation folder (`model_dir` is only reported).
 pub fn run_session(
@@ -853,6 +862,20 @@ pub fn run_session(
              more elements, model --elements, or a smaller implant may avoid it)",
             solver.inverted_elements
         ));
+    }
+    for side in Side::BOTH {
+        if let Some(placed) = session.simulation.implant(side) {
+            let volume_ml = placed.shape.volume_ml();
+            let outside_ml = volume_ml - placed.template.covered_volume_ml;
+            if outside_ml > UNCOVERED_WARNING_SHARE * volume_ml {
+                progress.warn(&format!(
+                    "{outside_ml:.0} ml of the {side} implant's {volume_ml:.0} ml lies beyond the \
+                     model's side, where the scan ends: the prediction leaves that part out \
+                     (a narrower implant, a more medial position, or a scan that reaches \
+                     further round the side would include it)"
+                ));
+            }
+        }
     }
     let report = write_simulation(
         &mut session,

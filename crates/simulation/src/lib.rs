@@ -49,6 +49,7 @@ pub mod pocket;
 pub mod session;
 pub mod skin;
 pub mod template;
+pub mod template_volume;
 
 pub use bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 pub use error::SimulationError;

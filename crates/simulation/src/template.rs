@@ -33,6 +33,7 @@
 use crate::bed::{Foot, ImplantBed};
 use crate::error::SimulationError;
 use crate::placement::{Anchor, Placement, resolve_anchor};
+use crate::template_volume::bed_section_volume_mm3;
 use anatomy::breast::Side;
 use glam::{DVec2, DVec3};
 use implant::ImplantShape;
@@ -159,6 +160,10 @@ pub struct ImplantTemplate {
     /// implant elements of deformed minus rest volume, with only the template's
     /// displacements applied. Close to the implant's volume when the mesh resolves it.
     pub template_volume_ml: f64,
+    /// The implant's volume over the part of its footprint the finest mesh reaches
+    /// (ml; [`crate::template_volume`]): less than the implant's volume where the
+    /// footprint lies beyond a clip plane, where the scan ends.
+    pub covered_volume_ml: f64,
 }
 
 /// The implant's thickness mollified over a disc of radius `radius_mm` (mm): the
@@ -496,6 +501,7 @@ pub fn build_template(
     const FIXED: u8 = 2;
     let mut state = vec![0u8; classes.len()];
     let mut template = ImplantTemplate::default();
+    let mut fill_in_corners = Vec::new();
     let mut added_mm3 = 0.0;
     for &(t, corners) in &candidates.tets {
         let c = corners.map(|k| classes[k as usize]);
@@ -507,6 +513,7 @@ pub fn build_template(
             continue;
         }
         template.fill_in_elements += 1;
+        fill_in_corners.push(corners);
         let mut interior = 0;
         for (k, class) in corners.iter().zip(&c) {
             let s = &mut state[*k as usize];
@@ -619,5 +626,17 @@ pub fn build_template(
         return Err(SimulationError::EmptyTemplate { side: feet.side });
     }
     template.template_volume_ml = added_mm3 / 1000.0;
+    template.covered_volume_ml = fill_in_corners
+        .iter()
+        .filter_map(|corners: &[u32; 4]| {
+            let feet = corners.map(|k| feet.feet[k as usize]);
+            Some(bed_section_volume_mm3(
+                &[feet[0]?, feet[1]?, feet[2]?, feet[3]?],
+                anchor,
+                thickness,
+            ))
+        })
+        .sum::<f64>()
+        / 1000.0;
     Ok(template)
 }
