@@ -512,7 +512,9 @@ pub(crate) fn parse_point(value: &Value) -> Result<DVec3, String> {
             .filter(|x| x.is_finite())
             .ok_or_else(|| format!("coordinate {v} is not a finite number"))?;
     }
-    Ok(DVec3::from_array(coordinates))
+    let point = DVec3::from_array(coordinates);
+    mesh::geometry::check_position(point)?;
+    Ok(point)
 }
 
 #[cfg(test)]
@@ -558,6 +560,15 @@ mod tests {
         let error = Landmarks::from_json(&text, Path::new("lm.json")).unwrap_err();
         assert!(
             error.to_string().contains("landmark Pnr: coordinate \"a\""),
+            "{error}"
+        );
+        // finite, but past any scan: its squared distances would overflow
+        let text = sample_json().replace("[4, 2.0, 0.5]", "[4, -1e308, 0.5]");
+        let error = Landmarks::from_json(&text, Path::new("lm.json")).unwrap_err();
+        assert!(
+            error
+                .to_string()
+                .contains("landmark Pnr: a coordinate of 1.000e308 mm"),
             "{error}"
         );
         let error = Landmarks::from_json("{\"units\":\"cm\"}", Path::new("lm.json")).unwrap_err();

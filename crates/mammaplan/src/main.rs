@@ -3,8 +3,8 @@
 
 mod progress;
 
-use anyhow::Result;
-use clap::{Parser, Subcommand};
+use anyhow::{Context, Result};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use plan::{Cup, PhantomParams, Progress};
 use progress::TerminalProgress;
 use std::path::PathBuf;
@@ -382,7 +382,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = parse_command_line();
     let progress = TerminalProgress::new(cli.quiet);
     match run(cli.command, &progress) {
         Ok(()) => ExitCode::SUCCESS,
@@ -392,6 +392,19 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// The command line, with negative numbers read as values wherever an option takes one
+/// (`--elements -5` is then refused by the option's own check, which names it, rather
+/// than read as an unknown flag).
+fn parse_command_line() -> Cli {
+    fn negative_numbers(command: clap::Command) -> clap::Command {
+        command
+            .mut_args(|arg| arg.allow_negative_numbers(true))
+            .mut_subcommands(negative_numbers)
+    }
+    let matches = negative_numbers(Cli::command()).get_matches();
+    Cli::from_arg_matches(&matches).unwrap_or_else(|error| error.exit())
 }
 
 fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
@@ -436,7 +449,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             if json {
                 print_json(&report)
             } else {
-                print!("{}", summary::demo(&report));
+                say(summary::demo(&report))?;
                 Ok(())
             }
         }
@@ -460,16 +473,15 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             };
             let phantom = plan::demo::write_phantom(&params, &out, &landmarks)?;
             progress.finish();
-            println!(
-                "phantom: {} vertices, {} triangles -> {}\nlandmarks and true breast volumes (left {:.1} ml, right {:.1} ml) -> {}",
+            say(format_args!(
+                "phantom: {} vertices, {} triangles -> {}\nlandmarks and true breast volumes (left {:.1} ml, right {:.1} ml) -> {}\n",
                 phantom.scan.vertex_count(),
                 phantom.scan.triangle_count(),
                 out.display(),
                 phantom.breast_volume_ml.left,
                 phantom.breast_volume_ml.right,
                 landmarks.display()
-            );
-            Ok(())
+            ))
         }
         Command::Measure {
             scan,
@@ -484,8 +496,8 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             if json {
                 print_json(&report)
             } else {
-                print!("{}", summary::distances(&report.distances));
-                print!("{}", summary::up(&report.up));
+                say(summary::distances(&report.distances))?;
+                say(summary::up(&report.up))?;
                 Ok(())
             }
         }
@@ -507,7 +519,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             if json {
                 print_json(&report)
             } else {
-                print!("{}", summary::registration(&report));
+                say(summary::registration(&report))?;
                 Ok(())
             }
         }
@@ -538,7 +550,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             if json {
                 print_json(&report)
             } else {
-                print!("{}", summary::comparison(&report));
+                say(summary::comparison(&report))?;
                 Ok(())
             }
         }
@@ -559,7 +571,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             if json {
                 print_json(&report)
             } else {
-                print!("{}", summary::bench(&report));
+                say(summary::bench(&report))?;
                 Ok(())
             }
         }
@@ -607,7 +619,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             if json {
                 print_json(&report)
             } else {
-                print!("{}", summary::simulation(&report));
+                say(summary::simulation(&report))?;
                 Ok(())
             }
         }
@@ -633,7 +645,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             };
             let report = plan::report::write_report(&inputs, &out, progress)?;
             progress.finish();
-            print!("{}", summary::report(&report));
+            say(summary::report(&report))?;
             Ok(())
         }
         Command::Fem {
@@ -657,7 +669,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             if json {
                 print_json(&report)
             } else {
-                print!("{}", summary::fem_solve(&report));
+                say(summary::fem_solve(&report))?;
                 Ok(())
             }
         }
@@ -692,7 +704,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             if json {
                 print_json(&report)
             } else {
-                print!("{}", summary::model(&report));
+                say(summary::model(&report))?;
                 Ok(())
             }
         }
@@ -710,10 +722,11 @@ fn catalog(command: CatalogCommand) -> Result<()> {
                     entries: catalog.entries(),
                 })
             } else {
-                print!(
-                    "{}",
-                    summary::catalog_entries(&source, catalog.entries().iter(), None)
-                );
+                say(summary::catalog_entries(
+                    &source,
+                    catalog.entries().iter(),
+                    None,
+                ))?;
                 Ok(())
             }
         }
@@ -744,7 +757,7 @@ fn catalog(command: CatalogCommand) -> Result<()> {
             if json {
                 print_json(&report)
             } else {
-                print!("{}", summary::suggestions(&report));
+                say(summary::suggestions(&report))?;
                 Ok(())
             }
         }
@@ -764,8 +777,17 @@ fn shape_kind(text: &str) -> Result<plan::catalog::ShapeKind, String> {
 }
 
 fn print_json(value: &impl serde::Serialize) -> Result<()> {
-    println!("{}", serde_json::to_string_pretty(value)?);
-    Ok(())
+    say(format_args!("{}\n", serde_json::to_string_pretty(value)?))
+}
+
+/// Writes `text` to standard output: a closed pipe or a full disk is an error that says
+/// so, not a panic.
+fn say(text: impl std::fmt::Display) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    write!(out, "{text}")
+        .and_then(|()| out.flush())
+        .context("cannot write to standard output")
 }
 
 fn unit_interval(text: &str) -> Result<f64, String> {

@@ -1111,3 +1111,35 @@ fn bench_reports_its_rows_and_exports_the_system() {
         );
     }
 }
+
+/// Standard output that cannot be written (a full disk, here `/dev/full`) is a clean
+/// error that says so, not a panic.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_full_disk_on_standard_output_is_a_clean_error() {
+    let full = std::fs::File::create("/dev/full").expect("/dev/full exists on Linux");
+    let output = Command::new(env!("CARGO_BIN_EXE_mammaplan"))
+        .args(["catalog", "list"])
+        .stdout(full)
+        .output()
+        .expect("the binary runs");
+    assert_clean_failure(&output, "cannot write to standard output");
+}
+
+/// A negative number given to an option is read as its value and refused by the
+/// option's own check, which names the option, rather than read as an unknown flag.
+#[test]
+fn a_negative_number_is_refused_by_its_option() {
+    let output = mammaplan(&[
+        "model",
+        "--scan",
+        "scan.ply",
+        "--landmarks",
+        "landmarks.json",
+        "--out",
+        "model",
+        "--elements",
+        "-5",
+    ]);
+    assert_clean_failure(&output, "invalid value '-5' for '--elements <N>'");
+}

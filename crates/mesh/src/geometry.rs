@@ -1,7 +1,29 @@
-//! Per-element geometry: normals, areas, enclosed volume, bounding box.
+//! Per-element geometry: normals, areas, enclosed volume, bounding box, and which
+//! positions a body scan can hold.
 
 use crate::trimesh::TriMesh;
 use glam::DVec3;
+
+/// How far from its origin (mm) a position of a body scan, a landmark or a control point
+/// may lie: a kilometre. Beyond it a coordinate is a damaged or mis-scaled file, and
+/// squared distances would overflow.
+pub const MAX_COORDINATE_MM: f64 = 1e6;
+
+/// `Err` with what is wrong when `p` is not a position a scan can hold: a coordinate
+/// that is not finite, or lies more than [`MAX_COORDINATE_MM`] from the origin.
+pub fn check_position(p: DVec3) -> Result<(), String> {
+    if !p.is_finite() {
+        return Err(format!("non-finite coordinate {p}"));
+    }
+    let largest = p.abs().max_element();
+    if largest > MAX_COORDINATE_MM {
+        return Err(format!(
+            "a coordinate of {largest:.3e} mm lies more than a kilometre from the origin (a \
+             damaged file, or not in millimetres)"
+        ));
+    }
+    Ok(())
+}
 
 impl TriMesh {
     /// Unit normal of triangle `t` (zero for a degenerate triangle).

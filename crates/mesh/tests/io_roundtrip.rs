@@ -930,7 +930,16 @@ fn bad_obj_lines_are_reported_with_their_line() {
     assert_parse_error(
         read_obj_text("v 1 2 nan\n"),
         Some(1),
-        &["vertex 1 has a non-finite coordinate"],
+        &["vertex 1: non-finite coordinate"],
+    );
+    // a finite coordinate far beyond any body (its squared distances overflow)
+    assert_parse_error(
+        read_obj_text("v 1 2 3e300\n"),
+        Some(1),
+        &[
+            "vertex 1: a coordinate of 3.000e300 mm",
+            "more than a kilometre",
+        ],
     );
     assert_parse_error(
         read_obj_text("usemtl\n"),

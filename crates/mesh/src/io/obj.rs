@@ -17,6 +17,7 @@
 
 use super::{ParseError, fan, parse_number, read_file, write_atomically};
 use crate::error::MeshError;
+use crate::geometry::check_position;
 use crate::trimesh::{MaterialLayer, TriMesh, UvLayer};
 use glam::{DVec2, DVec3};
 use std::io::Write;
@@ -202,12 +203,8 @@ impl Builder {
             }
         };
         let position = DVec3::new(values[0], values[1], values[2]);
-        if !position.is_finite() {
-            return Err(format!(
-                "vertex {} has a non-finite coordinate {position}",
-                self.positions.len() + 1
-            ));
-        }
+        check_position(position)
+            .map_err(|what| format!("vertex {}: {what}", self.positions.len() + 1))?;
         const WHITE: [u8; 3] = [255; 3];
         match (color, &mut self.colors) {
             (Some(rgb), colors) => colors

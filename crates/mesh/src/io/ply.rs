@@ -19,6 +19,7 @@
 
 use super::{ParseError, fan, parse_number, read_file, write_atomically};
 use crate::error::MeshError;
+use crate::geometry::check_position;
 use crate::trimesh::{TriMesh, UvLayer};
 use glam::{DVec2, DVec3};
 use std::fmt::Display;
@@ -500,11 +501,7 @@ impl Builder {
         vertex: usize,
     ) -> Result<(), String> {
         let position = DVec3::from_array(layout.xyz.map(|p| values[p]));
-        if !position.is_finite() {
-            return Err(format!(
-                "vertex {vertex} has a non-finite coordinate {position}"
-            ));
-        }
+        check_position(position).map_err(|what| format!("vertex {vertex}: {what}"))?;
         self.positions.push(position);
         if let Some((channels, float)) = layout.color {
             self.colors.push(channels.map(|p| {

@@ -13,6 +13,7 @@
 
 use super::{ParseError, parse_number, read_file, write_atomically};
 use crate::error::MeshError;
+use crate::geometry::check_position;
 use crate::trimesh::TriMesh;
 use glam::DVec3;
 use std::collections::HashMap;
@@ -168,8 +169,8 @@ impl Welder {
     }
 
     fn facet(&mut self, corners: [DVec3; 3], facet: usize) -> Result<(), String> {
-        if let Some(p) = corners.iter().find(|p| !p.is_finite()) {
-            return Err(format!("facet {facet} has a non-finite coordinate {p}"));
+        for &p in &corners {
+            check_position(p).map_err(|what| format!("facet {facet}: {what}"))?;
         }
         let [a, b, c] = corners.map(|p| self.vertex(p));
         if a != b && b != c && a != c {
