@@ -79,6 +79,12 @@ use std::ops::Range;
 /// 13 mm in adult women by ultrasound), the layers the paper shifts the base back by so
 /// the wall lies at the chest wall (ribs); the implant sits on this wall.
 pub const DEFAULT_REAR_WALL_OFFSET_MM: f64 = 15.0;
+
+/// The largest rear-wall offset (mm): further back the wall passes through the ribs,
+/// and a wall kilometres away made the self-intersection test's grid, which spans the
+/// bounding box, take minutes.
+pub const MAX_REAR_WALL_OFFSET_MM: f64 = 60.0;
+
 /// A clip box needs at least this many triangles of each surface inside it; fewer means
 /// the box misses the surface.
 const MIN_CLIPPED_TRIANGLES: usize = 16;
@@ -889,9 +895,11 @@ pub fn build_closed_surface_in_box(
     rear_wall_offset_mm: f64,
 ) -> Result<ClosedSurface, ClosedSurfaceError> {
     clip_box.check()?;
-    if !(rear_wall_offset_mm > 0.0 && rear_wall_offset_mm.is_finite()) {
+    if !(rear_wall_offset_mm > 0.0 && rear_wall_offset_mm <= MAX_REAR_WALL_OFFSET_MM) {
         return Err(ClosedSurfaceError::InvalidInput(format!(
-            "the rear-wall offset must be a positive number of mm, got {rear_wall_offset_mm}"
+            "the rear-wall offset must lie between 0 and {MAX_REAR_WALL_OFFSET_MM} mm (the \
+             chest wall lies some 10 to 30 mm behind the breast's base), got \
+             {rear_wall_offset_mm}"
         )));
     }
     let mut front = ClippedPart::new(scan, SurfaceRole::Scan, frame, clip_box)?;

@@ -224,8 +224,8 @@ enum Command {
         /// (between 0 and 1); not with --control-points.
         #[arg(long, value_name = "R", default_value_t = plan::model::DEFAULT_PC_RATIO, value_parser = open_unit_interval, conflicts_with = "control_points")]
         pc_ratio: f64,
-        /// How far the filled base is shifted back to form the rear wall (mm).
-        #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REAR_WALL_OFFSET_MM, value_parser = positive)]
+        /// How far the filled base is shifted back to form the rear wall (mm, up to 60).
+        #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REAR_WALL_OFFSET_MM, value_parser = rear_wall_offset)]
         rear_wall_offset_mm: f64,
         /// About how many tetrahedra the finest uniform mesh level has (within about 20%).
         #[arg(long, value_name = "N", default_value_t = plan::model::DEFAULT_ELEMENTS, value_parser = positive_integer)]
@@ -810,6 +810,17 @@ fn positive(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
         Ok(x) if x > 0.0 && x.is_finite() => Ok(x),
         _ => Err(format!("expected a number > 0, got {text:?}")),
+    }
+}
+
+fn rear_wall_offset(text: &str) -> Result<f64, String> {
+    let max = plan::model::MAX_REAR_WALL_OFFSET_MM;
+    match text.parse::<f64>() {
+        Ok(x) if x > 0.0 && x <= max => Ok(x),
+        _ => Err(format!(
+            "expected a number > 0 and at most {max} mm (the chest wall lies some 10 to 30 mm \
+             behind the breast's base), got {text:?}"
+        )),
     }
 }
 

@@ -601,6 +601,10 @@ fn bad_model_input_fails_cleanly_and_writes_nothing() {
         "expected a number > 0",
     );
     assert_clean_failure(
+        &model(&scan, &landmarks, &out, &["--rear-wall-offset-mm", "1e6"]),
+        "at most 60 mm",
+    );
+    assert_clean_failure(
         &model(&scan, &landmarks, &out, &["--elements", "0"]),
         "expected a whole number > 0",
     );
@@ -1142,4 +1146,22 @@ fn a_negative_number_is_refused_by_its_option() {
         "-5",
     ]);
     assert_clean_failure(&output, "invalid value '-5' for '--elements <N>'");
+}
+
+/// `phantom` refuses to write its scan and its landmarks to one file (the landmarks
+/// would overwrite the scan), however the two paths are spelled, and writes nothing.
+#[test]
+fn phantom_refuses_one_file_for_scan_and_landmarks() {
+    let dir = tempfile::tempdir().unwrap();
+    let scan = dir.path().join("x.ply");
+    let same = dir.path().join(".").join("x.ply");
+    let output = mammaplan(&[
+        "phantom",
+        "--out",
+        scan.to_str().unwrap(),
+        "--landmarks",
+        same.to_str().unwrap(),
+    ]);
+    assert_clean_failure(&output, "give them different names");
+    assert!(!scan.exists());
 }

@@ -21,6 +21,11 @@ pub enum MeshError {
         line: Option<usize>,
         message: String,
     },
+    /// The file holds more than any scan: a damaged file, or a device that never ends.
+    #[error(
+        "{path}: more than {limit_gib} GiB, larger than any body scan (a damaged file, or not a file at all)"
+    )]
+    TooLarge { path: PathBuf, limit_gib: u64 },
     /// The file extension names no format we read or write.
     #[error("{path}: unsupported mesh format (expected .ply, .obj or .stl)")]
     UnsupportedFormat { path: PathBuf },

@@ -23,6 +23,23 @@ pub fn write_phantom(
     scan_path: &Path,
     landmarks_path: &Path,
 ) -> Result<Phantom> {
+    // the folder resolved (links, `..`), the name as given
+    let resolved = |path: &Path| {
+        let folder = path
+            .parent()
+            .filter(|folder| !folder.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        match (folder.canonicalize(), path.file_name()) {
+            (Ok(folder), Some(name)) => folder.join(name),
+            _ => path.to_path_buf(),
+        }
+    };
+    if resolved(scan_path) == resolved(landmarks_path) {
+        anyhow::bail!(
+            "the scan and the landmark file would both be {}: give them different names",
+            scan_path.display()
+        );
+    }
     let phantom = phantom::generate(params);
     write_phantom_files(&phantom, params, scan_path, landmarks_path)?;
     Ok(phantom)

@@ -35,7 +35,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 pub use anatomy::breast::DEFAULT_PC_RATIO;
-pub use anatomy::closed_surface::DEFAULT_REAR_WALL_OFFSET_MM;
+pub use anatomy::closed_surface::{DEFAULT_REAR_WALL_OFFSET_MM, MAX_REAR_WALL_OFFSET_MM};
 
 /// Default number of tetrahedra of the finest level (`--elements`).
 pub const DEFAULT_ELEMENTS: usize = 60_000;
