@@ -51,15 +51,18 @@ fn write_phantom_files(
     scan_path: &Path,
     landmarks_path: &Path,
 ) -> Result<()> {
-    mesh::io::write_mesh(scan_path, &phantom.scan)?;
+    let mut staged = crate::staged::Staged::new();
+    mesh::io::write_mesh(&staged.file(scan_path), &phantom.scan)?;
     let mut additional = serde_json::Map::new();
     additional.insert(
         "true_breast_volume_ml".into(),
         json!({"left": phantom.breast_volume_ml.left, "right": phantom.breast_volume_ml.right}),
     );
     additional.insert("phantom".into(), json!(params.to_string()));
-    phantom.landmarks.write(landmarks_path, additional)?;
-    Ok(())
+    phantom
+        .landmarks
+        .write(&staged.file(landmarks_path), additional)?;
+    staged.commit()
 }
 
 /// The demo's implant on both sides: the built-in catalog's moderate-profile round

@@ -15,6 +15,7 @@ pub mod register;
 pub mod report;
 pub mod scan;
 pub mod simulate;
+mod staged;
 pub mod views;
 
 pub use anatomy::measure::Distance;

@@ -618,22 +618,16 @@ impl PatientModel {
 }
 
 /// Writes the model folder (see the module documentation), creating it if needed, and
-/// returns the report that `model.json` holds. Every file is written atomically;
-/// `model.json` comes last.
+/// returns the report that `model.json` holds. The files are written all or nothing
+/// ([`crate::staged`]); `model.json` comes last.
 pub fn write_model(
     out_dir: &Path,
     model: &PatientModel,
     progress: &dyn Progress,
 ) -> Result<ModelReport> {
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
-    // An old model.json would vouch for a folder this write may leave half replaced.
     let report_path = out_dir.join("model.json");
-    match std::fs::remove_file(&report_path) {
-        Err(error) if error.kind() != std::io::ErrorKind::NotFound => {
-            return Err(error).with_context(|| format!("removing {}", report_path.display()));
-        }
-        _ => {}
-    }
+    let mut staged = crate::staged::Staged::new();
     let breasts = &model.breasts;
     let meshes = [
         ("fill_left.ply", &breasts.left.fill.mesh),
@@ -643,7 +637,10 @@ pub fn write_model(
     let levels = &model.tets.levels;
     progress.stage("write", (meshes.len() + levels.len()) as u64 + 7);
     let mut files = vec!["closed_surface.ply".to_string()];
-    mesh::io::write_mesh(&out_dir.join(&files[0]), &model.closed_surface.mesh)?;
+    mesh::io::write_mesh(
+        &staged.file(&out_dir.join(&files[0])),
+        &model.closed_surface.mesh,
+    )?;
     progress.step();
     // The breast patches carry which vertices are reconstructed skin (1) and which
     // were measured (0).
@@ -657,7 +654,7 @@ pub fn write_model(
             .map(|&f| f64::from(u8::from(f)))
             .collect();
         mesh::io::write_ply_with_scalars(
-            &out_dir.join(&name),
+            &staged.file(&out_dir.join(&name)),
             &breast.patch.mesh,
             mesh::io::PlyEncoding::BinaryLittleEndian,
             &[mesh::io::VertexScalar {
@@ -669,13 +666,13 @@ pub fn write_model(
         progress.step();
     }
     for (name, mesh) in meshes {
-        mesh::io::write_mesh(&out_dir.join(name), mesh)?;
+        mesh::io::write_mesh(&staged.file(&out_dir.join(name)), mesh)?;
         files.push(name.to_string());
         progress.step();
     }
     for (l, level) in levels.iter().enumerate() {
         let name = format!("tets_level{l}.vtu");
-        tetra::vtu::write_vtu(&out_dir.join(&name), &level.mesh, &[], &[])
+        tetra::vtu::write_vtu(&staged.file(&out_dir.join(&name)), &level.mesh, &[], &[])
             .with_context(|| format!("writing {name}"))?;
         files.push(name);
         progress.step();
@@ -689,18 +686,19 @@ pub fn write_model(
             .iter()
             .map(|p| p.position)
             .collect();
-        write_closed_polyline(&out_dir.join(&name), &points)?;
+        write_closed_polyline(&staged.file(&out_dir.join(&name)), &points)?;
         files.push(name);
         progress.step();
     }
     model
         .control_points()
-        .write(&out_dir.join("control_points.json"))?;
+        .write(&staged.file(&out_dir.join("control_points.json")))?;
     files.push("control_points.json".into());
     progress.step();
     files.push("model.json".into());
     let report = model.report(out_dir, files);
-    crate::demo::write_json(&report_path, &report)?;
+    crate::demo::write_json(&staged.file(&report_path), &report)?;
+    staged.commit()?;
     progress.step();
     Ok(report)
 }

@@ -934,23 +934,24 @@ pub fn write_simulation(
 
     std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
     let report_path = out_dir.join("result.json");
-    match std::fs::remove_file(&report_path) {
-        Err(error) if error.kind() != std::io::ErrorKind::NotFound => {
-            return Err(error).with_context(|| format!("removing {}", report_path.display()));
-        }
-        _ => {}
-    }
+    let mut staged = crate::staged::Staged::new();
     let mut files = Vec::new();
-    mesh::io::write_mesh(&out_dir.join("simulated_scan.ply"), &simulated.scan.mesh)?;
+    mesh::io::write_mesh(
+        &staged.file(&out_dir.join("simulated_scan.ply")),
+        &simulated.scan.mesh,
+    )?;
     files.push("simulated_scan.ply".to_string());
     simulated.landmarks.write(
-        &out_dir.join("simulated_landmarks.json"),
+        &staged.file(&out_dir.join("simulated_landmarks.json")),
         Default::default(),
     )?;
     files.push("simulated_landmarks.json".to_string());
-    control_points.write(&out_dir.join(SIMULATED_CONTROL_POINTS))?;
+    control_points.write(&staged.file(&out_dir.join(SIMULATED_CONTROL_POINTS)))?;
     files.push(SIMULATED_CONTROL_POINTS.to_string());
-    write_fe_result(&out_dir.join("fe_result.vtu"), &session.simulation)?;
+    write_fe_result(
+        &staged.file(&out_dir.join("fe_result.vtu")),
+        &session.simulation,
+    )?;
     files.push("fe_result.vtu".to_string());
     files.push("result.json".to_string());
     let lowering_of = |side: Side| {
@@ -985,7 +986,8 @@ pub fn write_simulation(
         out_dir: out_dir.to_path_buf(),
         files,
     };
-    crate::demo::write_json(&report_path, &report)?;
+    crate::demo::write_json(&staged.file(&report_path), &report)?;
+    staged.commit()?;
     Ok(report)
 }
 
