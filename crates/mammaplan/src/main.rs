@@ -386,6 +386,8 @@ fn main() -> ExitCode {
     let progress = TerminalProgress::new(cli.quiet);
     match run(cli.command, &progress) {
         Ok(()) => ExitCode::SUCCESS,
+        // a reader that stopped reading (`| head`): quietly, as Unix tools do
+        Err(error) if closed_pipe(&error) => ExitCode::FAILURE,
         Err(error) => {
             progress.finish();
             eprintln!("error: {}", plan::one_line(&error));
@@ -778,6 +780,15 @@ fn shape_kind(text: &str) -> Result<plan::catalog::ShapeKind, String> {
 
 fn print_json(value: &impl serde::Serialize) -> Result<()> {
     say(format_args!("{}\n", serde_json::to_string_pretty(value)?))
+}
+
+/// Whether `error` comes from writing to a pipe whose reader has gone.
+fn closed_pipe(error: &anyhow::Error) -> bool {
+    error.chain().any(|cause| {
+        cause
+            .downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
 }
 
 /// Writes `text` to standard output: a closed pipe or a full disk is an error that says

@@ -1165,3 +1165,31 @@ fn phantom_refuses_one_file_for_scan_and_landmarks() {
     assert_clean_failure(&output, "give them different names");
     assert!(!scan.exists());
 }
+
+/// Standard output whose reader has gone (`| head`) ends the command quietly, as Unix
+/// tools do: a failure status, nothing on standard error, no panic.
+#[test]
+fn a_closed_pipe_on_standard_output_ends_quietly() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scan, landmarks) = (dir.path().join("p.ply"), dir.path().join("p.json"));
+    let phantom = mammaplan(&[
+        "phantom",
+        "--out",
+        scan.to_str().unwrap(),
+        "--landmarks",
+        landmarks.to_str().unwrap(),
+    ]);
+    assert!(phantom.status.success(), "{}", stderr(&phantom));
+    let mut child = Command::new(env!("CARGO_BIN_EXE_mammaplan"))
+        .args(["measure", "--json", "--scan", scan.to_str().unwrap()])
+        .args(["--landmarks", landmarks.to_str().unwrap(), "--quiet"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the binary runs");
+    // the reader leaves before the measurement (a few hundred ms) is printed
+    drop(child.stdout.take());
+    let output = child.wait_with_output().unwrap();
+    assert!(!output.status.success());
+    assert_eq!(stderr(&output), "");
+}
