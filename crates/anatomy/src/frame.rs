@@ -200,7 +200,79 @@ pub enum FrameError {
     BadUp(String),
 }
 
+/// Landmarks whose side disagrees with the frame: a mistake that would otherwise measure
+/// distances across the chest or swap the breasts' volumes.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SideError {
+    #[error(
+        "the nipples lie {behind_mm:.0} mm behind the sternal notch as seen from the left \
+         direction Pcr -> Pcl: left and right landmarks are swapped, or the scan is mirrored \
+         (check that Pcl, Pnl and the PSMF..l points are on the patient's left, and that the \
+         scan was not flipped on export)"
+    )]
+    SwappedOrMirrored { behind_mm: f64 },
+    #[error(
+        "landmark {name} lies {across_mm:.0} mm on the patient's {wrong} of the sternal notch, \
+         but its name says {named}: its side is swapped (or Pcl and Pcr are); move it or fix \
+         its name"
+    )]
+    WrongSide {
+        name: &'static str,
+        across_mm: f64,
+        wrong: &'static str,
+        named: &'static str,
+    },
+}
+
+/// The landmarks named for the patient's left and right.
+const LEFT_LANDMARKS: [LandmarkName; 5] = [
+    LandmarkName::Pcl,
+    LandmarkName::Pnl,
+    LandmarkName::PSMFl,
+    LandmarkName::PSMFml,
+    LandmarkName::PSMFll,
+];
+const RIGHT_LANDMARKS: [LandmarkName; 5] = [
+    LandmarkName::Pcr,
+    LandmarkName::Pnr,
+    LandmarkName::PSMFr,
+    LandmarkName::PSMFmr,
+    LandmarkName::PSMFlr,
+];
+
 impl AnatomicalFrame {
+    /// Checks that `landmarks` (those this frame was built from) agree with it: both
+    /// nipples in front of the sternal notch, and every landmark named for a side on that
+    /// side of it. A full left/right swap or a mirrored scan turns the frame round (its
+    /// left comes from Pcr -> Pcl, its anterior from left x up), so the nipples appear
+    /// behind; a single swapped landmark lies on the other side.
+    pub fn check_sides(&self, landmarks: &Landmarks) -> Result<(), SideError> {
+        let local = |name: LandmarkName| self.to_local(landmarks.get(name));
+        let front_mm = local(LandmarkName::Pnl).z.max(local(LandmarkName::Pnr).z);
+        if front_mm <= 0.0 {
+            return Err(SideError::SwappedOrMirrored {
+                behind_mm: -front_mm,
+            });
+        }
+        for (names, sign, named, wrong) in [
+            (LEFT_LANDMARKS, 1.0, "left", "right"),
+            (RIGHT_LANDMARKS, -1.0, "right", "left"),
+        ] {
+            for name in names {
+                let across_mm = local(name).x * sign;
+                if across_mm < 0.0 {
+                    return Err(SideError::WrongSide {
+                        name: name.as_str(),
+                        across_mm: -across_mm,
+                        wrong,
+                        named,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// The standing frame from Pj, Px, Pcl and Pcr and which way is up.
     pub fn from_landmarks(landmarks: &Landmarks, up: Up) -> Result<AnatomicalFrame, FrameError> {
         let sternal = SternalAxes::from_landmarks(landmarks)?;
@@ -334,6 +406,68 @@ mod tests {
                 < 1e-9
         );
         assert!(frame.to_file(local).distance(nipple) < 1e-12);
+    }
+
+    /// A torso's landmarks with each on its own side (mm; x to the patient's left).
+    fn sided_landmarks() -> Landmarks {
+        Landmarks::new(|name| {
+            let (x, y, z) = match name {
+                LandmarkName::Pj => (0.0, 0.0, 0.0),
+                LandmarkName::Px => (0.0, -150.0, 60.0),
+                LandmarkName::Pcl => (85.0, -20.0, 0.0),
+                LandmarkName::Pnl => (100.0, -180.0, 110.0),
+                LandmarkName::PSMFl => (90.0, -240.0, 80.0),
+                LandmarkName::PSMFml => (40.0, -220.0, 90.0),
+                LandmarkName::PSMFll => (130.0, -210.0, 40.0),
+                LandmarkName::Pcr => (-85.0, -20.0, 0.0),
+                LandmarkName::Pnr => (-100.0, -180.0, 110.0),
+                LandmarkName::PSMFr => (-90.0, -240.0, 80.0),
+                LandmarkName::PSMFmr => (-40.0, -220.0, 90.0),
+                LandmarkName::PSMFlr => (-130.0, -210.0, 40.0),
+            };
+            DVec3::new(x, y, z)
+        })
+    }
+
+    fn sides_of(landmarks: &Landmarks) -> Result<(), SideError> {
+        AnatomicalFrame::from_landmarks(landmarks, Up::FILE_VERTICAL)
+            .unwrap()
+            .check_sides(landmarks)
+    }
+
+    /// Right as marked; the nipples' names swapped: Pnl named on the right, 100 mm from
+    /// the notch; every name swapped, or the scan and its marks mirrored: the frame turns
+    /// round and the nipples lie 110 mm behind.
+    #[test]
+    fn swapped_sides_and_mirrored_scans_are_caught() {
+        let landmarks = sided_landmarks();
+        assert_eq!(sides_of(&landmarks), Ok(()));
+
+        let mut nipples = landmarks.clone();
+        nipples.set(LandmarkName::Pnl, landmarks.get(LandmarkName::Pnr));
+        nipples.set(LandmarkName::Pnr, landmarks.get(LandmarkName::Pnl));
+        match sides_of(&nipples) {
+            Err(SideError::WrongSide {
+                name, across_mm, ..
+            }) => assert!(name == "Pnl" && (across_mm - 100.0).abs() < 1e-9),
+            other => panic!("{other:?}"),
+        }
+
+        let mut swapped = landmarks.clone();
+        for (left, right) in LEFT_LANDMARKS.iter().zip(&RIGHT_LANDMARKS) {
+            swapped.set(*left, landmarks.get(*right));
+            swapped.set(*right, landmarks.get(*left));
+        }
+        let mut mirrored = landmarks.clone();
+        mirrored.map_positions(|p| DVec3::new(-p.x, p.y, p.z));
+        for wrong in [swapped, mirrored] {
+            match sides_of(&wrong) {
+                Err(SideError::SwappedOrMirrored { behind_mm }) => {
+                    assert!((behind_mm - 110.0).abs() < 1e-9, "{behind_mm}")
+                }
+                other => panic!("{other:?}"),
+            }
+        }
     }
 
     #[test]

@@ -22,7 +22,7 @@ pub use closed_surface::{
     build_closed_surface, build_closed_surface_in_box,
 };
 pub use fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
-pub use frame::{AnatomicalFrame, FrameError, Up, UpSource};
+pub use frame::{AnatomicalFrame, FrameError, SideError, Up, UpSource};
 pub use landmarks::{
     LandmarkError, LandmarkName, Landmarks, NamedPoints, PartialLandmarks, SnapWarning,
 };

@@ -393,7 +393,9 @@ pub fn build_breasts(
     let scan = &marked.scan;
     let mut options = options.clone();
     if let Some(path) = control_points_file {
-        options.control_points = Some(ControlPoints::read(path)?);
+        let points = ControlPoints::read(path)?;
+        points.check_sides(&marked.frame, path)?;
+        options.control_points = Some(points);
     }
     let breasts = build_breast_model(
         &scan.mesh,

@@ -140,6 +140,9 @@ impl MarkedScan {
         }
         let frame = AnatomicalFrame::from_landmarks(&landmarks, up)
             .with_context(|| landmarks_path.display().to_string())?;
+        frame
+            .check_sides(&landmarks)
+            .with_context(|| format!("{} on {}", landmarks_path.display(), scan.path.display()))?;
         Ok(MarkedScan {
             scan,
             landmarks,

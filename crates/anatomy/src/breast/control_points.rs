@@ -129,6 +129,30 @@ impl ControlPoints {
         })
     }
 
+    /// Checks that each side's points lie, on average, on that side of the sternal notch
+    /// (`frame`'s x): a file written for the other side, or with its sides swapped,
+    /// would cut each breast out of the other. `path` is only for messages.
+    pub fn check_sides(&self, frame: &AnatomicalFrame, path: &Path) -> Result<(), BreastError> {
+        for (side, sign) in [(Side::Left, 1.0), (Side::Right, -1.0)] {
+            let points = self.side(side);
+            let mean_mm = points.iter().map(|&p| frame.to_local(p).x).sum::<f64>()
+                / points.len().max(1) as f64;
+            if mean_mm * sign < 0.0 {
+                return Err(BreastError::ControlPointFile {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "the \"{side}\" points lie on the patient's {} ({:.0} mm from the \
+                         sternal notch on average): the file's sides are swapped, or it was \
+                         made for a mirrored scan",
+                        side.opposite(),
+                        mean_mm.abs()
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// Parses a control-point file's text; `path` is only for messages.
     pub fn from_json(text: &str, path: &Path) -> Result<ControlPoints, BreastError> {
         let error = |message: String| BreastError::ControlPointFile {
@@ -370,6 +394,39 @@ mod tests {
         assert!(
             (left.x - 130.0).abs() < 1e-9 && left.z.abs() < 1e-9,
             "{left}"
+        );
+    }
+
+    /// Each side on its own side of the notch passes; the sides swapped are refused with
+    /// the side named and the mean distance (here 80 mm).
+    #[test]
+    fn a_file_with_its_sides_swapped_is_refused() {
+        let frame = AnatomicalFrame {
+            origin: DVec3::ZERO,
+            axes: DMat3::IDENTITY,
+            sternal_axes: DMat3::IDENTITY,
+            up_source: UpSource::FileVertical,
+        };
+        let around = |x: f64| -> Vec<DVec3> {
+            [(-30.0, 0.0), (30.0, 0.0), (0.0, 40.0)]
+                .iter()
+                .map(|&(dx, y)| DVec3::new(x + dx, y, 0.0))
+                .collect()
+        };
+        let path = Path::new("cp.json");
+        let points = ControlPoints {
+            left: around(80.0),
+            right: around(-80.0),
+        };
+        assert!(points.check_sides(&frame, path).is_ok());
+        let swapped = ControlPoints {
+            left: points.right.clone(),
+            right: points.left.clone(),
+        };
+        let message = swapped.check_sides(&frame, path).unwrap_err().to_string();
+        assert!(
+            message.contains("the \"left\" points lie on the patient's right (80 mm"),
+            "{message}"
         );
     }
 
