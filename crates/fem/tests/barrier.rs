@@ -57,19 +57,7 @@ fn barrier_forces_are_the_gradient_of_its_energy() {
     assert!(acting > 0, "{ratios:?}");
     for formulation in [Formulation::Linear, Formulation::Corotated] {
         let f = model.internal_forces(&u, formulation).unwrap();
-        let h = 1e-5;
-        let mut fd = vec![DVec3::ZERO; u.len()];
-        for v in 0..u.len() {
-            for axis in 0..3 {
-                let mut plus = u.clone();
-                let mut minus = u.clone();
-                plus[v][axis] += h;
-                minus[v][axis] -= h;
-                fd[v][axis] = (model.potential_energy(&plus, &[], formulation)
-                    - model.potential_energy(&minus, &[], formulation))
-                    / (2.0 * h);
-            }
-        }
+        let fd = energy_gradient(&model, &u, formulation, 1e-5);
         let rel = max_diff(&f, &fd) / max_norm(&fd);
         println!(
             "{formulation:?}: {acting} elements under the barrier, |f - dE/du| / |dE/du| = {rel:.1e}"

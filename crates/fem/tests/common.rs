@@ -1,7 +1,7 @@
 //! Shared helpers of the integration tests.
 #![allow(dead_code)]
 
-use fem::{box_is_boundary, box_mesh};
+use fem::{FemModel, Formulation, box_is_boundary, box_mesh};
 use glam::{DMat3, DVec3};
 use tetra::TetMesh;
 
@@ -49,4 +49,27 @@ pub fn frob(m: DMat3) -> f64 {
 /// A generic rotation (axis (1, 2, 3), 70 degrees).
 pub fn generic_rotation() -> DMat3 {
     DMat3::from_axis_angle(DVec3::new(1.0, 2.0, 3.0).normalize(), 70f64.to_radians())
+}
+
+/// The gradient of `model`'s potential energy at `u` by central differences of step
+/// `h` (mm), for checking that internal forces are conservative.
+pub fn energy_gradient(
+    model: &FemModel,
+    u: &[DVec3],
+    formulation: Formulation,
+    h: f64,
+) -> Vec<DVec3> {
+    let mut gradient = vec![DVec3::ZERO; u.len()];
+    for v in 0..u.len() {
+        for axis in 0..3 {
+            let mut plus = u.to_vec();
+            let mut minus = u.to_vec();
+            plus[v][axis] += h;
+            minus[v][axis] -= h;
+            gradient[v][axis] = (model.potential_energy(&plus, &[], formulation)
+                - model.potential_energy(&minus, &[], formulation))
+                / (2.0 * h);
+        }
+    }
+    gradient
 }

@@ -74,19 +74,7 @@ fn penalty_forces_are_the_gradient_of_its_energy() {
     model.set_compression_penalty(Some(PENALTY)).unwrap();
     model.set_inversion_barrier(Some(BARRIER)).unwrap();
     let f = model.internal_forces(&u, Formulation::Corotated).unwrap();
-    let h = 1e-5;
-    let mut fd = vec![DVec3::ZERO; u.len()];
-    for v in 0..u.len() {
-        for axis in 0..3 {
-            let mut plus = u.clone();
-            let mut minus = u.clone();
-            plus[v][axis] += h;
-            minus[v][axis] -= h;
-            fd[v][axis] = (model.potential_energy(&plus, &[], Formulation::Corotated)
-                - model.potential_energy(&minus, &[], Formulation::Corotated))
-                / (2.0 * h);
-        }
-    }
+    let fd = energy_gradient(&model, &u, Formulation::Corotated, 1e-5);
     let rel = max_diff(&f, &fd) / max_norm(&fd);
     println!("|f - dE/du| / |dE/du| = {rel:.1e}");
     assert!(rel < 1e-6, "{rel}");
