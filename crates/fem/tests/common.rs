@@ -1,7 +1,7 @@
 //! Shared helpers of the integration tests.
 #![allow(dead_code)]
 
-use fem::{FemModel, Formulation, box_is_boundary, box_mesh};
+use fem::{FemModel, Formulation, Material, box_is_boundary, box_mesh};
 use glam::{DMat3, DVec3};
 use tetra::TetMesh;
 
@@ -72,4 +72,19 @@ pub fn energy_gradient(
         }
     }
     gradient
+}
+
+/// A jittered 20 mm box of 2.4 kPa tissue (Poisson ratio 0.45) and a displacement that
+/// squeezes it to 40% of its height with a shear: about half its elements below half
+/// their volume.
+pub fn squeezed_box() -> (FemModel, Vec<DVec3>) {
+    let mesh = jittered_box(DVec3::ZERO, DVec3::new(20.0, 20.0, 20.0), [2, 2, 2], 0.15);
+    let model = FemModel::homogeneous(&mesh, Material::new(2.4, 0.45)).unwrap();
+    let u = mesh
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(k, x)| DVec3::new(0.2 * x.z, 0.05 * (k % 3) as f64, -0.6 * x.z))
+        .collect();
+    (model, u)
 }

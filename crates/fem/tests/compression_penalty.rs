@@ -62,14 +62,7 @@ fn the_penalty_is_its_formula_below_the_onset_and_nothing_above() {
 /// 1e-5 mm) to 1e-6 relative, so line searches on the energy stay valid.
 #[test]
 fn penalty_forces_are_the_gradient_of_its_energy() {
-    let mesh = jittered_box(DVec3::ZERO, DVec3::new(20.0, 20.0, 20.0), [2, 2, 2], 0.15);
-    let mut model = FemModel::homogeneous(&mesh, Material::new(2.4, 0.45)).unwrap();
-    let u: Vec<DVec3> = mesh
-        .positions
-        .iter()
-        .enumerate()
-        .map(|(k, x)| DVec3::new(0.2 * x.z, 0.05 * (k % 3) as f64, -0.6 * x.z))
-        .collect();
+    let (mut model, u) = squeezed_box();
     let without = model.internal_forces(&u, Formulation::Corotated).unwrap();
     model.set_compression_penalty(Some(PENALTY)).unwrap();
     model.set_inversion_barrier(Some(BARRIER)).unwrap();
