@@ -43,6 +43,8 @@ const ZOOM_PER_SCROLL: f64 = 0.002;
 /// A landmark counts as visible if nothing is in front of it by more than this (mm).
 const OCCLUSION_TOLERANCE_MM: f64 = 0.5;
 const ERROR_COLOR: Color32 = Color32::from_rgb(235, 90, 80);
+/// A result that stands, with a caveat.
+const WARNING_COLOR: Color32 = Color32::from_rgb(240, 170, 60);
 const PLACED_COLOR: Color32 = Color32::from_rgb(60, 200, 120);
 const SELECTED_COLOR: Color32 = Color32::from_rgb(255, 200, 40);
 const EXTRA_COLOR: Color32 = Color32::from_rgb(90, 170, 255);

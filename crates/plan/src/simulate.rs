@@ -555,6 +555,19 @@ pub struct ImplantSummary {
 }
 
 impl ImplantSummary {
+    /// What the prediction leaves out where more than 5% of the implant's volume lies
+    /// beyond the finest mesh ([`ImplantSummary::covered_volume_ml`]).
+    pub fn uncovered(&self) -> Option<String> {
+        let outside_ml = self.volume_ml - self.covered_volume_ml;
+        (outside_ml > UNCOVERED_WARNING_SHARE * self.volume_ml).then(|| {
+            format!(
+                "{outside_ml:.0} of its {:.0} ml lie beyond the model's side, where the scan \
+                 ends: the prediction leaves that part out (a narrower implant, a more medial \
+                 position, or a scan that reaches further round the side would include it)",
+                self.volume_ml
+            )
+        })
+    }
     /// The summary of an implant placed as `request` asked, `catalog_entry` the entry
     /// its spec names, if any.
     pub fn new(
@@ -864,17 +877,12 @@ pub fn run_session(
         ));
     }
     for side in Side::BOTH {
-        if let Some(placed) = session.simulation.implant(side) {
-            let volume_ml = placed.shape.volume_ml();
-            let outside_ml = volume_ml - placed.template.covered_volume_ml;
-            if outside_ml > UNCOVERED_WARNING_SHARE * volume_ml {
-                progress.warn(&format!(
-                    "{outside_ml:.0} ml of the {side} implant's {volume_ml:.0} ml lies beyond the \
-                     model's side, where the scan ends: the prediction leaves that part out \
-                     (a narrower implant, a more medial position, or a scan that reaches \
-                     further round the side would include it)"
-                ));
-            }
+        if let Some(warning) = implants
+            .get(side)
+            .as_ref()
+            .and_then(ImplantSummary::uncovered)
+        {
+            progress.warn(&format!("{side} implant: {warning}"));
         }
     }
     let report = write_simulation(

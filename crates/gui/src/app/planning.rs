@@ -3,7 +3,7 @@
 //! display modes, the measurements and their export, and planning cases.
 
 use super::ControlPointTool;
-use super::{ERROR_COLOR, GuiApp, PLACED_COLOR, Status};
+use super::{ERROR_COLOR, GuiApp, PLACED_COLOR, Status, WARNING_COLOR};
 use crate::carried::{SurfaceAnchor, anchors};
 use crate::document::Document;
 use crate::implant_plan::{Editing, ImplantPlan, MoveDirection, Source};
@@ -729,6 +729,9 @@ impl GuiApp {
                         "{side}: {}, {:.0} ml{fold_note}{fit_note}",
                         placed.spec, placed.volume_ml
                     ));
+                    if let Some(warning) = placed.uncovered() {
+                        ui.colored_label(WARNING_COLOR, format!("{side}: {warning}"));
+                    }
                 }
                 if let Some(error) = &state.error {
                     ui.colored_label(ERROR_COLOR, format!("{side}: {error}"));
