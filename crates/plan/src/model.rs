@@ -97,6 +97,48 @@ pub struct ModelOptions {
     pub refinement: Option<Refinement>,
 }
 
+/// How many tetrahedra a model's finest uniform level may be asked for: fewer than a
+/// thousand leave lattice cells wider than a breast, more than two million take more
+/// memory and time than an interactive tool has (the largest measured, 240,000, took
+/// seconds per cycle).
+pub const ELEMENTS_RANGE: std::ops::RangeInclusive<usize> = 1_000..=2_000_000;
+
+impl ModelOptions {
+    /// Checks the numbers a user (or an edited `model.json`) can set, naming the field
+    /// and its range.
+    pub fn check(&self) -> Result<()> {
+        anyhow::ensure!(
+            ELEMENTS_RANGE.contains(&self.elements),
+            "elements = {} is out of range: a model holds {} to {} tetrahedra",
+            self.elements,
+            ELEMENTS_RANGE.start(),
+            ELEMENTS_RANGE.end()
+        );
+        let offset = self.closed_surface.rear_wall_offset_mm;
+        anyhow::ensure!(
+            offset > 0.0 && offset <= MAX_REAR_WALL_OFFSET_MM,
+            "rear_wall_offset_mm = {offset} is out of range: more than 0 and at most \
+             {MAX_REAR_WALL_OFFSET_MM} mm"
+        );
+        if let Some(refinement) = self.refinement {
+            for (name, value) in [
+                ("refinement band_mm", refinement.band_mm),
+                ("refinement max_edge_mm", refinement.max_edge_mm),
+            ] {
+                anyhow::ensure!(
+                    value > 0.0 && value <= MAX_REFINEMENT_MM,
+                    "{name} = {value} is out of range: more than 0 and at most \
+                     {MAX_REFINEMENT_MM} mm"
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The largest refinement band or edge (mm): wider than any breast's tissue.
+const MAX_REFINEMENT_MM: f64 = 100.0;
+
 impl Default for ModelOptions {
     fn default() -> ModelOptions {
         ModelOptions {
@@ -312,6 +354,7 @@ pub fn build_model(
     options: &ModelOptions,
     progress: &dyn Progress,
 ) -> Result<PatientModel> {
+    options.check()?;
     check_cancelled(progress)?;
     let start = Instant::now();
     let scan = &marked.scan;
@@ -788,8 +831,6 @@ pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedSc
         .map(|up| up.up())
         .transpose()
         .with_context(|| report_path.display().to_string())?;
-    let marked = MarkedScan::load(&record.scan, &record.landmarks, up, progress)
-        .with_context(|| format!("the scan named in {}", report_path.display()))?;
     let mut options = ModelOptions {
         control_points_file: Some(model_dir.join("control_points.json")),
         elements: record.elements_requested,
@@ -797,6 +838,15 @@ pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedSc
         ..Default::default()
     };
     options.closed_surface.rear_wall_offset_mm = record.rear_wall_offset_mm;
+    options.check().with_context(|| {
+        format!(
+            "{}: a field holds a value no `mammaplan model` writes (was the file edited?); \
+             run `mammaplan model` again",
+            report_path.display()
+        )
+    })?;
+    let marked = MarkedScan::load(&record.scan, &record.landmarks, up, progress)
+        .with_context(|| format!("the scan named in {}", report_path.display()))?;
     let model = build_model(&marked, &options, progress)?;
     let rebuilt: Vec<(usize, usize)> = model.levels.iter().map(|l| (l.elements, l.nodes)).collect();
     let recorded: Vec<(usize, usize)> = record
@@ -813,4 +863,32 @@ pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedSc
         record.scan.display()
     );
     Ok((marked, model))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The defaults pass; each number out of its range is refused with its field named.
+    #[test]
+    fn options_out_of_range_are_named() {
+        assert!(ModelOptions::default().check().is_ok());
+        let message = |options: ModelOptions| options.check().unwrap_err().to_string();
+        let few = ModelOptions {
+            elements: 10,
+            ..ModelOptions::default()
+        };
+        assert!(message(few).starts_with("elements = 10 is out of range"));
+        let mut far = ModelOptions::default();
+        far.closed_surface.rear_wall_offset_mm = 1e6;
+        assert!(message(far).starts_with("rear_wall_offset_mm = 1000000 is out of range"));
+        let wide = ModelOptions {
+            refinement: Some(Refinement {
+                band_mm: 5.0,
+                max_edge_mm: f64::NAN,
+            }),
+            ..ModelOptions::default()
+        };
+        assert!(message(wide).starts_with("refinement max_edge_mm = NaN"));
+    }
 }
