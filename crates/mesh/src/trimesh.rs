@@ -152,6 +152,20 @@ impl TriMesh {
             .collect()
     }
 
+    /// Indices of triangles on the same three vertices as an earlier one, in either
+    /// orientation: a doubled face (an export that wrote the surface twice) makes every
+    /// edge of it shared by four triangles, and paths across the surface go wrong.
+    pub fn repeated_triangles(&self) -> Vec<usize> {
+        let mut seen = std::collections::HashSet::with_capacity(self.triangles.len());
+        (0..self.triangles.len())
+            .filter(|&t| {
+                let mut corners = self.triangles[t];
+                corners.sort_unstable();
+                !seen.insert(corners)
+            })
+            .collect()
+    }
+
     /// Removes the given triangles (indices into `triangles`), keeping every vertex and
     /// all attribute layers consistent.
     pub fn remove_triangles(&mut self, remove: &[usize]) {
@@ -263,5 +277,15 @@ mod tests {
         assert_eq!(mesh.degenerate_triangles(1e-12), vec![2]);
         mesh.remove_triangles(&[2]);
         assert_eq!(mesh.triangle_count(), 2);
+    }
+
+    /// The quad written twice, the second copy turned round and rotated in its corners:
+    /// every copy found, the originals kept.
+    #[test]
+    fn repeated_triangles_are_found_in_either_orientation() {
+        let mut mesh = quad();
+        mesh.triangles.extend([[2, 1, 0], [3, 0, 2]]);
+        assert_eq!(mesh.repeated_triangles(), vec![2, 3]);
+        assert!(quad().repeated_triangles().is_empty());
     }
 }

@@ -33,6 +33,16 @@ impl Scan {
             ));
             mesh.remove_triangles(&degenerate);
         }
+        let repeated = mesh.repeated_triangles();
+        if let Some(first) = repeated.first() {
+            progress.warn(&format!(
+                "{}: dropped {} triangle(s) that repeat another on the same three vertices \
+                 (a surface written twice?), the first is triangle {first}",
+                path.display(),
+                repeated.len()
+            ));
+            mesh.remove_triangles(&repeated);
+        }
         Scan::from_mesh(mesh, path)
     }
 
