@@ -39,7 +39,7 @@ fn assert_no_temporary_files(dir: &Path) {
     let leftovers: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
         .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+        .filter(|e| e.file_name().to_string_lossy().contains(".partial"))
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }
@@ -1192,4 +1192,100 @@ fn a_closed_pipe_on_standard_output_ends_quietly() {
     let output = child.wait_with_output().unwrap();
     assert!(!output.status.success());
     assert_eq!(stderr(&output), "");
+}
+
+/// The distances of `mammaplan measure --json` and its warnings (not `--quiet`).
+fn measured_distances(scan: &Path, landmarks: &Path) -> (serde_json::Value, String) {
+    let output = Command::new(env!("CARGO_BIN_EXE_mammaplan"))
+        .args(["measure", "--json", "--scan", scan.to_str().unwrap()])
+        .args(["--landmarks", landmarks.to_str().unwrap()])
+        .output()
+        .expect("the binary runs");
+    assert!(output.status.success(), "{}", stderr(&output));
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).expect("stdout is JSON");
+    (json["distances"].clone(), stderr(&output))
+}
+
+/// A scan written with every face twice, or with a fin (a strip of two triangles
+/// standing on an interior edge), is repaired on load with a warning that counts what
+/// was dropped, and measures exactly as the clean scan: the repair removes what was
+/// added and nothing else.
+#[test]
+fn a_doubled_or_finned_scan_is_repaired_and_measures_as_the_clean_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scan, landmarks) = (dir.path().join("clean.obj"), dir.path().join("lm.json"));
+    let output = mammaplan(&[
+        "phantom",
+        "--out",
+        scan.to_str().unwrap(),
+        "--landmarks",
+        landmarks.to_str().unwrap(),
+        "--cup",
+        "small",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let clean_text = std::fs::read_to_string(&scan).unwrap();
+    let (clean, warnings) = measured_distances(&scan, &landmarks);
+    assert!(!warnings.contains("dropped"), "{warnings}");
+
+    let faces: Vec<&str> = clean_text.lines().filter(|l| l.starts_with("f ")).collect();
+    let doubled = dir.path().join("doubled.obj");
+    std::fs::write(&doubled, format!("{clean_text}{}\n", faces.join("\n"))).unwrap();
+    let (distances, warnings) = measured_distances(&doubled, &landmarks);
+    assert!(
+        warnings.contains(&format!("dropped {} triangle(s) that repeat", faces.len())),
+        "{warnings}"
+    );
+    assert_eq!(distances, clean);
+
+    // A fin on an edge that two faces share (an interior edge).
+    let corners = |face: &str| -> Vec<usize> {
+        face.split_whitespace()
+            .skip(1)
+            .map(|c| c.split('/').next().unwrap().parse().unwrap())
+            .collect()
+    };
+    let mut edge_faces = std::collections::HashMap::new();
+    for face in &faces {
+        let c = corners(face);
+        for k in 0..3 {
+            let edge = (c[k].min(c[(k + 1) % 3]), c[k].max(c[(k + 1) % 3]));
+            *edge_faces.entry(edge).or_insert(0) += 1;
+        }
+    }
+    let middle = corners(faces[faces.len() / 2]);
+    let (a, b) = (middle[0], middle[1]);
+    assert_eq!(edge_faces[&(a.min(b), a.max(b))], 2, "an interior edge");
+    let vertex_count = clean_text.lines().filter(|l| l.starts_with("v ")).count();
+    let position = |v: usize| -> Vec<f64> {
+        let line = clean_text
+            .lines()
+            .filter(|l| l.starts_with("v "))
+            .nth(v - 1)
+            .unwrap();
+        line.split_whitespace()
+            .skip(1)
+            .map(|x| x.parse().unwrap())
+            .collect()
+    };
+    let (pa, pb) = (position(a), position(b));
+    let lifted = |p: &[f64]| format!("v {} {} {}", p[0], p[1] + 15.0, p[2] - 20.0);
+    let (top_a, top_b) = (vertex_count + 1, vertex_count + 2);
+    let finned = dir.path().join("finned.obj");
+    std::fs::write(
+        &finned,
+        format!(
+            "{clean_text}{}\n{}\nf {a} {b} {top_b}\nf {a} {top_b} {top_a}\n",
+            lifted(&pa),
+            lifted(&pb)
+        ),
+    )
+    .unwrap();
+    let (distances, warnings) = measured_distances(&finned, &landmarks);
+    assert!(
+        warnings.contains("1 edge(s) were shared by more than two triangles")
+            && warnings.contains("dropped 2 triangle(s) so that one surface runs through each"),
+        "{warnings}"
+    );
+    assert_eq!(distances, clean);
 }

@@ -205,7 +205,7 @@ impl Topology {
 }
 
 #[inline]
-fn edge_key(a: u32, b: u32) -> u64 {
+pub(crate) fn edge_key(a: u32, b: u32) -> u64 {
     ((a.min(b) as u64) << 32) | a.max(b) as u64
 }
 

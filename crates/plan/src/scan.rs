@@ -20,8 +20,9 @@ pub struct Scan {
 }
 
 impl Scan {
-    /// Reads and validates a mesh file; degenerate (zero-area) triangles are dropped with
-    /// a warning naming the first one.
+    /// Reads and validates a mesh file; degenerate (zero-area) triangles, triangles that
+    /// repeat another and fins ([`mesh::fin_triangles`]) are dropped with a warning that
+    /// counts them and names the first.
     pub fn load(path: &Path, progress: &dyn crate::Progress) -> Result<Scan> {
         let mut mesh = mesh::io::read_mesh(path)?;
         let degenerate = mesh.degenerate_triangles(DEGENERATE_AREA_MM2);
@@ -42,6 +43,18 @@ impl Scan {
                 repeated.len()
             ));
             mesh.remove_triangles(&repeated);
+        }
+        let fins = mesh::fin_triangles(&mesh);
+        if let Some(first) = fins.triangles.first() {
+            progress.warn(&format!(
+                "{}: {} edge(s) were shared by more than two triangles (fins or overlapping \
+                 sheets); dropped {} triangle(s) so that one surface runs through each, the \
+                 first is triangle {first}",
+                path.display(),
+                fins.non_manifold_edges,
+                fins.triangles.len()
+            ));
+            mesh.remove_triangles(&fins.triangles);
         }
         Scan::from_mesh(mesh, path)
     }
