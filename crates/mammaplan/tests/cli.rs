@@ -735,6 +735,18 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     let page = std::fs::read_to_string(&report_path).unwrap();
     assert!(page.contains("Post-op − simulated"));
     assert!(page.contains("followup_scan.ply"));
+
+    // One bit of a tetrahedral level changed: refused before any work, naming the file.
+    let level = model.join("tets_level1.vtu");
+    let mut bytes = std::fs::read(&level).unwrap();
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 1;
+    std::fs::write(&level, bytes).unwrap();
+    assert_clean_failure(
+        &simulate("catalog:R-MOD-120"),
+        "tets_level1.vtu does not match the checksum model.json recorded",
+    );
+    assert!(!out.exists());
 }
 
 #[test]

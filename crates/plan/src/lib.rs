@@ -6,6 +6,7 @@
 pub mod bench;
 pub mod case;
 pub mod catalog;
+mod checksum;
 pub mod compare;
 pub mod demo;
 pub mod fem_solve;

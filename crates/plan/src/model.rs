@@ -333,6 +333,9 @@ pub struct ModelReport {
     /// The model folder and the files written into it (names).
     pub out_dir: PathBuf,
     pub files: Vec<String>,
+    /// SHA-256 of every file but `model.json`, checked when the folder is reopened
+    /// ([`load_model`]).
+    pub sha256: crate::checksum::Checksums,
 }
 
 /// The skin of one breast the scanner did not see, reconstructed by the fill-in.
@@ -572,7 +575,12 @@ impl PatientModel {
     }
 
     /// The figures of the model; `out_dir` and `files` say where it is written.
-    pub fn report(&self, out_dir: &Path, files: Vec<String>) -> ModelReport {
+    pub fn report(
+        &self,
+        out_dir: &Path,
+        files: Vec<String>,
+        sha256: crate::checksum::Checksums,
+    ) -> ModelReport {
         let model = &self.breasts;
         let closed = &self.closed_surface;
         let clip = closed.clip_box;
@@ -658,6 +666,7 @@ impl PatientModel {
             timings: self.timings,
             out_dir: out_dir.to_path_buf(),
             files,
+            sha256,
         }
     }
 }
@@ -740,8 +749,9 @@ pub fn write_model(
         .write(&staged.file(&out_dir.join("control_points.json")))?;
     files.push("control_points.json".into());
     progress.step();
+    let sha256 = staged.checksums()?;
     files.push("model.json".into());
-    let report = model.report(out_dir, files);
+    let report = model.report(out_dir, files, sha256);
     crate::demo::write_json(&staged.file(&report_path), &report)?;
     staged.commit()?;
     progress.step();
@@ -781,6 +791,9 @@ pub(crate) struct ModelRecord {
     pub levels: Vec<LevelRecord>,
     pub breast_volume_ml: PerSide<f64>,
     pub quadrant_volume_ml: PerSide<QuadrantVolumes>,
+    /// Absent in folders from before checksums were recorded.
+    #[serde(default)]
+    pub sha256: crate::checksum::Checksums,
 }
 
 #[derive(Debug, Deserialize)]
@@ -822,6 +835,7 @@ pub(crate) fn read_folder_json<T: serde::de::DeserializeOwned>(
 /// in its `model.json` and rebuilds the model with the folder's `control_points.json` and
 /// the recorded settings (meshing is deterministic, so the result is the folder's; the
 /// level sizes are checked against `model.json`, which catches a scan changed since).
+/// The folder's files must match the checksums `model.json` recorded.
 /// Returns the marked scan with the model.
 pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedScan, PatientModel)> {
     let report_path = model_dir.join("model.json");
@@ -845,6 +859,7 @@ pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedSc
             report_path.display()
         )
     })?;
+    crate::checksum::verify(model_dir, &record.sha256, "model.json", "mammaplan model")?;
     let marked = MarkedScan::load(&record.scan, &record.landmarks, up, progress)
         .with_context(|| format!("the scan named in {}", report_path.display()))?;
     let model = build_model(&marked, &options, progress)?;

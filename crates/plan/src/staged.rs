@@ -32,6 +32,23 @@ impl Staged {
         temporary
     }
 
+    /// The checksums of the files staged so far (which must all have been written), by
+    /// their final names.
+    pub fn checksums(&self) -> Result<crate::checksum::Checksums> {
+        self.files
+            .iter()
+            .map(|(temporary, path)| {
+                let name = path
+                    .file_name()
+                    .map(|name| name.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                let sha256 = crate::checksum::file_sha256(temporary)
+                    .with_context(|| format!("reading back the new {}", path.display()))?;
+                Ok((name, sha256))
+            })
+            .collect()
+    }
+
     /// Renames every staged file to its final name, in staging order (so the file that
     /// vouches for the others goes last).
     pub fn commit(mut self) -> Result<()> {
