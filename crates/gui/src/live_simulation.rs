@@ -26,7 +26,7 @@ use anatomy::Landmarks;
 use anatomy::breast::Side;
 use glam::DVec3;
 use plan::model::PerSide;
-use plan::report::{PostoperativeScan, ReportInputs, ReportSummary, write_report};
+use plan::report::{PendingReport, PostoperativeScan, ReportSummary};
 use plan::simulate::{
     Advance, ImplantRequest, ImplantSummary, Session, SimulatedMeasurements, SimulationState,
     SolveState, SolverReport, Stage,
@@ -200,7 +200,7 @@ enum Update {
     Cycle(SimulatedFrame, SolverStatus),
     Measured(Result<(SimulatedMeasurements, u64), String>),
     Exported(Result<ExportPaths, String>),
-    ReportFolders(Result<ReportInputs, String>),
+    ReportFolders(Result<PendingReport, String>),
     Failed(String),
 }
 
@@ -350,12 +350,9 @@ impl LiveSimulation {
                     self.measurements = MeasurementState::Failed(message);
                 }
                 Update::Exported(outcome) => self.exported = Some(outcome),
-                Update::ReportFolders(Ok(inputs)) => {
-                    let out = inputs.model_dir.with_file_name("report.html");
-                    let job = Job::spawn(self.waker(), {
-                        let out = out.clone();
-                        move || write_report(&inputs, &out, &Silent)
-                    });
+                Update::ReportFolders(Ok(pending)) => {
+                    let out = pending.out();
+                    let job = Job::spawn(self.waker(), move || pending.write(&Silent));
                     self.report = ReportState::Writing(out, job);
                 }
                 Update::ReportFolders(Err(message)) => {
@@ -731,7 +728,7 @@ impl<W: Fn()> Worker<W> {
         &mut self,
         folder: &std::path::Path,
         postoperative: Option<PostoperativeScan>,
-    ) -> Result<ReportInputs, String> {
+    ) -> Result<PendingReport, String> {
         let state = SimulationState {
             implants: PerSide::from_fn(|side| self.sides.get(side).placed.clone()),
             solver: SolverReport {

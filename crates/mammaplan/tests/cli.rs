@@ -616,6 +616,28 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     let dir = tempfile::tempdir().unwrap();
     let output = mammaplan(&["demo", "--out", dir.path().to_str().unwrap(), "--json"]);
     assert!(output.status.success(), "{}", stderr(&output));
+    // Exactly the entries the demo replaces all or nothing (plan::demo::DEMO_ENTRIES): a
+    // file written beside them would survive a failed demo.
+    let mut written: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|entry| entry.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    written.sort();
+    assert_eq!(
+        written,
+        [
+            "followup_landmarks.json",
+            "followup_registered.ply",
+            "followup_scan.ply",
+            "landmarks.json",
+            "measurements.json",
+            "model",
+            "registration.json",
+            "report.html",
+            "scan.ply",
+            "simulation"
+        ]
+    );
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     for side in ["left", "right"] {
         let error = json["breast_volume_error_percent"][side].as_f64().unwrap();
@@ -1300,4 +1322,108 @@ fn a_doubled_or_finned_scan_is_repaired_and_measures_as_the_clean_one() {
         "{warnings}"
     );
     assert_eq!(distances, clean);
+}
+
+/// `mammaplan` (quiet) with every file it writes limited to `max_file_bytes`
+/// (RLIMIT_FSIZE, SIGXFSZ ignored): a write past the limit fails with EFBIG, as on a
+/// full disk, half way through the file.
+fn mammaplan_with_file_limit(args: &[&str], max_file_bytes: u64) -> Output {
+    use std::os::unix::process::CommandExt;
+    let mut command = Command::new(env!("CARGO_BIN_EXE_mammaplan"));
+    command.args(args).arg("--quiet");
+    // SAFETY: between fork and exec the closure makes only async-signal-safe calls.
+    unsafe {
+        command.pre_exec(move || {
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            let limit = libc::rlimit {
+                rlim_cur: max_file_bytes,
+                rlim_max: max_file_bytes,
+            };
+            if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    command.output().expect("the binary runs")
+}
+
+/// Every file under `folder` with its content.
+fn folder_content(folder: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut content = std::collections::BTreeMap::new();
+    for entry in std::fs::read_dir(folder).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            content.extend(folder_content(&path));
+        } else {
+            content.insert(path.clone(), std::fs::read(&path).unwrap());
+        }
+    }
+    content
+}
+
+/// A write that fails half way (a file-size limit the run reaches in the sixth of the
+/// model's files, or inside the simulation's first) leaves the previous model and
+/// simulation folders byte for byte; `phantom` whose landmark file cannot be written
+/// leaves no scan.
+#[test]
+fn a_write_that_fails_half_way_leaves_what_was_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scan, landmarks) = phantom(dir.path());
+    let model_dir = dir.path().join("model");
+    let output = model(&scan, &landmarks, &model_dir, &["--elements", "8000"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let simulation_dir = dir.path().join("simulation");
+    let simulate = |limit: Option<u64>| {
+        let args = [
+            "simulate",
+            "--model",
+            model_dir.to_str().unwrap(),
+            "--left",
+            "catalog:R-MOD-100",
+            "--out",
+            simulation_dir.to_str().unwrap(),
+        ];
+        match limit {
+            Some(limit) => mammaplan_with_file_limit(&args, limit),
+            None => mammaplan(&args),
+        }
+    };
+    let output = simulate(None);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let (model_before, simulation_before) =
+        (folder_content(&model_dir), folder_content(&simulation_dir));
+
+    // The small phantom's model files in writing order: closed_surface.ply (4.7 MB), the
+    // two breast patches and fill-ins (under 1 MB), filled_base.ply (6.2 MB), ...
+    let args = [
+        "model",
+        "--scan",
+        scan.to_str().unwrap(),
+        "--landmarks",
+        landmarks.to_str().unwrap(),
+        "--out",
+        model_dir.to_str().unwrap(),
+        "--elements",
+        "9000",
+    ];
+    let output = mammaplan_with_file_limit(&args, 5_500_000);
+    assert_clean_failure(&output, "filled_base.ply");
+    assert_eq!(folder_content(&model_dir), model_before);
+
+    // simulated_scan.ply (7.2 MB) is written first.
+    assert_clean_failure(&simulate(Some(1_000_000)), "simulated_scan.ply");
+    assert_eq!(folder_content(&simulation_dir), simulation_before);
+
+    let new_scan = dir.path().join("new.ply");
+    let output = mammaplan(&[
+        "phantom",
+        "--out",
+        new_scan.to_str().unwrap(),
+        "--landmarks",
+        dir.path().join("missing/landmarks.json").to_str().unwrap(),
+    ]);
+    assert_clean_failure(&output, "landmarks.json");
+    assert!(!new_scan.exists());
+    assert_no_temporary_files(dir.path());
 }

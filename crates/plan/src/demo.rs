@@ -8,7 +8,7 @@ use crate::report::{ReportInputs, ReportSummary, write_report};
 use crate::simulate::{ImplantRequest, Session, SimulateOptions, SimulateReport, run_session};
 use crate::{MarkedScan, Progress, Scan};
 use anatomy::register::RigidTransform;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use glam::{DMat3, DQuat, DVec3};
 use phantom::{Phantom, PhantomParams};
 use serde::Serialize;
@@ -52,16 +52,16 @@ fn write_phantom_files(
     landmarks_path: &Path,
 ) -> Result<()> {
     let mut staged = crate::staged::Staged::new();
-    mesh::io::write_mesh(&staged.file(scan_path), &phantom.scan)?;
+    staged.write(scan_path, |path| mesh::io::write_mesh(path, &phantom.scan))?;
     let mut additional = serde_json::Map::new();
     additional.insert(
         "true_breast_volume_ml".into(),
         json!({"left": phantom.breast_volume_ml.left, "right": phantom.breast_volume_ml.right}),
     );
     additional.insert("phantom".into(), json!(params.to_string()));
-    phantom
-        .landmarks
-        .write(&staged.file(landmarks_path), additional)?;
+    staged.write(landmarks_path, |path| {
+        phantom.landmarks.write(path, additional)
+    })?;
     staged.commit()
 }
 
@@ -92,6 +92,21 @@ pub struct DemoReport {
     pub files: Vec<PathBuf>,
 }
 
+/// What a demo writes into its folder, replaced all or nothing
+/// ([`crate::staged::FolderUpdate`]): a failure half way leaves the folder as it was.
+pub const DEMO_ENTRIES: [&str; 10] = [
+    "scan.ply",
+    "landmarks.json",
+    "followup_scan.ply",
+    "followup_landmarks.json",
+    "measurements.json",
+    "followup_registered.ply",
+    "registration.json",
+    "model",
+    "simulation",
+    "report.html",
+];
+
 /// The known motion between the demo's two scans: 6 degrees about an oblique axis and a
 /// 30 mm shift, like a patient standing differently at the follow-up.
 fn follow_up_motion() -> RigidTransform {
@@ -109,7 +124,7 @@ fn follow_up_motion() -> RigidTransform {
 /// model of the first (in `out_dir/model`), the simulation of [`DEMO_IMPLANT`] on both
 /// sides (in `out_dir/simulation`) and the report of both (`out_dir/report.html`).
 pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
-    std::fs::create_dir_all(out_dir).with_context(|| format!("creating {}", out_dir.display()))?;
+    let update = crate::staged::FolderUpdate::begin(out_dir, &DEMO_ENTRIES)?;
     let path = |name: &str| out_dir.join(name);
     let mut files = Vec::new();
 
@@ -210,6 +225,7 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
         right: 100.0 * (model.breast_volume_ml.right / truth.right - 1.0),
     };
 
+    update.commit()?;
     let error = transform.after(&motion);
     Ok(DemoReport {
         out_dir: out_dir.to_path_buf(),

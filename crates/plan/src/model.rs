@@ -691,10 +691,9 @@ pub fn write_model(
     let levels = &model.tets.levels;
     progress.stage("write", (meshes.len() + levels.len()) as u64 + 7);
     let mut files = vec!["closed_surface.ply".to_string()];
-    mesh::io::write_mesh(
-        &staged.file(&out_dir.join(&files[0])),
-        &model.closed_surface.mesh,
-    )?;
+    staged.write(&out_dir.join(&files[0]), |path| {
+        mesh::io::write_mesh(path, &model.closed_surface.mesh)
+    })?;
     progress.step();
     // The breast patches carry which vertices are reconstructed skin (1) and which
     // were measured (0).
@@ -707,27 +706,30 @@ pub fn write_model(
             .iter()
             .map(|&f| f64::from(u8::from(f)))
             .collect();
-        mesh::io::write_ply_with_scalars(
-            &staged.file(&out_dir.join(&name)),
-            &breast.patch.mesh,
-            mesh::io::PlyEncoding::BinaryLittleEndian,
-            &[mesh::io::VertexScalar {
-                name: "reconstructed",
-                values: &flags,
-            }],
-        )?;
+        staged.write(&out_dir.join(&name), |path| {
+            mesh::io::write_ply_with_scalars(
+                path,
+                &breast.patch.mesh,
+                mesh::io::PlyEncoding::BinaryLittleEndian,
+                &[mesh::io::VertexScalar {
+                    name: "reconstructed",
+                    values: &flags,
+                }],
+            )
+        })?;
         files.push(name);
         progress.step();
     }
     for (name, mesh) in meshes {
-        mesh::io::write_mesh(&staged.file(&out_dir.join(name)), mesh)?;
+        staged.write(&out_dir.join(name), |path| mesh::io::write_mesh(path, mesh))?;
         files.push(name.to_string());
         progress.step();
     }
     for (l, level) in levels.iter().enumerate() {
         let name = format!("tets_level{l}.vtu");
-        tetra::vtu::write_vtu(&staged.file(&out_dir.join(&name)), &level.mesh, &[], &[])
-            .with_context(|| format!("writing {name}"))?;
+        staged.write(&out_dir.join(&name), |path| {
+            tetra::vtu::write_vtu(path, &level.mesh, &[], &[])
+        })?;
         files.push(name);
         progress.step();
     }
@@ -740,19 +742,21 @@ pub fn write_model(
             .iter()
             .map(|p| p.position)
             .collect();
-        write_closed_polyline(&staged.file(&out_dir.join(&name)), &points)?;
+        staged.write(&out_dir.join(&name), |path| {
+            write_closed_polyline(path, &points)
+        })?;
         files.push(name);
         progress.step();
     }
-    model
-        .control_points()
-        .write(&staged.file(&out_dir.join("control_points.json")))?;
+    staged.write(&out_dir.join("control_points.json"), |path| {
+        model.control_points().write(path)
+    })?;
     files.push("control_points.json".into());
     progress.step();
     let sha256 = staged.checksums()?;
     files.push("model.json".into());
     let report = model.report(out_dir, files, sha256);
-    crate::demo::write_json(&staged.file(&report_path), &report)?;
+    staged.write(&report_path, |path| crate::demo::write_json(path, &report))?;
     staged.commit()?;
     progress.step();
     Ok(report)

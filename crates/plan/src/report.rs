@@ -319,24 +319,51 @@ pub fn compare_with_postoperative(
     }))
 }
 
+/// A report's folders written by [`write_session_folders`], its page not yet. Dropped
+/// without [`PendingReport::write`] succeeding, it leaves the folder as it was before.
+pub struct PendingReport {
+    pub inputs: ReportInputs,
+    update: crate::staged::FolderUpdate,
+}
+
+impl PendingReport {
+    /// Where the page goes: `report.html` beside the model and simulation folders.
+    pub fn out(&self) -> PathBuf {
+        self.inputs.model_dir.with_file_name("report.html")
+    }
+
+    /// Writes the page ([`write_report`]) and keeps the whole folder.
+    pub fn write(self, progress: &dyn Progress) -> Result<ReportSummary> {
+        let summary = write_report(&self.inputs, &self.out(), progress)?;
+        self.update.commit()?;
+        Ok(summary)
+    }
+}
+
 /// Writes the files a report of an open session is made from into `folder` and returns
-/// the report's inputs (created now): the scan as `scan.ply` when it was not read from a
+/// the report to write (created now): the scan as `scan.ply` when it was not read from a
 /// file (the phantom), the landmarks the model was built from as `landmarks.json`, the
 /// model folder `model/` ([`write_model`]) and the simulation folder `simulation/` of the
 /// session's current prediction ([`write_simulation`], `state` saying how the session
 /// got there). The session's model then names those scan and landmark files. The
-/// report itself ([`write_report`]) reads only files, so a front end can write it on
-/// another thread while the session goes on.
+/// report itself ([`PendingReport::write`]) reads only files, so a front end can write
+/// it on another thread while the session goes on. The folder's entries are replaced
+/// all or nothing ([`crate::staged::FolderUpdate`]).
 pub fn write_session_folders(
     session: &mut Session,
     state: &SimulationState,
     folder: &Path,
     postoperative: Option<PostoperativeScan>,
     progress: &dyn Progress,
-) -> Result<ReportInputs> {
-    std::fs::create_dir_all(folder).with_context(|| format!("creating {}", folder.display()))?;
+) -> Result<PendingReport> {
     let scan = &session.marked.scan;
-    if !scan.path.is_file() {
+    let writes_scan = !scan.path.is_file();
+    let mut entries = vec!["landmarks.json", "model", "simulation", "report.html"];
+    if writes_scan {
+        entries.push("scan.ply");
+    }
+    let update = crate::staged::FolderUpdate::begin(folder, &entries)?;
+    if writes_scan {
         let path = folder.join("scan.ply");
         mesh::io::write_mesh(&path, &scan.mesh)?;
         session.model.scan_path = path;
@@ -351,11 +378,14 @@ pub fn write_session_folders(
     let simulation_dir = folder.join("simulation");
     write_model(&model_dir, &session.model, progress)?;
     write_simulation(session, state, &model_dir, &simulation_dir, progress)?;
-    Ok(ReportInputs {
-        model_dir,
-        simulation_dir,
-        postoperative,
-        created: SystemTime::now(),
+    Ok(PendingReport {
+        inputs: ReportInputs {
+            model_dir,
+            simulation_dir,
+            postoperative,
+            created: SystemTime::now(),
+        },
+        update,
     })
 }
 

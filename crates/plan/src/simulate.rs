@@ -944,22 +944,21 @@ pub fn write_simulation(
     let report_path = out_dir.join("result.json");
     let mut staged = crate::staged::Staged::new();
     let mut files = Vec::new();
-    mesh::io::write_mesh(
-        &staged.file(&out_dir.join("simulated_scan.ply")),
-        &simulated.scan.mesh,
-    )?;
+    staged.write(&out_dir.join("simulated_scan.ply"), |path| {
+        mesh::io::write_mesh(path, &simulated.scan.mesh)
+    })?;
     files.push("simulated_scan.ply".to_string());
-    simulated.landmarks.write(
-        &staged.file(&out_dir.join("simulated_landmarks.json")),
-        Default::default(),
-    )?;
+    staged.write(&out_dir.join("simulated_landmarks.json"), |path| {
+        simulated.landmarks.write(path, Default::default())
+    })?;
     files.push("simulated_landmarks.json".to_string());
-    control_points.write(&staged.file(&out_dir.join(SIMULATED_CONTROL_POINTS)))?;
+    staged.write(&out_dir.join(SIMULATED_CONTROL_POINTS), |path| {
+        control_points.write(path)
+    })?;
     files.push(SIMULATED_CONTROL_POINTS.to_string());
-    write_fe_result(
-        &staged.file(&out_dir.join("fe_result.vtu")),
-        &session.simulation,
-    )?;
+    staged.write(&out_dir.join("fe_result.vtu"), |path| {
+        write_fe_result(path, &session.simulation)
+    })?;
     files.push("fe_result.vtu".to_string());
     files.push("result.json".to_string());
     let lowering_of = |side: Side| {
@@ -994,7 +993,7 @@ pub fn write_simulation(
         out_dir: out_dir.to_path_buf(),
         files,
     };
-    crate::demo::write_json(&staged.file(&report_path), &report)?;
+    staged.write(&report_path, |path| crate::demo::write_json(path, &report))?;
     staged.commit()?;
     Ok(report)
 }
