@@ -758,6 +758,48 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     assert!(page.contains("Post-op − simulated"));
     assert!(page.contains("followup_scan.ply"));
 
+    // Edited result files: refused, naming the file and the field.
+    let edited = |folder: &str, file: &str, edit: &dyn Fn(&mut serde_json::Value)| {
+        let copy = dir.path().join(format!("edited_{folder}"));
+        std::fs::create_dir_all(&copy).unwrap();
+        for entry in std::fs::read_dir(dir.path().join(folder)).unwrap() {
+            let entry = entry.unwrap();
+            std::fs::copy(entry.path(), copy.join(entry.file_name())).unwrap();
+        }
+        edit_landmarks(&copy.join(file), edit);
+        copy
+    };
+    let edited_simulation = edited("simulation", "result.json", &|json| {
+        json["implants"]["left"]["width_mm"] = (-120.0).into();
+    });
+    let edited_model = edited("model", "model.json", &|json| {
+        json["breast_volume_ml"]["right"] = 1e9.into();
+    });
+    for (model_dir, simulation_dir, expected) in [
+        (
+            &model,
+            &edited_simulation,
+            "result.json: implants.left.width_mm is -120 mm",
+        ),
+        (
+            &edited_model,
+            &dir.path().join("simulation"),
+            "model.json: breast_volume_ml.right is 1000000000 ml",
+        ),
+    ] {
+        let output = mammaplan(&[
+            "report",
+            "--model",
+            model_dir.to_str().unwrap(),
+            "--simulation",
+            simulation_dir.to_str().unwrap(),
+            "--out",
+            dir.path().join("edited.html").to_str().unwrap(),
+        ]);
+        assert_clean_failure(&output, expected);
+        assert!(!dir.path().join("edited.html").exists());
+    }
+
     // One bit of a tetrahedral level changed: refused before any work, naming the file.
     let level = model.join("tets_level1.vtu");
     let mut bytes = std::fs::read(&level).unwrap();

@@ -806,9 +806,15 @@ pub(crate) struct LevelRecord {
     pub nodes: usize,
 }
 
-/// Reads the `model.json` of a model folder.
+/// Reads the `model.json` of a model folder; its volumes must be ones a model can have.
 pub(crate) fn read_model_record(model_dir: &Path) -> Result<ModelRecord> {
-    read_folder_json(model_dir, "model.json", "model", "model")
+    let record: ModelRecord = read_folder_json(model_dir, "model.json", "model", "model")?;
+    crate::record_check::FieldCheck::default()
+        .breast_volumes(&record.breast_volume_ml, |side| {
+            Some(record.quadrant_volume_ml.get(side))
+        })
+        .finish(&model_dir.join("model.json"), "mammaplan model")?;
+    Ok(record)
 }
 
 /// Reads `file` of a folder that `mammaplan {command}` writes (a `{kind}` folder) as `T`.

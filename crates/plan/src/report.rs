@@ -20,6 +20,7 @@
 use crate::compare::{CompareOptions, compare};
 use crate::measure::measure;
 use crate::model::{PerSide, build_breasts, read_folder_json, read_model_record, write_model};
+use crate::record_check::{FieldCheck, LENGTH_MM, SHIFT_MM, VOLUME_ML};
 use crate::simulate::{
     AnchorRule, MaterialsReport, SIMULATED_CONTROL_POINTS, Session, SimulationState,
     write_simulation,
@@ -710,8 +711,104 @@ struct SolverRecord {
     inverted_elements: usize,
 }
 
+/// Reads `result.json`; its numbers must be ones a simulation can give.
 fn read_simulation_record(simulation_dir: &Path) -> Result<SimulationRecord> {
-    read_folder_json(simulation_dir, "result.json", "simulation", "simulate")
+    let record: SimulationRecord =
+        read_folder_json(simulation_dir, "result.json", "simulation", "simulate")?;
+    record
+        .check()
+        .finish(&simulation_dir.join("result.json"), "mammaplan simulate")?;
+    Ok(record)
+}
+
+impl SimulationRecord {
+    /// The first number out of the range any simulation gives, by its field.
+    fn check(&self) -> FieldCheck {
+        let mut check = FieldCheck::default();
+        check.breast_volumes(&self.breast_volume_ml, |side| {
+            self.quadrant_volume_ml.get(side).as_ref()
+        });
+        for (k, distance) in self.distances.iter().enumerate() {
+            let lengths = [
+                Some(("euclidean_mm", distance.euclidean_mm)),
+                distance.surface_mm.map(|mm| ("surface_mm", mm)),
+                distance.geodesic_mm.map(|mm| ("geodesic_mm", mm)),
+            ];
+            check.values(
+                &format!("distances[{k}]"),
+                lengths.into_iter().flatten(),
+                &LENGTH_MM,
+                "mm",
+            );
+        }
+        for side in Side::BOTH {
+            let Some(implant) = self.implants.get(side) else {
+                continue;
+            };
+            let field = format!("implants.{side}");
+            check
+                .values(
+                    &field,
+                    [
+                        ("width_mm", implant.width_mm),
+                        ("height_mm", implant.height_mm),
+                        ("projection_mm", implant.projection_mm),
+                    ],
+                    &LENGTH_MM,
+                    "mm",
+                )
+                .values(&field, [("volume_ml", implant.volume_ml)], &VOLUME_ML, "ml")
+                .values(
+                    &field,
+                    [
+                        ("move_mm[0]", implant.move_mm[0]),
+                        ("move_mm[1]", implant.move_mm[1]),
+                        ("move_mm[2]", implant.move_mm[2]),
+                        ("fit_shift_mm[0]", implant.fit_shift_mm[0]),
+                        ("fit_shift_mm[1]", implant.fit_shift_mm[1]),
+                    ],
+                    &SHIFT_MM,
+                    "mm",
+                )
+                .values(
+                    &field,
+                    [("rotation_deg", implant.rotation_deg)],
+                    &(-360.0..=360.0),
+                    "degrees",
+                );
+        }
+        for (name, material) in [
+            ("materials.tissue", &self.materials.tissue),
+            ("materials.implant", &self.materials.implant),
+        ] {
+            check
+                .values(
+                    name,
+                    [("young_kpa", material.young_kpa)],
+                    &(f64::MIN_POSITIVE..=1e9),
+                    "kPa",
+                )
+                .values(
+                    name,
+                    [("poisson_ratio", material.poisson_ratio)],
+                    &(0.0..=0.4999),
+                    "",
+                )
+                .values(
+                    name,
+                    [("density_kg_m3", material.density_kg_m3)],
+                    &(f64::MIN_POSITIVE..=1e5),
+                    "kg/m³",
+                );
+        }
+        check.values(
+            "solver",
+            [("relative_residual", self.solver.relative_residual)],
+            &(0.0..=f64::MAX),
+            "",
+        );
+        check
+    }
 }
 
 fn breast_volumes(breast_ml: f64, quadrants: Option<QuadrantVolumes>) -> report::BreastVolumes {
