@@ -1469,3 +1469,139 @@ fn a_write_that_fails_half_way_leaves_what_was_there() {
     assert!(!new_scan.exists());
     assert_no_temporary_files(dir.path());
 }
+
+/// The corpus of plausible mistakes, each refused with what was found and what
+/// to do, with no output left: left and right swapped, only the nipples swapped, a
+/// mirrored export, control points for the wrong side, coordinates far beyond a body (a
+/// landmark at 1e308, a vertex at 3e38), a file too large to be a scan.
+#[test]
+fn a_corpus_of_plausible_mistakes_is_refused_with_what_to_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name);
+    let (scan, landmarks) = (path("scan.obj"), path("landmarks.json"));
+    let output = mammaplan(&[
+        "phantom",
+        "--out",
+        scan.to_str().unwrap(),
+        "--landmarks",
+        landmarks.to_str().unwrap(),
+        "--cup",
+        "small",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let landmarks_with = |name: &str, edit: &dyn Fn(&mut serde_json::Value)| {
+        let edited = path(name);
+        std::fs::copy(&landmarks, &edited).unwrap();
+        edit_landmarks(&edited, edit);
+        edited
+    };
+    let pairs = [
+        ("Pcl", "Pcr"),
+        ("Pnl", "Pnr"),
+        ("PSMFl", "PSMFr"),
+        ("PSMFml", "PSMFmr"),
+        ("PSMFll", "PSMFlr"),
+    ];
+    let swap = |json: &mut serde_json::Value, pairs: &[(&str, &str)]| {
+        let landmarks = &mut json["landmarks"];
+        for (left, right) in pairs {
+            let point = landmarks[left].take();
+            landmarks[left] = landmarks[right].take();
+            landmarks[right] = point;
+        }
+    };
+    let swapped = landmarks_with("swapped.json", &|json| swap(json, &pairs));
+    let nipples = landmarks_with("nipples.json", &|json| swap(json, &pairs[1..2]));
+    let far = landmarks_with("far.json", &|json| {
+        json["landmarks"]["Pj"][0] = 1e308.into();
+    });
+    let mirrored_landmarks = landmarks_with("mirrored.json", &|json| {
+        for point in json["landmarks"].as_object_mut().unwrap().values_mut() {
+            point[0] = (-point[0].as_f64().unwrap()).into();
+        }
+    });
+    // The scan mirrored in x as a flipped export writes it (triangles as they were), and
+    // one with a vertex at 3e38 mm.
+    let text = std::fs::read_to_string(&scan).unwrap();
+    let mut vertex = 0;
+    let (mut mirrored, mut huge) = (String::new(), String::new());
+    for line in text.lines() {
+        if let Some(rest) = line.strip_prefix("v ") {
+            let mut coordinates = rest.split_whitespace();
+            let x: f64 = coordinates.next().unwrap().parse().unwrap();
+            let rest: Vec<&str> = coordinates.collect();
+            mirrored += &format!("v {} {}\n", -x, rest.join(" "));
+            huge += &if vertex == 100 {
+                "v 3e38 0 0\n".to_string()
+            } else {
+                format!("{line}\n")
+            };
+            vertex += 1;
+        } else {
+            mirrored += &format!("{line}\n");
+            huge += &format!("{line}\n");
+        }
+    }
+    std::fs::write(path("mirrored.obj"), mirrored).unwrap();
+    std::fs::write(path("huge.obj"), huge).unwrap();
+    // 2 GiB, sparse: nothing is read.
+    std::fs::File::create(path("sparse.ply"))
+        .unwrap()
+        .set_len(2 << 30)
+        .unwrap();
+
+    let cases: [(&Path, &Path, &str); 6] = [
+        (
+            &scan,
+            &swapped,
+            "left and right landmarks are swapped, or the scan is mirrored",
+        ),
+        (
+            &scan,
+            &nipples,
+            "landmark Pnl lies 100 mm on the patient's right",
+        ),
+        (
+            &path("mirrored.obj"),
+            &mirrored_landmarks,
+            "left and right landmarks are swapped, or the scan is mirrored",
+        ),
+        (
+            &scan,
+            &far,
+            "landmark Pj: a coordinate of 1.000e308 mm lies more than a kilometre",
+        ),
+        (
+            &path("huge.obj"),
+            &landmarks,
+            "line 102: vertex 101: a coordinate of 3.000e38 mm lies more than a kilometre",
+        ),
+        (&path("sparse.ply"), &landmarks, "more than 1 GiB"),
+    ];
+    for (scan, landmarks, expected) in cases {
+        let out = path("model");
+        assert_clean_failure(&model(scan, landmarks, &out, &[]), expected);
+        assert!(!out.exists());
+    }
+
+    // Control points made for the other side.
+    let out = path("model");
+    let output = model(&scan, &landmarks, &out, &["--elements", "8000"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let control_points = path("control_points.json");
+    std::fs::copy(out.join("control_points.json"), &control_points).unwrap();
+    edit_landmarks(&control_points, |json| {
+        let left = json["left"].take();
+        json["left"] = json["right"].take();
+        json["right"] = left;
+    });
+    let other = path("other_model");
+    let output = model(
+        &scan,
+        &landmarks,
+        &other,
+        &["--control-points", control_points.to_str().unwrap()],
+    );
+    assert_clean_failure(&output, "the \"left\" points lie on the patient's right");
+    assert!(!other.exists());
+}
