@@ -799,6 +799,11 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
         assert_clean_failure(&output, expected);
         assert!(!dir.path().join("edited.html").exists());
     }
+    assert_clean_failure(
+        &simulate_with(&edited_model, "catalog:R-MOD-120", &[]),
+        "model.json: breast_volume_ml.right is 1000000000 ml",
+    );
+    assert!(!out.exists());
 
     // One bit of a tetrahedral level changed: refused before any work, naming the file.
     let level = model.join("tets_level1.vtu");

@@ -101,17 +101,21 @@ fn read_at_most(path: &Path, limit: u64) -> Result<Vec<u8>, MeshError> {
         path: path.to_path_buf(),
         source,
     };
+    let too_large = || MeshError::TooLarge {
+        path: path.to_path_buf(),
+        limit_gib: 0,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    // A regular file's size is known without reading it; a device or pipe is read up to
+    // the limit.
+    let metadata = file.metadata().map_err(io)?;
+    if metadata.is_file() && metadata.len() > limit {
+        return Err(too_large());
+    }
     let mut bytes = Vec::new();
-    std::fs::File::open(path)
-        .map_err(io)?
-        .take(limit + 1)
-        .read_to_end(&mut bytes)
-        .map_err(io)?;
+    file.take(limit + 1).read_to_end(&mut bytes).map_err(io)?;
     if bytes.len() as u64 > limit {
-        return Err(MeshError::TooLarge {
-            path: path.to_path_buf(),
-            limit_gib: 0,
-        });
+        return Err(too_large());
     }
     Ok(bytes)
 }
