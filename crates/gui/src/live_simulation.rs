@@ -467,6 +467,9 @@ struct Worker<W> {
     preview_shown: Option<Advance>,
     /// The number of the implant set last applied.
     set_number: u64,
+    /// The map to the scan being composed beside the solver; the two-step carry serves
+    /// until it arrives.
+    scan_carry: Option<Receiver<plan::simulate::ScanCarry>>,
 }
 
 impl<W: Fn()> Worker<W> {
@@ -479,6 +482,13 @@ impl<W: Fn()> Worker<W> {
         wake: W,
     ) -> Self {
         let preview = keep_to_window.then(|| Preview::new(&session.marked.scan.mesh, &scene));
+        let compose = session.simulation.scan_carry_job();
+        let (composed, scan_carry) = std::sync::mpsc::channel();
+        let scan_carry = std::thread::Builder::new()
+            .name("scan carry".into())
+            .spawn(move || composed.send(compose()))
+            .is_ok()
+            .then_some(scan_carry);
         Worker {
             moved: session.marked.scan.mesh.clone(),
             preview,
@@ -498,12 +508,24 @@ impl<W: Fn()> Worker<W> {
             keep_to_window,
             preview_shown: None,
             set_number: 0,
+            scan_carry,
+        }
+    }
+
+    /// Switches to the composed map to the scan once it has arrived.
+    fn take_scan_carry(&mut self) {
+        if let Some(composed) = &self.scan_carry
+            && let Ok(carry) = composed.try_recv()
+        {
+            self.session.simulation.use_scan_carry(carry);
+            self.scan_carry = None;
         }
     }
 
     /// Serves commands until the window drops its handle.
     fn run(mut self, inbox: &Receiver<Command>) {
         loop {
+            self.take_scan_carry();
             if let Some(advance) = self.unsent.take() {
                 let start = Instant::now();
                 while self.window_behind() && start.elapsed() < WINDOW_WAIT {

@@ -400,14 +400,17 @@ pub fn bench(report: &plan::bench::BenchReport) -> String {
         let p = &row.phases_ms;
         let _ = writeln!(
             out,
-            "{:>9}  finest assembly {:.1}, coarse operators {:.1}, smoother set-up {:.2}, coarsest Cholesky {:.1}, V-cycle {:.1}; then to the scan {:.1}",
+            "{:>9}  finest assembly {:.1}, coarse operators {:.1}, smoother set-up {:.2}, coarsest Cholesky {:.1}, V-cycle {:.1}; then to the scan {:.1} ({:.1} in two steps; composing the map {:.0}, {} terms)",
             row.elements,
             p.finest_assembly,
             p.coarse_operators,
             p.smoother_setup,
             p.coarsest_factorisation,
             p.vcycle,
-            row.scan_update_ms
+            row.scan_update_ms,
+            row.scan_update_two_steps_ms,
+            row.scan_carry_compose_ms,
+            row.scan_carry_terms
         );
     }
     if let Some(dir) = &report.exported_system {

@@ -57,9 +57,17 @@ pub struct BenchRow {
     /// Sparse Cholesky factorisation and solve of the finest system (ms).
     pub direct_solve_ms: f64,
     /// Carrying the displacement to the scan, as the live view does after every cycle
-    /// (`Session::scan_positions`: the finest field at every scan vertex, smoothed;
-    /// median, ms).
+    /// (`Session::scan_positions`: the finest field at every scan vertex, smoothed) with
+    /// the map and the smoothing composed into one sparse map (median, ms).
     pub scan_update_ms: f64,
+    /// The same in two steps, the map then each smoothing step, as a session carries
+    /// before composing (median, ms).
+    pub scan_update_two_steps_ms: f64,
+    /// Composing the map and the smoothing, once per model, on one thread as the live
+    /// view does beside the solver (ms).
+    pub scan_carry_compose_ms: f64,
+    /// Terms of the composed map.
+    pub scan_carry_terms: usize,
     /// Switching to the gravity correction: its forces, and the session's hierarchy
     /// given the stage's constraints and tangent (ms; nothing is built).
     pub gravity_start_ms: f64,
@@ -176,14 +184,25 @@ pub fn bench(
             coarsest_factorisation: phase_median(|p| p.coarsest_factorisation_ms),
             vcycle: phase_median(|p| p.vcycle_ms),
         };
-        let mut scan_update_ms: Vec<f64> = (0..TIMED_CYCLES)
-            .map(|_| {
-                let start = Instant::now();
-                let moved = session.scan_positions();
-                std::hint::black_box(moved);
-                start.elapsed().as_secs_f64() * 1e3
-            })
-            .collect();
+        let time_scan_updates = |session: &Session| -> Vec<f64> {
+            (0..TIMED_CYCLES)
+                .map(|_| {
+                    let start = Instant::now();
+                    std::hint::black_box(session.scan_positions());
+                    start.elapsed().as_secs_f64() * 1e3
+                })
+                .collect()
+        };
+        let mut scan_update_two_steps_ms = time_scan_updates(&session);
+        let start = Instant::now();
+        let carry = session.simulation.scan_carry_job()();
+        let scan_carry_compose_ms = start.elapsed().as_secs_f64() * 1e3;
+        let scan_carry_terms = carry.term_count();
+        anyhow::ensure!(
+            session.simulation.use_scan_carry(carry),
+            "the composed scan carry does not fit its own simulation"
+        );
+        let mut scan_update_ms = time_scan_updates(&session);
         let mg = session
             .simulation
             .multigrid()
@@ -218,6 +237,9 @@ pub fn bench(
             residual_reduction_per_cycle: reduction,
             direct_solve_ms,
             scan_update_ms: median(&mut scan_update_ms),
+            scan_update_two_steps_ms: median(&mut scan_update_two_steps_ms),
+            scan_carry_compose_ms,
+            scan_carry_terms,
             gravity_start_ms,
             change_after_gravity_cycle_ms: change_after_gravity.time_ms,
             phases_ms,

@@ -32,6 +32,7 @@ use std::time::Instant;
 use tetra::vtu::{CONSTRAINED, DISPLACEMENT, Field};
 
 pub use fem::Material;
+pub use simulation::carry::ScanCarry;
 pub use simulation::pocket::{FoldLowering, MAX_ICE_FOLD_LOWERING_MM, PocketLimits};
 pub use simulation::{AnchorRule, CycleInfo, Placement, RunReport, SimulationOptions, Stage};
 

@@ -282,6 +282,15 @@ impl PointMap {
         self.len() == 0
     }
 
+    /// The `(vertex, weight)` terms of `point`'s sum, in order.
+    pub fn terms(&self, point: usize) -> impl Iterator<Item = (u32, f64)> + '_ {
+        let range = self.starts[point]..self.starts[point + 1];
+        self.vertices[range.clone()]
+            .iter()
+            .copied()
+            .zip(self.weights[range].iter().copied())
+    }
+
     /// Per point: whether its displacement can be non-zero (it has a non-zero weight);
     /// the others lie beyond the falloff and do not move.
     pub fn support(&self) -> Vec<bool> {
@@ -461,6 +470,24 @@ impl SurfaceSmoother {
     /// Number of vertices each step updates.
     pub fn active_count(&self) -> usize {
         self.active.len()
+    }
+
+    /// Number of vertices of the mesh it smooths over.
+    pub fn vertex_count(&self) -> usize {
+        self.vertex_count
+    }
+
+    /// The mesh vertex the step updates `k`-th and its neighbours' positions among those
+    /// ([`SurfaceSmoother::active_vertex`] turns one into a mesh vertex).
+    pub fn vertex_and_neighbours(&self, k: usize) -> (u32, &[u32]) {
+        let around = &self.neighbours[self.ptr[k] as usize..self.ptr[k + 1] as usize];
+        (self.active[k], around)
+    }
+
+    /// The mesh vertex at `position` among the updated ones; `None` for a neighbour
+    /// outside them (whose value is zero).
+    pub fn active_vertex(&self, position: u32) -> Option<u32> {
+        self.active.get(position as usize).copied()
     }
 
     /// Smooths `field` (one value per mesh vertex, zero outside the support the

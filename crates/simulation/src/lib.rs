@@ -42,6 +42,7 @@
 //! Millimetres, ml, kPa, kg/m³, mN (see `fem`).
 
 pub mod bed;
+pub mod carry;
 pub mod error;
 pub mod field;
 pub mod placement;

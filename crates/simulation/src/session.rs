@@ -60,6 +60,7 @@
 //! displacement is kept as the warm start.
 
 use crate::bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
+use crate::carry::ScanCarry;
 use crate::error::SimulationError;
 use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap, SurfaceSmoother};
 use crate::placement::{Anchor, AnchorRule, Placement, anchor_on_floor, resolve_anchor};
@@ -570,6 +571,8 @@ pub struct Simulation {
     scan_rest: Vec<DVec3>,
     scan_map: PointMap,
     scan_smoother: SurfaceSmoother,
+    /// The two composed, once given ([`Simulation::scan_carry_job`]).
+    scan_carry: Option<ScanCarry>,
     landmarks: Landmarks,
     /// Where each landmark (required, then extra) sits on the scan.
     landmark_feet: ScanFeet,
@@ -1095,6 +1098,7 @@ impl Simulation {
             scan_rest,
             scan_map,
             scan_smoother,
+            scan_carry: None,
             landmarks: input.landmarks.clone(),
             landmark_feet,
             control_points,
@@ -1921,11 +1925,46 @@ impl Simulation {
     }
 
     /// The displacement of each scan vertex (mm): the finest level's, smoothed over the
-    /// scan ([`SimulationOptions::scan_smoothing_mm`]).
+    /// scan ([`SimulationOptions::scan_smoothing_mm`]); through the composed map once
+    /// [`Simulation::use_scan_carry`] has been given it (which differs from the two steps
+    /// by thousandths of a millimetre).
     pub fn scan_displacements(&self) -> Vec<DVec3> {
-        let mut d = self.scan_map.displacements(&self.u);
-        self.scan_smoother.apply(&mut d);
-        d
+        match &self.scan_carry {
+            Some(carry) => carry.displacements(&self.u),
+            None => {
+                let mut d = self.scan_map.displacements(&self.u);
+                self.scan_smoother.apply(&mut d);
+                d
+            }
+        }
+    }
+
+    /// A job composing the map to the scan and its smoothing into one sparse map
+    /// ([`ScanCarry`]) on one thread of its own, to run beside the solver: a second or
+    /// more once per model, for a live view that carries every cycle to the scan (a few
+    /// carries are quicker without it). Hand its result to [`Simulation::use_scan_carry`].
+    pub fn scan_carry_job(&self) -> impl FnOnce() -> ScanCarry + Send + 'static {
+        let map = self.scan_map.clone();
+        let smoother = self.scan_smoother.clone();
+        let node_count = self.finest.positions.len();
+        move || {
+            let compose = || ScanCarry::new(&map, &smoother, node_count);
+            match rayon::ThreadPoolBuilder::new().num_threads(1).build() {
+                Ok(pool) => pool.install(compose),
+                Err(_) => compose(),
+            }
+        }
+    }
+
+    /// Carries to the scan through `carry` from now on; `false` (and nothing changes)
+    /// unless it was composed for a scan and finest level of this simulation's sizes.
+    pub fn use_scan_carry(&mut self, carry: ScanCarry) -> bool {
+        let fits = carry.len() == self.scan_rest.len()
+            && carry.node_count() == self.finest.positions.len();
+        if fits {
+            self.scan_carry = Some(carry);
+        }
+        fits
     }
 
     /// The displacement of any points (mm), mapped like the scan (slower: locates them).
