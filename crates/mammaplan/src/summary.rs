@@ -413,6 +413,31 @@ pub fn bench(report: &plan::bench::BenchReport) -> String {
             row.scan_carry_terms
         );
     }
+    let _ = writeln!(
+        out,
+        "time to an answer after moving both implants up 5 mm (both stages, gravity on):"
+    );
+    for row in &report.rows {
+        let c = &row.converged;
+        let converged = match (c.converged_ms, c.converged_cycles) {
+            (Some(ms), Some(cycles)) => format!("{ms:.0} ms ({cycles} cycles)"),
+            _ => "not within the cycle limit".to_string(),
+        };
+        let _ = writeln!(
+            out,
+            "{:>9}  skin within {} mm of the tight answer after {converged}; the session's own stop after {:.0} ms ({} cycles), RMS {:.3}, 95th percentile {:.3}, largest {:.2} mm from it; the tight answer from rest: RMS {:.3}, 95th percentile {:.3}, largest {:.2} mm from the one from the warm start",
+            row.elements,
+            plan::bench::SKIN_TOLERANCE_MM,
+            c.default_stop_ms,
+            c.default_stop_cycles,
+            c.default_stop_skin.rms_mm,
+            c.default_stop_skin.p95_mm,
+            c.default_stop_skin.max_mm,
+            c.start_dependence.rms_mm,
+            c.start_dependence.p95_mm,
+            c.start_dependence.max_mm
+        );
+    }
     if let Some(dir) = &report.exported_system {
         let _ = writeln!(
             out,

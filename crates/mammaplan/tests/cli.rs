@@ -1074,8 +1074,22 @@ fn bench_reports_its_rows_and_exports_the_system() {
         "update_hz",
         "residual_reduction_per_cycle",
         "direct_solve_ms",
+        "scan_update_ms",
+        "scan_update_two_steps_ms",
+        "scan_carry_compose_ms",
     ] {
         assert!(row[field].as_f64().unwrap() > 0.0, "{field}: {row}");
+    }
+    let converged = &row["converged"];
+    assert!(
+        converged["default_stop_ms"].as_f64().unwrap() > 0.0,
+        "{converged}"
+    );
+    for distance in ["default_stop_skin", "start_dependence"] {
+        assert!(
+            converged[distance]["max_mm"].as_f64().unwrap() >= 0.0,
+            "{converged}"
+        );
     }
     let a = std::fs::read_to_string(dir.path().join("A.mtx")).unwrap();
     let b = std::fs::read_to_string(dir.path().join("b.mtx")).unwrap();

@@ -4,6 +4,10 @@
 //! set-up, multigrid cycles with rotation update and reassembly on every level, and the
 //! direct solver on the same system for comparison.
 
+mod converged;
+
+pub use converged::{ConvergedTiming, SKIN_TOLERANCE_MM};
+
 use crate::demo::DEMO_IMPLANT;
 use crate::model::{ModelOptions, build_model};
 use crate::simulate::{Placement, Session};
@@ -77,6 +81,9 @@ pub struct BenchRow {
     /// Where a timed cycle's time goes: the median of each phase over the timed cycles
     /// (ms; the medians need not add up to the median cycle).
     pub phases_ms: BenchPhases,
+    /// From moving both implants up 5 mm in a warm session to a skin within 0.1 mm of
+    /// the tightly converged one, both stages, gravity on.
+    pub converged: ConvergedTiming,
 }
 
 /// Medians of the multigrid's phase times over the timed cycles (ms), see
@@ -222,6 +229,7 @@ pub fn bench(
             session.set_implant(side, DEMO_IMPLANT, Placement::moved(0.0, 2.0, 0.0))?;
         }
         let change_after_gravity = session.cycle()?;
+        let converged = converged::converged_timing(&mut session, DEMO_IMPLANT)?;
         let reductions = residuals.len() - 2;
         let reduction =
             (residuals[1] / residuals[residuals.len() - 1]).powf(1.0 / reductions as f64);
@@ -243,6 +251,7 @@ pub fn bench(
             gravity_start_ms,
             change_after_gravity_cycle_ms: change_after_gravity.time_ms,
             phases_ms,
+            converged,
         });
         progress.step();
     }

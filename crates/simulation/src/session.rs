@@ -1366,6 +1366,22 @@ impl Simulation {
             .collect()
     }
 
+    /// Starts stage 1 afresh from the displacement `u` (mm, one per finest vertex, as
+    /// [`Simulation::displacement`] gives it), as after a change of the implants: a saved
+    /// state restored, or two solves compared from one start. On error nothing changes.
+    pub fn restart_from(&mut self, u: &[DVec3]) -> Result<(), SimulationError> {
+        if u.len() != self.u.len() || !u.iter().all(|d| d.is_finite()) {
+            return Err(SimulationError::BadModel(format!(
+                "a restart needs {} finite displacements, got {}",
+                self.u.len(),
+                u.len()
+            )));
+        }
+        self.u.copy_from_slice(u);
+        self.constraints_changed();
+        Ok(())
+    }
+
     /// Removes the implant of one side (back to stage 1).
     pub fn remove_implant(&mut self, side: Side) {
         if self.implants[side as usize].take().is_some() {

@@ -575,3 +575,25 @@ fn a_lowered_fold_takes_the_simulated_fold_down() {
     }
     assert!(lowered - at_native >= 4.0, "{at_native} {lowered}");
 }
+
+/// A restart from a solved displacement starts at its equilibrium: the residual before
+/// the first cycle is the one the solve stopped at (below 1e-6; bound 1e-5 for the
+/// reassembly's round-off), not that of a fresh start. A displacement of the wrong size
+/// is refused and changes nothing.
+#[test]
+fn a_restart_from_a_solved_state_starts_at_its_equilibrium() {
+    let p = common::phantom();
+    let mut sim = p.session(SimulationOptions::default());
+    for side in Side::BOTH {
+        sim.set_implant(side, implant(), Placement::default())
+            .unwrap();
+    }
+    let solved = sim.solve(300, 1e-6).unwrap();
+    assert!(solved.converged, "{solved:?}");
+    let u = sim.displacement().to_vec();
+    assert!(sim.restart_from(&u[1..]).is_err());
+    assert_eq!(sim.displacement(), &u[..]);
+    sim.restart_from(&u).unwrap();
+    let first = sim.cycle().unwrap();
+    assert!(first.relative_residual < 1e-5, "{first:?}");
+}
