@@ -3,6 +3,7 @@
 
 use crate::frame::{AnatomicalFrame, FrameError, Up};
 use glam::DVec3;
+use mesh::LengthUnit;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -389,8 +390,10 @@ impl PartialLandmarks {
     }
 
     /// Parses landmark JSON in which required landmarks may be missing; `path` is only
-    /// used in error messages. Unknown keys are ignored; `units`, if given, must be
-    /// `"mm"`; unknown names under `"landmarks"` are kept as extras.
+    /// used in error messages. Unknown keys are ignored; `units` (`"mm"` when absent,
+    /// `"cm"`, `"m"` or `"in"`) is converted to millimetres, and refused where the points'
+    /// size contradicts it ([`mesh::units::check_declared_unit`]); unknown names under
+    /// `"landmarks"` are kept as extras.
     pub fn from_json(text: &str, path: &Path) -> Result<PartialLandmarks, LandmarkError> {
         let format_error = |message: String| LandmarkError::Format {
             path: path.to_path_buf(),
@@ -400,11 +403,14 @@ impl PartialLandmarks {
         let root = root
             .as_object()
             .ok_or_else(|| format_error("expected a JSON object at the top".into()))?;
-        if let Some(units) = root.get("units")
-            && units.as_str() != Some("mm")
-        {
-            return Err(format_error(format!("units are {units}, expected \"mm\"")));
-        }
+        let unit = match root.get("units") {
+            None => LengthUnit::Millimetre,
+            Some(units) => units.as_str().and_then(LengthUnit::parse).ok_or_else(|| {
+                format_error(format!(
+                    "units are {units}, expected \"mm\", \"cm\", \"m\" or \"in\""
+                ))
+            })?,
+        };
         let points = |key: &str| -> Result<BTreeMap<String, DVec3>, LandmarkError> {
             let Some(value) = root.get(key) else {
                 return Ok(BTreeMap::new());
@@ -415,7 +421,7 @@ impl PartialLandmarks {
             object
                 .iter()
                 .map(|(name, value)| {
-                    parse_point(value)
+                    parse_point(value, unit)
                         .map(|p| (name.clone(), p))
                         .map_err(|message| LandmarkError::BadValue {
                             path: path.to_path_buf(),
@@ -437,6 +443,16 @@ impl PartialLandmarks {
                 }
             }
         }
+        let placed: Vec<DVec3> = (landmarks.required.iter().flatten())
+            .chain(landmarks.extra.values())
+            .copied()
+            .collect();
+        mesh::units::check_declared_unit(
+            unit,
+            mesh::units::span(&placed) / unit.mm(),
+            placed.len(),
+        )
+        .map_err(format_error)?;
         Ok(landmarks)
     }
 
@@ -500,7 +516,9 @@ impl NamedPoints for PartialLandmarks {
     }
 }
 
-pub(crate) fn parse_point(value: &Value) -> Result<DVec3, String> {
+/// A point `[x, y, z]` in `unit`, converted to millimetres and checked
+/// ([`mesh::geometry::check_position`]).
+pub(crate) fn parse_point(value: &Value, unit: LengthUnit) -> Result<DVec3, String> {
     let array = value
         .as_array()
         .filter(|a| a.len() == 3)
@@ -512,7 +530,7 @@ pub(crate) fn parse_point(value: &Value) -> Result<DVec3, String> {
             .filter(|x| x.is_finite())
             .ok_or_else(|| format!("coordinate {v} is not a finite number"))?;
     }
-    let point = DVec3::from_array(coordinates);
+    let point = DVec3::from_array(coordinates) * unit.mm();
     mesh::geometry::check_position(point)?;
     Ok(point)
 }
@@ -571,9 +589,38 @@ mod tests {
                 .contains("landmark Pnr: a coordinate of 1.000e308 mm"),
             "{error}"
         );
-        let error = Landmarks::from_json("{\"units\":\"cm\"}", Path::new("lm.json")).unwrap_err();
-        assert!(error.to_string().contains("expected \"mm\""), "{error}");
+        let error =
+            Landmarks::from_json("{\"units\":\"furlong\"}", Path::new("lm.json")).unwrap_err();
+        assert!(
+            error
+                .to_string()
+                .contains("expected \"mm\", \"cm\", \"m\" or \"in\""),
+            "{error}"
+        );
         assert!(Landmarks::from_json("[1,2", Path::new("lm.json")).is_err());
+    }
+
+    /// A file in centimetres is read as ten times its numbers in millimetres (the same
+    /// product, so exactly); one declared in metres whose points span a body in
+    /// millimetres is refused, naming the declared unit.
+    #[test]
+    fn a_file_unit_is_converted_or_contradicted() {
+        let in_mm = Landmarks::from_json(&sample_json(), Path::new("lm.json")).unwrap();
+        let text = sample_json().replace("\"units\":\"mm\"", "\"units\":\"cm\"");
+        let in_cm = Landmarks::from_json(&text, Path::new("lm.json")).unwrap();
+        for name in LandmarkName::ALL {
+            assert_eq!(in_cm.get(name), in_mm.get(name) * 10.0, "{name:?}");
+        }
+        let scaled = Landmarks::from_json(
+            &sample_json().replace("\"units\":\"mm\"", "\"units\":\"m\""),
+            Path::new("lm.json"),
+        );
+        // the sample's points span some ten units: 10 m is no torso
+        let error = scaled.unwrap_err().to_string();
+        assert!(
+            error.contains("\"units\" is \"m\", but then the points span"),
+            "{error}"
+        );
     }
 
     #[test]

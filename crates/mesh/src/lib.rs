@@ -20,6 +20,7 @@ pub mod spatial;
 pub mod surface_curve;
 pub mod topology;
 pub mod trimesh;
+pub mod units;
 pub mod untangle;
 
 pub use cut::{CutError, CutMesh, MeshPart, Region, compact, cut_along_curves};
@@ -34,4 +35,5 @@ pub use spatial::{ClosestPoint, RayHit, SurfaceIndex};
 pub use surface_curve::{CurveError, CurveLocation, CurvePoint, SurfaceCurve};
 pub use topology::Topology;
 pub use trimesh::{MaterialLayer, TriMesh, UvLayer};
+pub use units::LengthUnit;
 pub use untangle::{Untangled, untangle};

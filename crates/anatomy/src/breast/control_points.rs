@@ -8,7 +8,7 @@ use crate::frame::AnatomicalFrame;
 use crate::landmarks::{Landmarks, parse_point};
 use crate::measure::MeasuredSurface;
 use glam::DVec3;
-use mesh::{SurfacePath, SurfacePoint, plane_section_path};
+use mesh::{LengthUnit, SurfacePath, SurfacePoint, plane_section_path};
 use serde_json::{Value, json};
 use std::io::Write;
 use std::path::Path;
@@ -161,15 +161,13 @@ impl ControlPoints {
         };
         let root: Value =
             serde_json::from_str(text).map_err(|e| error(format!("not valid JSON: {e}")))?;
-        match root.get("units").and_then(Value::as_str) {
-            Some("mm") => {}
-            other => {
-                return Err(error(format!(
-                    "\"units\" must be \"mm\", found {}",
-                    other.map_or("nothing".to_string(), |u| format!("\"{u}\""))
-                )));
-            }
-        }
+        let units = root.get("units").and_then(Value::as_str);
+        let Some(unit) = units.and_then(LengthUnit::parse) else {
+            return Err(error(format!(
+                "\"units\" must be \"mm\", \"cm\", \"m\" or \"in\", found {}",
+                units.map_or("nothing".to_string(), |u| format!("\"{u}\""))
+            )));
+        };
         let side_points = |side: Side| -> Result<Vec<DVec3>, BreastError> {
             let key = side.name();
             let list = root
@@ -185,15 +183,19 @@ impl ControlPoints {
             list.iter()
                 .enumerate()
                 .map(|(index, value)| {
-                    parse_point(value)
+                    parse_point(value, unit)
                         .map_err(|reason| error(format!("\"{key}\" point {index}: {reason}")))
                 })
                 .collect()
         };
-        Ok(ControlPoints {
+        let points = ControlPoints {
             left: side_points(Side::Left)?,
             right: side_points(Side::Right)?,
-        })
+        };
+        let all: Vec<DVec3> = points.left.iter().chain(&points.right).copied().collect();
+        mesh::units::check_declared_unit(unit, mesh::units::span(&all) / unit.mm(), all.len())
+            .map_err(error)?;
+        Ok(points)
     }
 
     /// Reads a control-point file.
