@@ -139,6 +139,10 @@ enum Command {
         /// does not stand upright in the file.
         #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
         up: Option<plan::Up>,
+        /// The unit of the scan files' coordinates: mm, cm, m or in. Without it
+        /// millimetres, and a scan whose size is no torso's in millimetres is refused.
+        #[arg(long, value_name = "UNIT")]
+        units: Option<plan::LengthUnit>,
         #[arg(long)]
         json: bool,
     },
@@ -163,6 +167,10 @@ enum Command {
         /// patient does not stand upright in the file.
         #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
         up: Option<plan::Up>,
+        /// The unit of the scan files' coordinates: mm, cm, m or in. Without it
+        /// millimetres, and a scan whose size is no torso's in millimetres is refused.
+        #[arg(long, value_name = "UNIT")]
+        units: Option<plan::LengthUnit>,
         #[arg(long)]
         json: bool,
     },
@@ -203,6 +211,10 @@ enum Command {
         /// patient does not stand upright in the file.
         #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
         up: Option<plan::Up>,
+        /// The unit of the scan files' coordinates: mm, cm, m or in. Without it
+        /// millimetres, and a scan whose size is no torso's in millimetres is refused.
+        #[arg(long, value_name = "UNIT")]
+        units: Option<plan::LengthUnit>,
         #[arg(long)]
         json: bool,
     },
@@ -242,6 +254,10 @@ enum Command {
         /// does not stand upright in the file.
         #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
         up: Option<plan::Up>,
+        /// The unit of the scan files' coordinates: mm, cm, m or in. Without it
+        /// millimetres, and a scan whose size is no torso's in millimetres is refused.
+        #[arg(long, value_name = "UNIT")]
+        units: Option<plan::LengthUnit>,
         #[arg(long)]
         json: bool,
     },
@@ -325,6 +341,9 @@ enum Command {
         /// Which way is up in the post-operative scan's file, as `model --up`.
         #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true, requires = "postop")]
         postop_up: Option<plan::Up>,
+        /// The unit of the post-operative scan's coordinates, as `model --units`.
+        #[arg(long, value_name = "UNIT", requires = "postop")]
+        postop_units: Option<plan::LengthUnit>,
         /// The report (HTML).
         #[arg(long, value_name = "HTML")]
         out: PathBuf,
@@ -490,9 +509,10 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             landmarks,
             pair,
             up,
+            units,
             json,
         } => {
-            let marked = plan::MarkedScan::load(&scan, &landmarks, up, progress)?;
+            let marked = plan::MarkedScan::load_in(&scan, units, &landmarks, up, progress)?;
             let report = plan::measure::measure(&marked, &pair, progress)?;
             progress.finish();
             if json {
@@ -511,10 +531,12 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             out,
             icp,
             up,
+            units,
             json,
         } => {
-            let fixed = plan::MarkedScan::load(&fixed, &fixed_landmarks, up, progress)?;
-            let moving = plan::MarkedScan::load(&moving, &moving_landmarks, up, progress)?;
+            let fixed = plan::MarkedScan::load_in(&fixed, units, &fixed_landmarks, up, progress)?;
+            let moving =
+                plan::MarkedScan::load_in(&moving, units, &moving_landmarks, up, progress)?;
             let (transform, report) = plan::register::register(&fixed, &moving, icp)?;
             plan::register::write_registered_mesh(&out, &moving, &transform)?;
             progress.finish();
@@ -536,10 +558,12 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             reference_control_points,
             test_control_points,
             up,
+            units,
             json,
         } => {
-            let reference = plan::MarkedScan::load(&reference, &reference_landmarks, up, progress)?;
-            let test = plan::MarkedScan::load(&test, &test_landmarks, up, progress)?;
+            let reference =
+                plan::MarkedScan::load_in(&reference, units, &reference_landmarks, up, progress)?;
+            let test = plan::MarkedScan::load_in(&test, units, &test_landmarks, up, progress)?;
             let options = plan::compare::CompareOptions {
                 register,
                 max_distance_mm,
@@ -631,6 +655,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             postop,
             postop_landmarks,
             postop_up,
+            postop_units,
             out,
         } => {
             let inputs = plan::report::ReportInputs {
@@ -641,6 +666,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                         scan,
                         landmarks,
                         up: postop_up,
+                        units: postop_units,
                     }
                 }),
                 created: std::time::SystemTime::now(),
@@ -686,9 +712,10 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             refine_band_mm,
             refine_edge_mm,
             up,
+            units,
             json,
         } => {
-            let marked = plan::MarkedScan::load(&scan, &landmarks, up, progress)?;
+            let marked = plan::MarkedScan::load_in(&scan, units, &landmarks, up, progress)?;
             let mut options = plan::model::ModelOptions {
                 control_points_file: control_points,
                 elements,

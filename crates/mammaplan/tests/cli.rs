@@ -1123,3 +1123,61 @@ fn bench_reports_its_rows_and_exports_the_system() {
         );
     }
 }
+
+/// The zoo's s03 (`../shared`) with its scan and landmark file in metres (`"units":
+/// "m"`): refused without `--units`, naming `--units m`; with it, the breast volumes of
+/// the millimetre files within 0.1% (the scan's single-precision coordinates, divided
+/// by 1000, round differently).
+#[test]
+fn a_scan_in_metres_needs_units_and_then_models_as_in_millimetres() {
+    let shared = Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/scans/zoo"
+    ));
+    if !shared.is_dir() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "{} is missing",
+            shared.display()
+        );
+        eprintln!("skipped: {} not found", shared.display());
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (scan_mm, landmarks_mm) = (shared.join("s03.ply"), shared.join("s03_landmarks.json"));
+    let (scan_m, landmarks_m) = (dir.path().join("s03_m.ply"), dir.path().join("s03_m.json"));
+    let mut mesh = mesh::io::read_mesh(&scan_mm).unwrap();
+    mesh.map_positions(|p| p / 1000.0);
+    mesh::io::write_mesh(&scan_m, &mesh).unwrap();
+    std::fs::copy(&landmarks_mm, &landmarks_m).unwrap();
+    edit_landmarks(&landmarks_m, |json| {
+        json["units"] = "m".into();
+        for point in json["landmarks"].as_object_mut().unwrap().values_mut() {
+            for c in point.as_array_mut().unwrap() {
+                *c = (c.as_f64().unwrap() / 1000.0).into();
+            }
+        }
+    });
+    let out = dir.path().join("model");
+    assert_clean_failure(
+        &model(&scan_m, &landmarks_m, &out, &[]),
+        "in m it would be 414 mm: give --units m",
+    );
+    assert!(!out.exists());
+    let volumes = |output: Output| -> [f64; 2] {
+        assert!(output.status.success(), "{}", stderr(&output));
+        let json: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+        ["left", "right"].map(|side| json["breast_volume_ml"][side].as_f64().unwrap())
+    };
+    let in_metres = volumes(model(&scan_m, &landmarks_m, &out, &["--units", "m"]));
+    let model_json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("model.json")).unwrap()).unwrap();
+    assert_eq!(model_json["scan_units"], "m");
+    let in_mm = volumes(model(&scan_mm, &landmarks_mm, &dir.path().join("mm"), &[]));
+    for (m, mm) in in_metres.iter().zip(&in_mm) {
+        assert!(
+            (m - mm).abs() <= 1e-3 * mm,
+            "{m} ml in metres, {mm} ml in millimetres"
+        );
+    }
+}

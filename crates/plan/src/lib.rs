@@ -22,6 +22,7 @@ pub mod views;
 
 pub use anatomy::measure::Distance;
 pub use anatomy::{Up, UpSource};
+pub use mesh::LengthUnit;
 pub use phantom::{Cup, PhantomParams};
 pub use scan::{MarkedScan, Scan, UpRecord, UpSourceName};
 

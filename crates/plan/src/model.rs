@@ -154,6 +154,8 @@ impl Default for ModelOptions {
 /// A patient's model: both breasts with the rear wall, and the closed surface.
 pub struct PatientModel {
     pub scan_path: PathBuf,
+    /// The unit of the scan file's coordinates.
+    pub scan_unit: mesh::LengthUnit,
     pub landmarks_path: PathBuf,
     pub control_points_file: Option<PathBuf>,
     /// Which way was up in the scan's file.
@@ -289,6 +291,9 @@ pub struct ModelCounts {
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelReport {
     pub scan: String,
+    /// The unit of the scan file's coordinates (`mm`, `cm`, `m` or `in`); everything
+    /// else here is in millimetres.
+    pub scan_units: String,
     pub landmarks: String,
     /// The control-point file given, if any.
     pub control_points_file: Option<String>,
@@ -405,6 +410,7 @@ pub fn build_model(
 
     Ok(PatientModel {
         scan_path: scan.path.clone(),
+        scan_unit: scan.file_unit,
         landmarks_path: marked.landmarks_path.clone(),
         control_points_file: options.control_points_file.clone(),
         up: crate::UpRecord::of(&marked.frame),
@@ -592,6 +598,7 @@ impl PatientModel {
         let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
         ModelReport {
             scan: absolute(&self.scan_path).display().to_string(),
+            scan_units: self.scan_unit.symbol().to_string(),
             landmarks: absolute(&self.landmarks_path).display().to_string(),
             control_points_file: self
                 .control_points_file
@@ -786,6 +793,9 @@ pub fn write_closed_polyline(path: &Path, points: &[mesh::DVec3]) -> Result<()> 
 #[derive(Debug, Deserialize)]
 pub(crate) struct ModelRecord {
     pub scan: PathBuf,
+    /// Absent in folders from before units: millimetres.
+    #[serde(default)]
+    pub scan_units: Option<String>,
     pub landmarks: PathBuf,
     /// Absent in folders from before the standing frame: the file's vertical.
     pub up: Option<crate::UpRecord>,
@@ -804,6 +814,19 @@ pub(crate) struct ModelRecord {
 pub(crate) struct LevelRecord {
     pub elements: usize,
     pub nodes: usize,
+}
+
+impl ModelRecord {
+    /// The unit of the scan file's coordinates (millimetres in folders from before
+    /// units); `report` names the file in an error.
+    pub fn scan_unit(&self, report: &Path) -> Result<mesh::LengthUnit> {
+        match &self.scan_units {
+            None => Ok(mesh::LengthUnit::Millimetre),
+            Some(symbol) => symbol.parse().map_err(|message: String| {
+                anyhow::anyhow!("{}: scan_units: {message}", report.display())
+            }),
+        }
+    }
 }
 
 /// Reads the `model.json` of a model folder; its volumes must be ones a model can have.
@@ -870,8 +893,14 @@ pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedSc
         )
     })?;
     crate::checksum::verify(model_dir, &record.sha256, "model.json", "mammaplan model")?;
-    let marked = MarkedScan::load(&record.scan, &record.landmarks, up, progress)
-        .with_context(|| format!("the scan named in {}", report_path.display()))?;
+    let marked = MarkedScan::load_in(
+        &record.scan,
+        Some(record.scan_unit(&report_path)?),
+        &record.landmarks,
+        up,
+        progress,
+    )
+    .with_context(|| format!("the scan named in {}", report_path.display()))?;
     let model = build_model(&marked, &options, progress)?;
     let rebuilt: Vec<(usize, usize)> = model.levels.iter().map(|l| (l.elements, l.nodes)).collect();
     let recorded: Vec<(usize, usize)> = record

@@ -61,6 +61,8 @@ pub struct PostoperativeScan {
     pub landmarks: PathBuf,
     /// Which way is up in its file (`None`: resolved from the file and landmarks).
     pub up: Option<Up>,
+    /// The unit of its coordinates (`None`: millimetres, checked).
+    pub units: Option<mesh::LengthUnit>,
 }
 
 /// What was written.
@@ -95,16 +97,18 @@ impl ShownScan {
         })
     }
 
-    /// Loads a scan with its landmarks and builds its breast model, with the control
-    /// points of `control_points_file` when given (else the defaults from the landmarks).
+    /// Loads a scan (its coordinates in `unit`, see [`crate::Scan::load_in`]) with its
+    /// landmarks and builds its breast model, with the control points of
+    /// `control_points_file` when given (else the defaults from the landmarks).
     pub fn load_with_breasts(
         scan: &Path,
+        unit: Option<mesh::LengthUnit>,
         landmarks: &Path,
         up: Option<Up>,
         control_points_file: Option<&Path>,
         progress: &dyn Progress,
     ) -> Result<ShownScan> {
-        let marked = MarkedScan::load(scan, landmarks, up, progress)?;
+        let marked = MarkedScan::load_in(scan, unit, landmarks, up, progress)?;
         let (breasts, _) = build_breasts(
             &marked,
             &BreastOptions::default(),
@@ -427,6 +431,7 @@ pub fn report_content(
         .with_context(|| model_dir.join("model.json").display().to_string())?;
     let preoperative = ShownScan::load_with_breasts(
         &model.scan,
+        Some(model.scan_unit(&model_dir.join("model.json"))?),
         &model.landmarks,
         model_up,
         Some(&model_dir.join("control_points.json")),
@@ -487,6 +492,7 @@ pub fn report_content(
         Some(files) => {
             let scan = ShownScan::load_with_breasts(
                 &files.scan,
+                files.units,
                 &files.landmarks,
                 files.up,
                 None,

@@ -3,28 +3,51 @@
 
 use anatomy::{AnatomicalFrame, Landmarks, Up, UpSource};
 use anyhow::{Context, Result, bail};
-use mesh::{SurfaceIndex, Topology, TriMesh};
+use mesh::{LengthUnit, SurfaceIndex, Topology, TriMesh};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Triangles with less area than this are dropped on load (mm²).
 const DEGENERATE_AREA_MM2: f64 = 1e-10;
 
-/// A surface scan ready for queries.
+/// How large a torso scan is across (its bounding box's longest side, mm): a file whose
+/// coordinates give less or more is in another unit.
+pub const SCAN_EXTENT_MM: std::ops::RangeInclusive<f64> = 100.0..=3_000.0;
+
+/// A surface scan ready for queries (millimetres).
 pub struct Scan {
     /// Where it came from (for messages and reports).
     pub path: PathBuf,
+    /// The unit of the file's coordinates (converted to millimetres when read).
+    pub file_unit: LengthUnit,
     pub mesh: TriMesh,
     pub topology: Topology,
     pub index: SurfaceIndex,
 }
 
 impl Scan {
-    /// Reads and validates a mesh file; degenerate (zero-area) triangles, triangles that
-    /// repeat another and fins ([`mesh::fin_triangles`]) are dropped with a warning that
-    /// counts them and names the first.
+    /// Reads and validates a mesh file in millimetres ([`Scan::load_in`] without a unit).
     pub fn load(path: &Path, progress: &dyn crate::Progress) -> Result<Scan> {
+        Scan::load_in(path, None, progress)
+    }
+
+    /// Reads and validates a mesh file whose coordinates are in `unit` (converted to
+    /// millimetres), or in millimetres if `None`, in which case a scan whose size is no
+    /// torso's in millimetres ([`SCAN_EXTENT_MM`]) is refused, naming the unit that fits
+    /// and `--units`. Degenerate (zero-area) triangles, triangles that repeat another and
+    /// fins ([`mesh::fin_triangles`]) are dropped with a warning that counts them and
+    /// names the first.
+    pub fn load_in(
+        path: &Path,
+        unit: Option<LengthUnit>,
+        progress: &dyn crate::Progress,
+    ) -> Result<Scan> {
         let mut mesh = mesh::io::read_mesh(path)?;
+        let file_unit = unit.unwrap_or(LengthUnit::Millimetre);
+        check_scan_size(&mesh, unit, path)?;
+        if file_unit != LengthUnit::Millimetre {
+            mesh.map_positions(|p| p * file_unit.mm());
+        }
         let degenerate = mesh.degenerate_triangles(DEGENERATE_AREA_MM2);
         if let Some(first) = degenerate.first() {
             progress.warn(&format!(
@@ -56,7 +79,9 @@ impl Scan {
             ));
             mesh.remove_triangles(&fins.triangles);
         }
-        Scan::from_mesh(mesh, path)
+        let mut scan = Scan::from_mesh(mesh, path)?;
+        scan.file_unit = file_unit;
+        Ok(scan)
     }
 
     /// The built-in phantom torso's scan, in memory; its path (for messages) is
@@ -84,6 +109,7 @@ impl Scan {
         };
         Ok(Scan {
             path: path.to_path_buf(),
+            file_unit: self.file_unit,
             mesh,
             topology: self.topology.clone(),
             index,
@@ -99,10 +125,49 @@ impl Scan {
         };
         Ok(Scan {
             path: path.to_path_buf(),
+            file_unit: LengthUnit::Millimetre,
             mesh,
             topology,
             index,
         })
+    }
+}
+
+/// `Err` when `mesh` (coordinates in `unit`, or millimetres if `None`) is not the size of
+/// a torso ([`SCAN_EXTENT_MM`]), naming its size and the unit that would fit.
+fn check_scan_size(mesh: &TriMesh, unit: Option<LengthUnit>, path: &Path) -> Result<()> {
+    if mesh.positions.is_empty() {
+        return Ok(());
+    }
+    let (lo, hi) = mesh.bounding_box();
+    let extent = (hi - lo).max_element();
+    let file_unit = unit.unwrap_or(LengthUnit::Millimetre);
+    let extent_mm = extent * file_unit.mm();
+    if SCAN_EXTENT_MM.contains(&extent_mm) {
+        return Ok(());
+    }
+    let fits = LengthUnit::plausible(extent, &SCAN_EXTENT_MM).map_or_else(
+        || "no unit of mm, cm, m or in makes it a torso: is it a body scan?".to_string(),
+        |fits| {
+            format!(
+                "in {fits} it would be {:.0} mm: give --units {fits}",
+                extent * fits.mm()
+            )
+        },
+    );
+    match unit {
+        None => bail!(
+            "{}: the scan is {extent:.4} units across, which is no torso in millimetres \
+             ({:.0}-{:.0} mm); {fits}",
+            path.display(),
+            SCAN_EXTENT_MM.start(),
+            SCAN_EXTENT_MM.end()
+        ),
+        Some(unit) => bail!(
+            "{}: with --units {unit} the scan is {extent_mm:.4e} mm across, which is no torso; \
+             {fits}",
+            path.display()
+        ),
     }
 }
 
@@ -135,7 +200,19 @@ impl MarkedScan {
         up: Option<Up>,
         progress: &dyn crate::Progress,
     ) -> Result<MarkedScan> {
-        let scan = Scan::load(scan, progress)?;
+        MarkedScan::load_in(scan, None, landmarks, up, progress)
+    }
+
+    /// [`MarkedScan::load`] for a scan file whose coordinates are in `unit`
+    /// ([`Scan::load_in`]); the landmark file's own `"units"` applies to it.
+    pub fn load_in(
+        scan: &Path,
+        unit: Option<LengthUnit>,
+        landmarks: &Path,
+        up: Option<Up>,
+        progress: &dyn crate::Progress,
+    ) -> Result<MarkedScan> {
+        let scan = Scan::load_in(scan, unit, progress)?;
         let landmark_set = Landmarks::read(landmarks)?;
         MarkedScan::new(scan, landmark_set, landmarks, up, progress)
     }

@@ -79,6 +79,7 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
             scan: path("postop.ply"),
             landmarks: path("postop_landmarks.json"),
             up: None,
+            units: None,
         }),
         created: UNIX_EPOCH + Duration::from_secs(1_795_339_260),
     };

@@ -794,6 +794,7 @@ impl GuiApp {
                     scan: registered.scan_path.clone(),
                     landmarks: registered.landmarks_path.clone(),
                     up: None,
+                    units: None,
                 });
         let Some(live) = &mut self.live else {
             ui.weak("Build the model and choose implants to measure the prediction.");
