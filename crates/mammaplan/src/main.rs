@@ -394,7 +394,7 @@ enum Command {
         #[arg(long, value_name = "FILE")]
         case: Option<PathBuf>,
         /// Run a scripted session in the window (one action per line: phantom, build,
-        /// implant ID, move up, wait, screenshot FILE, ...; see the README).
+        /// implant ID, move up, wait, screenshot FILE, ...; see docs/manual.md).
         #[arg(long, value_name = "FILE")]
         script: Option<PathBuf>,
     },
