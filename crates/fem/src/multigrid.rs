@@ -1,209 +1,57 @@
 //! Geometric multigrid on non-nested tetrahedral levels for the warped system
 //! `K'_ff = (R K Rᵀ)_ff` (issue 5, item 4). Units as in the rest of the crate:
-//! displacements in mm, forces and residuals in mN, stiffness blocks in mN/mm.
+//! displacements in mm, forces and residuals in mN, stiffness blocks in mN/mm. The
+//! measurements behind each choice, and what was tried and not kept, are in
+//! `docs/dev/multigrid.md`.
 //!
 //! - Levels: independent tetrahedral meshes of the same body, finest first, each with its
 //!   own [`FemModel`]; coarse levels need not cover the fine domain (fine vertices
 //!   outside are extrapolated from the nearest coarse element).
 //! - Coarse operators ([`CoarseOperator`]): Galerkin `Pᵀ A P` on a pattern built once
-//!   (default), or rediscretised: every level assembles its own `R K Rᵀ` with its own
-//!   element rotations and its own constraints. Galerkin is the default: it is
-//!   variational (every two-grid step is an A-norm contraction) and converged better in
-//!   every measurement (box 17k, ν = 0.45, 3 levels, V(2,1) with symmetric Gauss-Seidel:
-//!   asymptotic residual factor 1.69 per cycle against 1.41 rediscretised; lowering the
-//!   coarse Poisson ratio of the rediscretised levels to 0.42, 0.40 or 0.35 to counter
-//!   locking did not help: 1.93, 2.10, 1.25 on the 20/11 box pair).
+//!   (default: variational, every two-grid step an A-norm contraction, and it converged
+//!   better in every measurement), or rediscretised on every level.
 //! - Coarse unknowns (Galerkin): every coarse vertex whose interpolation weights towards
 //!   the finer level's unknowns sum to at least 0.1; the coarse levels' own constraints
 //!   are not used. A fine constrained vertex has no row in `P`, so every coarse function
-//!   vanishes there and the fine constraints hold on every level, while coarse vertices
-//!   that happen to fall inside a fine constrained patch still carry the correction of
-//!   the free fine vertices around it. Eliminating coarse vertices by a geometric
-//!   predicate instead (the former scheme) left the correction at zero next to every
-//!   constrained patch, and on real hierarchies from isosurface stuffing it failed
-//!   outright: coarse vertices outside the fine body get empty Galerkin rows (singular
-//!   diagonal blocks).
+//!   vanishes there and the fine constraints hold on every level.
 //! - Prolongation `P`: [`Prolongation`] (coarse to fine, barycentric, nearest-element
 //!   extrapolation outside) restricted to the unknowns of both levels
-//!   ([`Prolongation::reduced`]); restriction is `Pᵀ`.
+//!   ([`Prolongation::reduced`]); restriction is `Pᵀ`. Optionally smoothed on the finest
+//!   transfer ([`MultigridOptions::prolongation_smoothing`]: `P_s = (I - ω_P D⁻¹ A) P`,
+//!   recomputed at every assembly; off by default, as it costs about twice a cycle).
 //! - Smoother: block (3x3) SOR in multicolour order (a greedy colouring of the block
-//!   graph with its classes evened out, so that every colour of a large level runs in
-//!   parallel; the rows of one colour are independent and updated in place), ω = 1.5.
-//!   A smoothing step is two sweeps, colours forward before the coarse correction and
-//!   backward after it, so V(2,1) costs six sweeps per level, as the former symmetric
-//!   Gauss-Seidel steps did. Measured on the real 60k-element hierarchy of the shared
-//!   scan `v02_average` (2 levels; geometric mean of the residual reduction over the
-//!   first five cycles / relative error after five cycles): symmetric Gauss-Seidel steps
-//!   4.35 / 2.0e-3; forward-only pre and backward-only post Gauss-Seidel, 2 sweeps a
-//!   step, 5.97 / 7.9e-4; the same with ω = 1.3: 6.74 / 3.8e-4; ω = 1.5: 6.94 / 2.8e-4.
-//!   Over-relaxation helps the smooth error near free surfaces that the coarse P1 space
-//!   represents poorly (the slowest mode on the box is concentrated there).
-//! - Smoothed prolongation ([`MultigridOptions::prolongation_smoothing`], off by
-//!   default): the finest transfer becomes `P_s = (I - ω_P D⁻¹ A) P` (one damped block
-//!   Jacobi step on the barycentric `P`, 3x3 blocks, recomputed at every assembly) and
-//!   the first coarse operator `P_sᵀ A P_s`. The slowest error of the plain cycle is a
-//!   smooth, nearly incompressible mode spread over the free surface around the pushed
-//!   patch (on the box, about 60% of its energy lies in the top 20 mm outside the
-//!   patch): a coarse P1 hat function represents it only with a large volumetric
-//!   (λ-weighted) energy, so the Galerkin correction misses it and the point smoother
-//!   cannot reach it either. The Jacobi step widens every coarse basis function by one
-//!   fine ring and removes most of that energy (smoothed aggregation's idea); rigid
-//!   motions stay in the coarse space (`A` annihilates them at free rows). Measured with
-//!   ω_P = 0.5 (V(2,1), ν = 0.45, residual reduction of cycles 1-5 from zero): box
-//!   62,208 tetrahedra, 3 levels 12.1, 7.7, 6.3, 5.8, 5.07 (plain 10.3, 4.8, 3.3, 2.8,
-//!   2.6); real hierarchy of `v02_average` (59,506 tetrahedra, 2 levels) 26.0, 10.6, 8.9,
-//!   6.8, 5.6 (plain 23.8, 7.9, 5.2, 4.3, 3.9); error after five cycles 3.0e-5 and
-//!   3.5e-5 (plain 2.2e-3, 2.8e-4). Smoothing every transfer instead of the finest
-//!   only gains nothing (box 5.10 in cycle 5) and costs far more. Local extra sweeps near the held patch, its rim, the
-//!   free boundary or extrapolated rows, other ω, W-cycles on the coarse levels, twice
-//!   the sweeps, and `P_s` restricted to the pattern of `P` all stay below 5 per cycle
-//!   on the box. The price is density: `P_s` has about 12-14 blocks a row instead of 4,
-//!   and the first coarse operator, its Galerkin product and (with two levels) its
-//!   Cholesky factor grow accordingly. Medians of one interactive [`Multigrid::cycle`]
-//!   (corotated) on this 2-core machine under a load of about 5, plain / smoothed: box
-//!   60 / 136-154 ms (Galerkin 16 / 73-78, V-cycle 12 / 23-28); `v02_average` with 2
-//!   levels 111-118 / 235-255 ms (coarsest Cholesky 61-63 / 144-162), with its 3 levels
-//!   64-70 / 106-120 ms: about 1.7-2.6 times the plain cycle, hence off by default.
-//! - Changeable constraints ([`Multigrid::set_constraints`], issue 6: the implant's
-//!   displacement template changes whenever the implant moves): the hierarchy is built
-//!   once with the permanent constraints only ([`Multigrid::with_permanent_constraints`],
-//!   or the finest constraints given to [`Multigrid::new`]); a change eliminates the held
-//!   finest unknowns symmetrically at assembly (identity diagonal block, zero row,
-//!   column and right-hand side), zeroes their prolongation rows, and switches off every
-//!   coarse unknown whose weights towards the active finer unknowns drop below the
-//!   Galerkin threshold (zero prolongation column, identity block). Patterns, colourings
-//!   and the coarsest symbolic factorisation stay; the coarse spaces and the Galerkin
-//!   operators on the active unknowns are those of a hierarchy built from scratch with
-//!   all the constraints (tested; only the smoother's colour order differs). Measured on
-//!   the 62,208-element box (3 levels): 0.2 ms per change, against 0.2-0.4 s for a
-//!   rebuild.
+//!   graph with its classes evened out; the rows of one colour are independent and
+//!   updated in place), ω = 1.5. A smoothing step is two sweeps, colours forward before
+//!   the coarse correction and backward after it.
+//! - Changeable constraints ([`Multigrid::set_constraints`]): the hierarchy is built once
+//!   with the permanent constraints ([`Multigrid::with_permanent_constraints`]); a change
+//!   eliminates the held finest unknowns symmetrically at assembly, zeroes their
+//!   prolongation rows and switches off every coarse unknown whose weights towards the
+//!   active finer unknowns drop below the Galerkin threshold. Invariant: the coarse
+//!   spaces and Galerkin operators on the active unknowns are those of a hierarchy built
+//!   from scratch with all the constraints (only the smoother's colour order differs).
 //! - Coarsest level: faer sparse Cholesky of `A + 1e-8 diag(A)`, refactorised at every
-//!   [`Multigrid::assemble`]. The shift keeps the factorisation away from zero pivots
-//!   when the Galerkin operator is singular: with a large held patch, several coarse
-//!   vertices may see only the same one or two free fine vertices, the columns of `P`
-//!   are then dependent and `Pᵀ A P` has the null space of `P`, which the consistent
-//!   coarse system and the prolongation ignore (measured: no change in convergence for
-//!   shifts from 1e-10 to 1e-6; see `tests/coarse_singular.rs`).
+//!   [`Multigrid::assemble`]; the shift keeps it away from zero pivots when dependent
+//!   columns of `P` make the Galerkin operator singular (see `tests/coarse_singular.rs`).
 //! - Parallelism: [`Multigrid::assemble`] and [`Multigrid::vcycle`] run on a worker of
-//!   rayon's pool (a parallel loop started from outside the pool hands its work over and
-//!   sleeps on a lock, tens of microseconds each, and a V-cycle starts about a hundred
-//!   of them); colours of fewer than `SERIAL_COLOUR_BLOCKS` blocks are relaxed
-//!   serially in place. Neither changes the arithmetic: the iterates are the same as
-//!   with every colour in parallel.
+//!   rayon's pool; colours of fewer than `SERIAL_COLOUR_BLOCKS` blocks are relaxed
+//!   serially. Invariant: the iterates are those of every colour in parallel.
+//! - Products: the block row product ([`BlockCsr::row_mul`]) and the assembly's element
+//!   blocks use four-lane AVX2/FMA where the processor has them (chosen at run time);
+//!   the barycentric Galerkin products are fused per fine row (`FusedProduct`), reading
+//!   `A` once and filling the upper triangle.
 //! - Cycle: V(ν₁, ν₂), default V(2, 1).
-//! - Step: the interactive cycle adds `α z`, the V-cycle's correction `z` scaled to the
-//!   minimum of the assembled quadratic energy along it, `α = (b·z) / (zᵀ A z)`. The
-//!   V-cycle's correction is consistently too short (α = 1.1-1.3 once the rough error is
-//!   gone). Measured (stand-alone linear cycles from zero, ν = 0.45; plain / scaled):
-//!   box 62,208 tetrahedra, 3 levels: residual factors 10.7, 4.7, 3.2, 2.8, 2.6 /
-//!   9.9, 4.5, 4.1, 3.7, 3.3, error after five cycles 2.4e-3 / 5.2e-4; the real
-//!   hierarchy of `v02_average` (2 levels): 21.8, 8.0, 5.2, 4.3, 3.9 / 21.6, 7.5, 6.4,
-//!   6.1, 5.1, error 2.9e-4 / 8.9e-5. The price is one finest matrix-vector product
-//!   (about 2% of a cycle). Only linear cycles are scaled: for the corotated formulation
-//!   the warped `R K Rᵀ` is not the Hessian of the energy, its quadratic model asks for
-//!   α ≈ 1.2 where the true energy wants about 1, and the scaled corotated cycles of
-//!   `mammaplan bench` converged slower (residual factor 4.25 against 4.49 at 60k
-//!   elements, 3.76 against 3.82 at 15k).
-//!
-//! # Where the time goes
-//! One interactive [`Multigrid::cycle`] on the benchmark box (`benches/kernels.rs`, three
-//! Galerkin levels, 60,984 tetrahedra, 10,580 / 1,584 / 216 unknowns, 8 / 14 / 23
-//! colours). Before the upper-triangle rework, medians of [`Multigrid::phase_times`] at
-//! a quiet moment: 26.5 ms in all, of which finest assembly 11.4 ms, Galerkin products
-//! 3.7 ms, coarsest Cholesky 2.0 ms (216 unknowns, but the twice-Galerkin stencil is
-//! nearly dense), smoother set-up 0.3 ms, V-cycle 8.3 ms. The finest assembly now reads
-//! each incident element once per block row and computes only the blocks on and right
-//! of the diagonal (the rest is mirrored), and the Galerkin product only its upper
-//! triangle; measured on one thread (CPU time per cycle, the machine was busy): 45 ms
-//! before, 35 ms after, of which element rotations and forces 12 ms before (polar
-//! Newton steps about half of it), row gather 5.4 ms, mirror 1.2 ms, Galerkin 8 ms before
-//! and 5 ms after, V-cycle 9-10 ms (six block SOR sweeps and a residual on the two finer
-//! levels, about 1.2 ms per finest sweep: half arithmetic, half traffic of the 11.5 MB
-//! finest matrix), Cholesky 1.5 ms. Still far from the issue's 45 ms / 12 ms for five
-//! cycles. Not done yet: unknowns renumbered by colour, a coarsest level small enough
-//! that its Cholesky is negligible (single-precision smoothing: tried, see below).
-//!
-//! The block row product ([`BlockCsr::row_mul`], used by the smoother and the residual)
-//! runs on four-lane AVX2/FMA registers where the processor has them: instructions per
-//! V-cycle on the 60,984-element box (three levels, one thread, `valgrind --tool=callgrind`
-//! on three V-cycles) 62 million scalar, 35 million in lanes. Compiling the whole crate
-//! for AVX2 and FMA instead would cut the assembly's instructions by 16% and the
-//! V-cycle's by a further 8%. The element blocks of the finest assembly's row gather and
-//! the block sums of the Galerkin products run on such lanes too (`blocks.rs`, chosen at
-//! run time), and the polar iteration's lanes are a lane-wise type the compiler packs:
-//! instructions per interactive cycle on the same box (callgrind, one thread) about 250
-//! million before, 207 million after (finest assembly 158 to 127 million, Galerkin
-//! products about 11 million fewer). An element-major assembly (elements coloured so
-//! that no two of a colour share a vertex, each adding its ten blocks in place) needed
-//! about as many instructions but took 2.5 times the wall time of the row gather
-//! (scattered writes into the 11.5 MB matrix), and four-lane element forces lost more
-//! to the transposition into lanes than they gained: neither was kept. A hybrid smoother
-//! (contiguous parts of the rows swept in parallel in row order, other parts' columns
-//! from the iterate at the start of the sweep: one fork-join per sweep instead of one
-//! per colour) diverged with ω = 1.5 for 2, 4 and 8 parts (the Jacobi coupling between
-//! parts does not take over-relaxation), and one part (plain row order) converged
-//! slower than the colours (box: 2.06 against 2.24 per cycle from cycle 10 on; the
-//! shared scan's hierarchy 2.25 against 2.92 in cycle 8). On the phantom's 60k hierarchy
-//! (`mammaplan bench`: 10,656 / 2,254 / 208 / 30 unknowns, 12.5 / 37.2 / 42.0 / 20.9
-//! blocks per row, 8 / 25 / 28 / 15 colours) the first coarse level holds 63% as many
-//! blocks as the finest. Its colours (about 90 rows each) were relaxed serially, so the
-//! V-cycle gained little from a second thread (8.1 ms on one, 8.7 on two, load 5); now
-//! they are relaxed in parallel (see `SERIAL_COLOUR_BLOCKS`): V-cycle 7.8-9.4 to
-//! 5.1-5.5 ms, `solve_ms` 104-121 to 85-92 ms at a load of about 1.5. On a busy machine
-//! the gain shrinks (the live view's update rate under llvmpipe did not change).
-//! One sweep per smoothing step on the coarse levels instead of two cut the residual
-//! reduction per cycle from 4.05 to 3.15; three gave 4.20. Smoothing with every
-//! operator rounded to single precision (the V-cycle in correction form, so repeated
-//! cycles still reached the double-precision solution to 7e-15) made the V-cycle 17%
-//! faster on one thread (7.0-7.7 to 5.9-6.1 ms, box 60,984), but writing the rounded
-//! copy, even from the row gather's cache and the mirror pass, cost the finest assembly
-//! as much (13.0-14.3 to 14.4-15.1 ms): no gain per cycle, not kept. Measured again on
-//! two threads once the coarse colours ran in parallel (phantom 60k, `mammaplan bench`,
-//! four alternating runs): V-cycle 5.3-5.9 to 4.6-4.7 ms, but finest assembly 7.9-8.3 to
-//! 8.1-8.8 and coarse operators 3.3-3.5 to 3.5-4.0 ms; `solve_ms` 91-102 to 89-95 ms,
-//! within the machine's spread. Two sets of
-//! accumulators in the block row product (for the latency of its sums) made the V-cycle
-//! slower (7.3-8.3 to 8.6-9.8 ms). Anderson acceleration of the interactive cycles (each step
-//! mixed from the last one to five corrections so as to minimise the mixed correction's
-//! norm, the history dropped when the residual grew) raised `mammaplan bench`'s reduction
-//! per cycle at 15k elements from 3.41 to 4.36, 4.85, 4.92, 4.94 (depth 1, 2, 3, 5) but
-//! not at 60k (4.05 to 3.87, 4.00, 4.09, 4.13), and on the shared scan `v02_average`
-//! (60k, R-MOD-120 on both sides, no gravity) it converged in 14 cycles instead of 16:
-//! the corotated cycles' residual is not monotone (it grows in some cycles as the
-//! rotations settle), which spoils a secant history. Not kept. The processor here has
-//! AVX-512: the polar iteration on eight lanes under `avx512f` made the warped assembly
-//! slower (criterion `assemble_warped_60984` 7.10-7.22 to 7.49-7.63 ms, two runs of each
-//! in turn), and compiling everything for this processor (`-C target-cpu=native`) changed
-//! neither `mg_one_cycle_60984` (14.7-15.6 ms against 15.6-16.8) nor its phases beyond
-//! the machine's spread: neither kept.
-//!
-//! The barycentric Galerkin products are fused per fine row (`FusedProduct`): the row
-//! `Q_f` of `A P`, from the lowest coarse column of `P`'s row `f` on, is formed in a
-//! scratch row and scattered at once into the upper blocks `(i, j ≥ i)` of the coarse rows
-//! `i` of `P`'s row `f`, at destinations precomputed with the pattern (eight fixed ranges
-//! of fine rows in parallel, each into its own buffer); then every block of `Pᵀ A P` is
-//! gathered from the buffers, lower blocks transposed. `A` is read once and neither `Q`
-//! nor a column map is stored. Before, each coarse row ran over `Pᵀ`, `A` and `P` with a
-//! column map, reading every fine row of `A` about four times and discarding the half
-//! with `j < i` (about 3.5 million inner steps at 60k elements). `coarse_operators_ms`
-//! per cycle on 2 cores, back-to-back A/B runs at a load of about 2, medians (range):
-//! phantom of `mammaplan bench --elements 60000` (3 levels, 10,656 / 2,254 / 208
-//! unknowns) 7.5 (6.9-8.0) ms before, 3.6 (3.4-4.3) ms after, on one thread 12.9 / 7.0
-//! ms; criterion `mg_coarse_operators` on the 60,984-element box 2.85 / 1.6 ms and on
-//! the 15,288-element box 0.70 / 0.43 ms. What remains is arithmetic: about 30 SSE2
-//! instructions per scalar-times-block term (no FMA in the baseline target), roughly
-//! 0.85 million terms and 0.3 million scatters at 60k elements, and the gather (a copy of
-//! both triangles). With the smoothed prolongation the product `P_sᵀ (A P_s)` fills the
-//! upper triangle on precomputed slots and is mirrored (it was computed in full and not
-//! exactly symmetric): phantom 28.6 ms before, 23.1 ms after; the update of `P_s` and
-//! `A P_s` (still with column maps) dominates.
+//! - Step: linear cycles add the V-cycle's correction `z` scaled to the minimum of the
+//!   assembled quadratic energy along it, `α = (b·z) / (zᵀ A z)` (the correction is
+//!   consistently too short); corotated cycles take it unscaled (the warped `R K Rᵀ` is
+//!   not the energy's Hessian).
 //!
 //! Use: [`Multigrid::cycle`] does one interactive step (reassemble every level at the
 //! current displacement, one V-cycle on the correction from zero, i.e. warm-started from
-//! the current displacement, the correction scaled to the energy minimum along it:
-//! [`MultigridOptions::optimal_step`]); [`Multigrid::vcycle`] is one V-cycle on the assembled
-//! finest system; [`Multigrid::pcg`] is conjugate gradients preconditioned by one
-//! symmetric V(ν₁, ν₁) cycle ([`PcgIteration`]).
+//! the current displacement, the correction scaled as [`MultigridOptions::optimal_step`]
+//! says); [`Multigrid::vcycle`] is one V-cycle on the assembled finest system;
+//! [`Multigrid::pcg`] is conjugate gradients preconditioned by one symmetric V(ν₁, ν₁)
+//! cycle ([`PcgIteration`]).
 
 use crate::blocks::{self, BlockKernels};
 use crate::direct::DirectSolver;
