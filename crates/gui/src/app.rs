@@ -319,7 +319,7 @@ impl GuiApp {
                 Err(error) => self.error_status(&error),
             }
         } else {
-            match Document::open_scan(path) {
+            match Document::open_scan(path, None) {
                 Ok(document) => self.set_document(document),
                 Err(error) => self.error_status(&error),
             }

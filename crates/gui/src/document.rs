@@ -70,10 +70,11 @@ impl Document {
         }
     }
 
-    /// Reads a scan (PLY, OBJ or STL).
-    pub fn open_scan(path: &Path) -> Result<Document> {
+    /// Reads a scan (PLY, OBJ or STL) whose coordinates are in `unit` (`None`:
+    /// millimetres, checked; see [`Scan::load_in`]).
+    pub fn open_scan(path: &Path, unit: Option<plan::LengthUnit>) -> Result<Document> {
         let source = ScanSource::File(path.to_path_buf());
-        Ok(Document::new(Scan::load(path, &Silent)?, source))
+        Ok(Document::new(Scan::load_in(path, unit, &Silent)?, source))
     }
 
     /// The built-in phantom, with its exact landmarks or with none placed.
@@ -94,7 +95,7 @@ impl Document {
     /// The scan of a planning case with the case's landmarks (snapped onto it); returns
     /// the snapping warnings too.
     pub fn from_case(case: &PlanningCase, case_path: &Path) -> Result<(Document, Vec<String>)> {
-        let scan = case.scan.load(&Silent)?;
+        let scan = case.scan.load(case.scan_units, &Silent)?;
         let mut snapped = case.landmarks.clone();
         let warnings = snapped
             .snap_to_surface(&scan.index)
@@ -356,7 +357,7 @@ mod tests {
         );
         assert_eq!(other.landmarks, document.landmarks);
 
-        assert!(Document::open_scan(&dir.path().join("missing.ply")).is_err());
+        assert!(Document::open_scan(&dir.path().join("missing.ply"), None).is_err());
         assert!(Document::is_landmark_file(Path::new("a/b.JSON")));
         assert!(!Document::is_landmark_file(Path::new("a/b.ply")));
     }

@@ -386,6 +386,9 @@ enum Command {
         /// Which way is up in the scan's file, as `model --up`.
         #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true, requires = "scan")]
         up: Option<plan::Up>,
+        /// The unit of the scan file's coordinates, as `model --units`.
+        #[arg(long, value_name = "UNIT", requires = "scan")]
+        units: Option<plan::LengthUnit>,
         /// Open the built-in phantom with its landmarks.
         #[arg(long, conflicts_with = "case")]
         phantom: bool,
@@ -434,6 +437,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             scan,
             landmarks,
             up,
+            units,
             phantom,
             case,
             script,
@@ -443,7 +447,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 .transpose()?;
             let start = match (scan, case) {
                 (Some(scan), _) => {
-                    let mut document = gui::Document::open_scan(&scan)?;
+                    let mut document = gui::Document::open_scan(&scan, units)?;
                     document.up = up;
                     if let Some(landmarks) = landmarks {
                         for warning in document.open_landmarks(&landmarks)? {

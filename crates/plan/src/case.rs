@@ -32,7 +32,7 @@
 
 use crate::model::{DEFAULT_ELEMENTS, ModelOptions, PerSide};
 use crate::simulate::{ImplantRequest, Material, SimulationOptions};
-use crate::{PhantomParams, Progress, Scan};
+use crate::{LengthUnit, PhantomParams, Progress, Scan};
 use anatomy::{ControlPoints, PartialLandmarks, Up};
 use anyhow::{Context, Result, bail, ensure};
 use glam::DVec3;
@@ -59,10 +59,11 @@ pub enum ScanSource {
 }
 
 impl ScanSource {
-    /// Reads the file or generates the phantom.
-    pub fn load(&self, progress: &dyn Progress) -> Result<Scan> {
+    /// Reads the file (its coordinates in `unit`, see [`Scan::load_in`]) or generates
+    /// the phantom.
+    pub fn load(&self, unit: Option<LengthUnit>, progress: &dyn Progress) -> Result<Scan> {
         match self {
-            ScanSource::File(path) => Scan::load(path, progress),
+            ScanSource::File(path) => Scan::load_in(path, unit, progress),
             ScanSource::Phantom(params) => Scan::phantom(params),
         }
     }
@@ -75,6 +76,9 @@ pub struct PlanningCase {
     /// Which way is up in the scan's file, when the user said it (`--up`); `None`: the
     /// file's vertical or an estimate ([`anatomy::Up::resolve`]).
     pub up: Option<Up>,
+    /// The unit of the scan file's coordinates, when the user said it (`--units`);
+    /// `None`: millimetres.
+    pub scan_units: Option<LengthUnit>,
     pub landmarks: PartialLandmarks,
     /// The cut curves' control points (from a built model); `None`: the defaults from
     /// the landmarks.
@@ -96,6 +100,7 @@ impl PlanningCase {
         PlanningCase {
             scan,
             up: None,
+            scan_units: None,
             landmarks,
             control_points: None,
             elements: DEFAULT_ELEMENTS,
@@ -203,9 +208,18 @@ impl PlanningCase {
             .up
             .map(|[x, y, z]| Up::parse(&format!("{x},{y},{z}")).context("up"))
             .transpose()?;
+        let scan_units = record
+            .scan_units
+            .map(|symbol| {
+                symbol
+                    .parse::<LengthUnit>()
+                    .map_err(|e| anyhow::anyhow!("scan_units: {e}"))
+            })
+            .transpose()?;
         Ok(PlanningCase {
             scan,
             up,
+            scan_units,
             landmarks,
             control_points,
             elements,
@@ -238,6 +252,7 @@ impl PlanningCase {
             units: "mm".into(),
             scan,
             up: self.up.map(|up| up.direction.to_array()),
+            scan_units: self.scan_units.map(|unit| unit.symbol().to_string()),
             landmarks: self.landmarks.to_json(Default::default()),
             control_points: self.control_points.as_ref().map(ControlPoints::to_json),
             model: ModelRecord {
@@ -271,6 +286,9 @@ struct CaseRecord {
     /// The given up (file frame); absent when the file's vertical or an estimate serves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     up: Option<[f64; 3]>,
+    /// The unit of the scan file's coordinates; absent: millimetres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    scan_units: Option<String>,
     landmarks: Value,
     #[serde(default)]
     control_points: Option<Value>,
@@ -436,11 +454,18 @@ mod tests {
         assert_eq!(read.simulation_options().tissue, Material::new(3.5, 0.4));
 
         // A scan file: written absolute; a relative one is read from the case's folder.
+        // Its unit is kept.
         let mut on_file = PlanningCase::new(
             ScanSource::File(dir.path().join("scan.ply")),
             PartialLandmarks::default(),
         );
+        on_file.scan_units = Some(LengthUnit::Metre);
         on_file.write(&path).unwrap();
+        assert!(
+            std::fs::read_to_string(&path)
+                .unwrap()
+                .contains("\"scan_units\": \"m\"")
+        );
         assert_eq!(PlanningCase::read(&path).unwrap(), on_file);
         let text = std::fs::read_to_string(&path).unwrap().replace(
             &dir.path().join("scan.ply").display().to_string(),
@@ -490,6 +515,11 @@ mod tests {
             "unknown cup size",
         );
         check("\"version\": 1", "\"version\": 7", "version 7");
+        check(
+            "\"format\": \"mammaplan case\",",
+            "\"format\": \"mammaplan case\", \"scan_units\": \"furlong\",",
+            "scan_units: unknown unit \"furlong\"",
+        );
         check(
             "\"gravity\": false",
             "\"gravity\": \"no\"",

@@ -272,6 +272,8 @@ impl GuiApp {
     fn case_of(&self, document: &Document) -> PlanningCase {
         let mut case = PlanningCase::new(document.source.clone(), document.landmarks.clone());
         case.up = document.up;
+        let unit = document.scan.file_unit;
+        case.scan_units = (unit != plan::LengthUnit::Millimetre).then_some(unit);
         case.control_points = self.settings.control_points.clone();
         case.elements = self.settings.elements;
         case.tissue = self.settings.tissue;
