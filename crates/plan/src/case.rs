@@ -271,7 +271,7 @@ impl PlanningCase {
                 right: implant(&self.implants.right),
             },
         };
-        crate::demo::write_json(path, &record)
+        crate::write_json(path, &record)
             .with_context(|| format!("writing the case {}", path.display()))
     }
 }

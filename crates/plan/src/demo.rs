@@ -162,7 +162,7 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
         progress,
     )?;
     let measurements = measure(&fixed, &[], progress)?;
-    write_json(&path("measurements.json"), &measurements)?;
+    crate::write_json(&path("measurements.json"), &measurements)?;
     files.push(path("measurements.json"));
     progress.step();
 
@@ -176,7 +176,7 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
     )?;
     let (transform, registration) = register(&fixed, &moving, true)?;
     write_registered_mesh(&path("followup_registered.ply"), &moving, &transform)?;
-    write_json(&path("registration.json"), &registration)?;
+    crate::write_json(&path("registration.json"), &registration)?;
     files.extend([path("followup_registered.ply"), path("registration.json")]);
     progress.step();
 
@@ -245,13 +245,4 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
         report,
         files,
     })
-}
-
-/// Writes pretty JSON atomically.
-pub fn write_json(path: &Path, value: &impl Serialize) -> Result<()> {
-    mesh::io::write_atomically(path, |w| {
-        serde_json::to_writer_pretty(&mut *w, value)?;
-        std::io::Write::write_all(w, b"\n")
-    })?;
-    Ok(())
 }

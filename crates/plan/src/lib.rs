@@ -26,6 +26,15 @@ pub use mesh::LengthUnit;
 pub use phantom::{Cup, PhantomParams};
 pub use scan::{MarkedScan, Scan, UpRecord, UpSourceName};
 
+/// Writes pretty JSON atomically (a temporary file renamed into place).
+pub fn write_json(path: &std::path::Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
+    mesh::io::write_atomically(path, |w| {
+        serde_json::to_writer_pretty(&mut *w, value)?;
+        std::io::Write::write_all(w, b"\n")
+    })?;
+    Ok(())
+}
+
 /// The error and its causes on one line, outermost first. A cause whose message the
 /// previous one already ends with (errors that print their source) is not repeated.
 pub fn one_line(error: &anyhow::Error) -> String {

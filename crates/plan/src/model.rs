@@ -763,7 +763,7 @@ pub fn write_model(
     let sha256 = staged.checksums()?;
     files.push("model.json".into());
     let report = model.report(out_dir, files, sha256);
-    staged.write(&report_path, |path| crate::demo::write_json(path, &report))?;
+    staged.write(&report_path, |path| crate::write_json(path, &report))?;
     staged.commit()?;
     progress.step();
     Ok(report)

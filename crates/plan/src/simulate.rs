@@ -445,7 +445,7 @@ impl Session {
 impl SimulatedMeasurements {
     /// Writes the figures as pretty JSON, atomically.
     pub fn write_json(&self, path: &Path) -> Result<()> {
-        crate::demo::write_json(path, self)
+        crate::write_json(path, self)
     }
 
     /// Writes the figures as CSV, atomically: a header
@@ -994,7 +994,7 @@ pub fn write_simulation(
         out_dir: out_dir.to_path_buf(),
         files,
     };
-    staged.write(&report_path, |path| crate::demo::write_json(path, &report))?;
+    staged.write(&report_path, |path| crate::write_json(path, &report))?;
     staged.commit()?;
     Ok(report)
 }
