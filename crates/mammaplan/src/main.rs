@@ -239,9 +239,15 @@ enum Command {
         /// How far the filled base is shifted back to form the rear wall (mm, up to 60).
         #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REAR_WALL_OFFSET_MM, value_parser = rear_wall_offset)]
         rear_wall_offset_mm: f64,
-        /// About how many tetrahedra the finest uniform mesh level has (within about 20%).
-        #[arg(long, value_name = "N", default_value_t = plan::model::DEFAULT_ELEMENTS, value_parser = positive_integer)]
-        elements: usize,
+        /// About how many tetrahedra the finest uniform mesh level has (within about 20%;
+        /// default 60000).
+        #[arg(long, value_name = "N", value_parser = positive_integer)]
+        elements: Option<usize>,
+        /// The resolution by what it is for, instead of --elements: draft (15000
+        /// elements), standard (60000) or accurate (240000, for a report; see
+        /// docs/dev/discretisation.md).
+        #[arg(long, value_name = "QUALITY", conflicts_with = "elements")]
+        quality: Option<plan::model::Quality>,
         /// Adds a finest level refined within this distance of both fill-ins, where the
         /// implant sits (mm; e.g. 5). Costs several times the elements.
         #[arg(long, value_name = "MM", value_parser = positive)]
@@ -713,12 +719,16 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             pc_ratio,
             rear_wall_offset_mm,
             elements,
+            quality,
             refine_band_mm,
             refine_edge_mm,
             up,
             units,
             json,
         } => {
+            let elements = elements
+                .or(quality.map(plan::model::Quality::elements))
+                .unwrap_or(plan::model::DEFAULT_ELEMENTS);
             let marked = plan::MarkedScan::load_in(&scan, units, &landmarks, up, progress)?;
             let mut options = plan::model::ModelOptions {
                 control_points_file: control_points,

@@ -1181,3 +1181,28 @@ fn a_scan_in_metres_needs_units_and_then_models_as_in_millimetres() {
         );
     }
 }
+
+/// `--quality` chooses the element count by purpose and excludes `--elements`.
+#[test]
+fn model_quality_sets_the_element_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scan, landmarks) = phantom(dir.path());
+    let out = dir.path().join("model");
+    let output = model(&scan, &landmarks, &out, &["--quality", "draft"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    assert_eq!(json["elements_requested"], 15_000);
+    assert_clean_failure(
+        &model(
+            &scan,
+            &landmarks,
+            &out,
+            &["--quality", "draft", "--elements", "8000"],
+        ),
+        "cannot be used with",
+    );
+    assert_clean_failure(
+        &model(&scan, &landmarks, &out, &["--quality", "best"]),
+        "expected draft, standard or accurate",
+    );
+}

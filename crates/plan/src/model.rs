@@ -39,6 +39,44 @@ pub use anatomy::closed_surface::{DEFAULT_REAR_WALL_OFFSET_MM, MAX_REAR_WALL_OFF
 
 /// Default number of tetrahedra of the finest level (`--elements`).
 pub const DEFAULT_ELEMENTS: usize = 60_000;
+
+/// A resolution chosen by what it is for (`model --quality`); the discretisation error
+/// each leaves is measured in `docs/dev/discretisation.md`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Quality {
+    /// Quick looks while planning: 15,000 elements.
+    Draft,
+    /// The default: [`DEFAULT_ELEMENTS`], fast enough for the live view.
+    Standard,
+    /// For the report: 240,000 elements, about seven seconds more per simulation.
+    Accurate,
+}
+
+impl Quality {
+    /// About how many tetrahedra the finest level has.
+    pub fn elements(self) -> usize {
+        match self {
+            Quality::Draft => 15_000,
+            Quality::Standard => DEFAULT_ELEMENTS,
+            Quality::Accurate => 240_000,
+        }
+    }
+}
+
+impl std::str::FromStr for Quality {
+    type Err = String;
+
+    fn from_str(name: &str) -> Result<Quality, String> {
+        match name {
+            "draft" => Ok(Quality::Draft),
+            "standard" => Ok(Quality::Standard),
+            "accurate" => Ok(Quality::Accurate),
+            _ => Err(format!(
+                "unknown quality \"{name}\": expected draft, standard or accurate"
+            )),
+        }
+    }
+}
 /// Most levels of the uniform tetrahedral hierarchy; each coarser level has twice the
 /// lattice spacing and about 1/8 the elements, down to the last with at least
 /// [`MIN_COARSEST_NODES`] nodes. A refined level, when asked for, comes on top.
