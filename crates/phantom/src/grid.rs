@@ -68,6 +68,18 @@ impl Grid {
         nearest_line(&self.heights, h) * self.thetas.len() + nearest_line(&self.thetas, theta)
     }
 
+    /// The texture coordinates of every grid vertex (in the order of [`Grid::mesh`]'s).
+    pub fn uv(&self) -> Vec<glam::DVec2> {
+        self.heights
+            .iter()
+            .flat_map(|&h| {
+                self.thetas
+                    .iter()
+                    .map(move |&theta| crate::texture::uv_of(theta, h))
+            })
+            .collect()
+    }
+
     /// A mesh of one layer of the surface (`layer` picks the skin or the chest wall of
     /// each sample) at every grid point, shifted by `-origin`, two triangles per cell
     /// split along the shorter diagonal, oriented outwards.

@@ -42,7 +42,10 @@ mod grid;
 mod occlusion;
 mod shape;
 mod surface;
+mod texture;
 mod torso;
+
+pub use texture::{AREOLA_RADIUS_MM, MARK_RADIUS_MM, SkinTexture, TEXTURE_SIZE};
 
 use anatomy::{LandmarkName, Landmarks};
 use breast::{Breast, BreastShape};
@@ -210,6 +213,9 @@ pub struct Phantom {
     pub landmarks: Landmarks,
     /// Volume between each breast's skin and the chest wall beneath it (ml).
     pub breast_volume_ml: BreastVolumes,
+    /// The skin's photograph: a texture over the scan's vertices, with marks at known
+    /// places.
+    pub texture: SkinTexture,
 }
 
 /// Arc length along the chest from the midline to the nipple (mm, before ptosis).
@@ -281,7 +287,18 @@ pub fn generate(params: &PhantomParams) -> Phantom {
     let [left, right] = surface
         .breasts
         .map(|b| breast_volume_ml(&surface, &b, VOLUME_CELLS));
+    let grid_uv = grid.uv();
+    let texture = texture::paint(
+        &surface,
+        origin,
+        [
+            landmark_parameters[LandmarkName::Pnl as usize],
+            landmark_parameters[LandmarkName::Pnr as usize],
+        ],
+        full_vertex.iter().map(|&v| grid_uv[v as usize]).collect(),
+    );
     Phantom {
+        texture,
         scan,
         chest_wall,
         full_skin,

@@ -52,7 +52,14 @@ fn write_phantom_files(
     landmarks_path: &Path,
 ) -> Result<()> {
     let mut staged = crate::staged::Staged::new();
-    staged.write(scan_path, |path| mesh::io::write_mesh(path, &phantom.scan))?;
+    let textured = scan_path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    if textured {
+        stage_textured_phantom(&mut staged, phantom, scan_path)?;
+    } else {
+        staged.write(scan_path, |path| mesh::io::write_mesh(path, &phantom.scan))?;
+    }
     let mut additional = serde_json::Map::new();
     additional.insert(
         "true_breast_volume_ml".into(),
@@ -63,6 +70,39 @@ fn write_phantom_files(
         phantom.landmarks.write(path, additional)
     })?;
     staged.commit()
+}
+
+/// Stages the phantom's scan as the OBJ `scan_path` wearing its photograph
+/// ([`phantom::SkinTexture`]): `<stem>.mtl` and `<stem>.png` beside it.
+fn stage_textured_phantom(
+    staged: &mut crate::staged::Staged,
+    phantom: &Phantom,
+    scan_path: &Path,
+) -> Result<()> {
+    let folder = scan_path.parent().unwrap_or(Path::new(""));
+    let stem = scan_path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scan".into());
+    let image_path = folder.join(format!("{stem}.png"));
+    let texture = &phantom.texture;
+    let bytes: Vec<u8> = texture.rgb.iter().flatten().copied().collect();
+    staged.write(&image_path, |path| {
+        image::save_buffer(
+            path,
+            &bytes,
+            texture.width,
+            texture.height,
+            image::ColorType::Rgb8,
+        )
+    })?;
+    let mut scan = phantom.scan.clone();
+    scan.uv = Some(mesh::UvLayer {
+        coords: texture.uv.clone(),
+        triangles: scan.triangles.clone(),
+    });
+    crate::texture::stage_obj_wearing(staged, folder, &stem, &format!("{stem}.png"), &scan)?;
+    Ok(())
 }
 
 /// The demo's implant on both sides: the built-in catalog's moderate-profile round

@@ -18,6 +18,7 @@ pub mod report;
 pub mod scan;
 pub mod simulate;
 mod staged;
+pub mod texture;
 pub mod views;
 
 pub use anatomy::measure::Distance;

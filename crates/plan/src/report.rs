@@ -163,6 +163,7 @@ pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
         let content = ViewContent {
             curves: &curves,
             reconstructed: &reconstructed,
+            texture: scan.marked.scan.texture.as_ref().map(|t| &t.image),
             ..Default::default()
         };
         for view in standard_views(
@@ -452,6 +453,9 @@ pub fn report_content(
         progress,
     )
     .with_context(|| format!("the simulated scan in {}", simulation_dir.display()))?;
+    if let Some(scan) = std::sync::Arc::get_mut(&mut simulated.marked.scan) {
+        scan.wear_texture_of(&preoperative.marked.scan);
+    }
     // The simulated scan cut along the model's curves carried with the tissue (folders
     // written before those existed have none): its views show where it was measured.
     // The comparison cuts it along them too, if they served here (else it warns and

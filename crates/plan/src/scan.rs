@@ -7,6 +7,8 @@ use mesh::{LengthUnit, SurfaceIndex, Topology, TriMesh};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use crate::texture::{ScanTexture, load_texture};
+
 /// Triangles with less area than this are dropped on load (mm²).
 const DEGENERATE_AREA_MM2: f64 = 1e-10;
 
@@ -23,6 +25,9 @@ pub struct Scan {
     pub mesh: TriMesh,
     pub topology: Topology,
     pub index: SurfaceIndex,
+    /// The photograph its file names, through the mesh's texture coordinates (`None`:
+    /// none, or it could not be read, which was a warning).
+    pub texture: Option<Arc<ScanTexture>>,
 }
 
 impl Scan {
@@ -81,6 +86,7 @@ impl Scan {
         }
         let mut scan = Scan::from_mesh(mesh, path)?;
         scan.file_unit = file_unit;
+        scan.texture = load_texture(path, &scan.mesh, progress).map(Arc::new);
         Ok(scan)
     }
 
@@ -113,7 +119,21 @@ impl Scan {
             mesh,
             topology: self.topology.clone(),
             index,
+            texture: self.texture.clone(),
         })
+    }
+
+    /// Gives this scan `source`'s photograph and texture coordinates when it is `source`
+    /// moved vertex by vertex (the same triangles): a simulated scan read back from a
+    /// PLY wears the pre-operative scan's photograph.
+    pub fn wear_texture_of(&mut self, source: &Scan) {
+        if source.texture.is_some()
+            && source.mesh.uv.is_some()
+            && self.mesh.triangles == source.mesh.triangles
+        {
+            self.mesh.uv = source.mesh.uv.clone();
+            self.texture = source.texture.clone();
+        }
     }
 
     /// Wraps a mesh already in memory (validated here).
@@ -129,6 +149,7 @@ impl Scan {
             mesh,
             topology,
             index,
+            texture: None,
         })
     }
 }

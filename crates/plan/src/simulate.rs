@@ -7,6 +7,9 @@
 //! [`simulate`] runs a session to convergence and writes:
 //! - `simulated_scan.ply`: the scan with every vertex moved (same vertex order and count,
 //!   colours and texture coordinates kept);
+//! - `simulated_scan.obj`, `simulated_scan.mtl`, `simulated_scan_texture.*`: where the
+//!   scan came with a photograph, the simulated scan wearing it (OBJ + MTL + image side by
+//!   side);
 //! - `simulated_landmarks.json`: the landmarks moved the same way;
 //! - `simulated_control_points.json`: points every 10 mm along the model's cut curves,
 //!   moved the same way: control points for a breast model of the simulated scan
@@ -949,6 +952,15 @@ pub fn write_simulation(
         mesh::io::write_mesh(path, &simulated.scan.mesh)
     })?;
     files.push("simulated_scan.ply".to_string());
+    if let Some(texture) = &simulated.scan.texture {
+        files.extend(crate::texture::stage_textured_obj(
+            &mut staged,
+            out_dir,
+            "simulated_scan",
+            &simulated.scan.mesh,
+            texture,
+        )?);
+    }
     staged.write(&out_dir.join("simulated_landmarks.json"), |path| {
         simulated.landmarks.write(path, Default::default())
     })?;

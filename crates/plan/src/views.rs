@@ -26,9 +26,12 @@ const CURVE_WIDTH_PX: f64 = 2.5;
 /// What the views show besides the scan and its landmarks.
 #[derive(Debug, Clone, Copy)]
 pub struct ViewContent<'a> {
-    /// One colour per scan vertex (e.g. a deviation map); without it the scan's own
-    /// vertex colours, or a skin tone.
+    /// One colour per scan vertex (e.g. a deviation map); without it the scan's
+    /// photograph (`texture`, through its texture coordinates), its own vertex colours,
+    /// or a skin tone.
     pub colours: Option<&'a [[u8; 3]]>,
+    /// The scan's photograph ([`crate::texture`]).
+    pub texture: Option<&'a render::Texture>,
     /// Closed curves on the surface (mm, scan frame), e.g. the breasts' cut curves.
     pub curves: &'a [Vec<DVec3>],
     /// Skin the scanner did not see, reconstructed by the model (mm, scan frame): drawn
@@ -43,6 +46,7 @@ impl Default for ViewContent<'_> {
     fn default() -> Self {
         ViewContent {
             colours: None,
+            texture: None,
             curves: &[],
             reconstructed: &[],
             width: 800,
@@ -74,10 +78,11 @@ pub fn standard_views(
 ) -> Result<Vec<RenderedView>> {
     let frame = AnatomicalFrame::from_landmarks(landmarks, up)
         .context("the views look from the landmarks' standing frame")?;
-    let colouring = match (content.colours, &scan.vertex_colors) {
-        (Some(colours), _) => Colouring::PerVertex(colours),
-        (None, Some(_)) => Colouring::MeshColours,
-        (None, None) => Colouring::Uniform(SKIN_TONE),
+    let colouring = match (content.colours, content.texture, &scan.vertex_colors) {
+        (Some(colours), _, _) => Colouring::PerVertex(colours),
+        (None, Some(texture), _) if scan.uv.is_some() => Colouring::Texture(texture),
+        (None, _, Some(_)) => Colouring::MeshColours,
+        (None, _, None) => Colouring::Uniform(SKIN_TONE),
     };
     let mut layers = vec![MeshLayer::new(scan, colouring)];
     layers.extend(

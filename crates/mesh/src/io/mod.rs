@@ -4,12 +4,14 @@
 mod obj;
 mod ply;
 mod stl;
+mod texture;
 
 pub use obj::{read_obj, write_obj};
 pub use ply::{
     PlyEncoding, VertexScalar, read_ply, read_ply_with_scalars, write_ply, write_ply_with_scalars,
 };
 pub use stl::{read_stl, write_stl};
+pub use texture::{diffuse_maps, texture_image_path};
 
 use crate::error::MeshError;
 use crate::trimesh::TriMesh;
