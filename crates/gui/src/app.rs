@@ -250,7 +250,7 @@ impl GuiApp {
         self.control_point_tool = None;
         self.display = DisplayMode::PreOperative;
         self.postoperative.reset();
-        self.scene = Some(Arc::new(SceneMesh::new(&document.scan.mesh)));
+        self.scene = Some(Arc::new(SceneMesh::of_scan(&document.scan)));
         self.info(format!(
             "{}: {} vertices, {} triangles",
             document.scan.path.display(),

@@ -50,7 +50,7 @@ impl RegisteredScan {
             scan_path: scan_path.to_path_buf(),
             landmarks_path: landmarks_path.to_path_buf(),
             report,
-            scene: Arc::new(SceneMesh::new(&scan.mesh)),
+            scene: Arc::new(SceneMesh::of_scan(&scan)),
             scan: Arc::new(scan),
             landmarks,
         })

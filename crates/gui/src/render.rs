@@ -15,7 +15,8 @@
 //! drawn at all with a software renderer, see [`install`]). With a software renderer the
 //! live simulation's frames are drawn on an [`InteractionMesh`] (a quarter of the
 //! triangles) while the solver runs.
-//! Colours are the scan's vertex colours when it has them, a neutral skin tone otherwise.
+//! Colours are the scan's vertex colours when it has them, else its photograph sampled at
+//! the vertices (a per-pixel GPU texture is not drawn yet), else a neutral skin tone.
 
 use crate::camera::Camera;
 use bytemuck::{Pod, Zeroable};
@@ -189,6 +190,25 @@ impl SceneMesh {
             scan_vertices: None,
         }
         .with_vertices(mesh, colors)
+    }
+
+    /// A scan as [`SceneMesh::new`] draws it, wearing its photograph where it has one
+    /// and no vertex colours: the texture sampled at every vertex
+    /// ([`plan::texture::vertex_colours`]), so at the scan's own resolution.
+    pub fn of_scan(scan: &plan::Scan) -> SceneMesh {
+        let baked = scan
+            .texture
+            .as_ref()
+            .filter(|_| scan.mesh.vertex_colors.is_none())
+            .and_then(|texture| plan::texture::vertex_colours(&scan.mesh, &texture.image));
+        match baked {
+            Some(colours) => {
+                let mut mesh = scan.mesh.clone();
+                mesh.vertex_colors = Some(colours);
+                SceneMesh::new(&mesh)
+            }
+            None => SceneMesh::new(&scan.mesh),
+        }
     }
 
     /// The number of triangles drawn.

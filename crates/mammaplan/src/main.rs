@@ -93,13 +93,19 @@ enum Command {
     Demo {
         #[arg(long, value_name = "DIR")]
         out: PathBuf,
+        /// Write the phantom as an OBJ wearing its photograph (scan.obj, scan.mtl,
+        /// scan.png) and run from it: the views and the simulated scan carry the texture.
+        #[arg(long)]
+        textured: bool,
         /// Print the report as one JSON object instead of a summary.
         #[arg(long)]
         json: bool,
     },
     /// Write the synthetic torso scan and its landmark file.
     Phantom {
-        /// Output scan (.ply, .obj or .stl).
+        /// Output scan (.ply, .obj or .stl). An .obj wears the phantom's photograph: a
+        /// skin texture with areolas and a grid of marks (<name>.mtl and <name>.png beside
+        /// it).
         #[arg(long, value_name = "SCAN")]
         out: PathBuf,
         /// Output landmark file (JSON), with the true breast volumes.
@@ -474,8 +480,12 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             };
             gui::run(start, script)
         }
-        Command::Demo { out, json } => {
-            let report = plan::demo::demo(&out, progress)?;
+        Command::Demo {
+            out,
+            textured,
+            json,
+        } => {
+            let report = plan::demo::demo(&out, textured, progress)?;
             progress.finish();
             if json {
                 print_json(&report)

@@ -525,6 +525,44 @@ fn bad_model_input_fails_cleanly_and_writes_nothing() {
 }
 
 #[test]
+fn a_textured_demo_runs_from_the_phantoms_obj_and_its_views_wear_the_photograph() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = mammaplan(&["demo", "--textured", "--out", dir.path().to_str().unwrap()]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    for name in ["scan.obj", "scan.mtl", "scan.png"] {
+        assert!(dir.path().join(name).is_file(), "{name}");
+    }
+    assert!(!dir.path().join("scan.ply").exists());
+    for name in [
+        "simulated_scan.obj",
+        "simulated_scan.mtl",
+        "simulated_scan_texture.png",
+    ] {
+        assert!(dir.path().join("simulation").join(name).is_file(), "{name}");
+    }
+    // the report's first picture (the pre-operative front view) shows the phantom's
+    // dark blue marks (30, 60, 120 shaded), which neither skin tone, shading, the
+    // landmarks' markers (0, 90, 200 and 210, 0, 140) nor the cut curves (100, 40, 150)
+    // give: the untextured demo's picture has none
+    let html = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+    let start = html.find("data:image/png;base64,").unwrap() + "data:image/png;base64,".len();
+    let end = start + html[start..].find('"').unwrap();
+    use base64::Engine;
+    let png = base64::engine::general_purpose::STANDARD
+        .decode(&html[start..end])
+        .unwrap();
+    let image = image::load_from_memory(&png).unwrap().to_rgb8();
+    let marked = image
+        .pixels()
+        .filter(|p| {
+            let [r, g, b] = p.0.map(i32::from);
+            b > r + 20 && r < 100 && g < 110 && b < 170 && g > r
+        })
+        .count();
+    assert!(marked > 500, "{marked} mark pixels");
+}
+
+#[test]
 fn demo_builds_the_model_and_compares_it_with_the_truth() {
     let dir = tempfile::tempdir().unwrap();
     let output = mammaplan(&["demo", "--out", dir.path().to_str().unwrap(), "--json"]);

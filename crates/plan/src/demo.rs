@@ -147,6 +147,21 @@ pub const DEMO_ENTRIES: [&str; 10] = [
     "report.html",
 ];
 
+/// What a textured demo (`demo --textured`) writes instead of `scan.ply`: the phantom's
+/// scan as an OBJ wearing its photograph.
+pub const TEXTURED_SCAN_ENTRIES: [&str; 3] = ["scan.obj", "scan.mtl", "scan.png"];
+
+/// The entries a demo replaces in its folder.
+fn demo_entries(textured: bool) -> Vec<&'static str> {
+    DEMO_ENTRIES
+        .iter()
+        .flat_map(|&entry| match (entry, textured) {
+            ("scan.ply", true) => TEXTURED_SCAN_ENTRIES.to_vec(),
+            _ => vec![entry],
+        })
+        .collect()
+}
+
 /// The known motion between the demo's two scans: 6 degrees about an oblique axis and a
 /// 30 mm shift, like a patient standing differently at the follow-up.
 fn follow_up_motion() -> RigidTransform {
@@ -163,15 +178,23 @@ fn follow_up_motion() -> RigidTransform {
 /// noisy scan in a moved frame and its registration back onto the first, the breast
 /// model of the first (in `out_dir/model`), the simulation of [`DEMO_IMPLANT`] on both
 /// sides (in `out_dir/simulation`) and the report of both (`out_dir/report.html`).
-pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
-    let update = crate::staged::FolderUpdate::begin(out_dir, &DEMO_ENTRIES)?;
+/// `textured`: the phantom's scan is written as `scan.obj` wearing its photograph and
+/// read back from there, so the model, the simulation and the report's views carry it.
+pub fn demo(out_dir: &Path, textured: bool, progress: &dyn Progress) -> Result<DemoReport> {
+    let update = crate::staged::FolderUpdate::begin(out_dir, &demo_entries(textured))?;
     let path = |name: &str| out_dir.join(name);
     let mut files = Vec::new();
 
     progress.stage("phantom", 2);
     let params = PhantomParams::default();
-    let phantom = write_phantom(&params, &path("scan.ply"), &path("landmarks.json"))?;
-    files.extend([path("scan.ply"), path("landmarks.json")]);
+    let scan_name = if textured { "scan.obj" } else { "scan.ply" };
+    let phantom = write_phantom(&params, &path(scan_name), &path("landmarks.json"))?;
+    if textured {
+        files.extend(TEXTURED_SCAN_ENTRIES.map(path));
+    } else {
+        files.push(path(scan_name));
+    }
+    files.push(path("landmarks.json"));
     progress.step();
 
     // The follow-up scan: the same body with fresh scanner noise, in a moved frame.
@@ -194,8 +217,13 @@ pub fn demo(out_dir: &Path, progress: &dyn Progress) -> Result<DemoReport> {
     progress.step();
 
     progress.stage("measure", 1);
+    let fixed_scan = if textured {
+        Scan::load(&path(scan_name), progress)?
+    } else {
+        Scan::from_mesh(phantom.scan.clone(), &path(scan_name))?
+    };
     let fixed = MarkedScan::new(
-        Scan::from_mesh(phantom.scan.clone(), &path("scan.ply"))?,
+        fixed_scan,
         phantom.landmarks.clone(),
         &path("landmarks.json"),
         None,

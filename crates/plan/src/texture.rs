@@ -59,6 +59,28 @@ pub fn load_texture(path: &Path, mesh: &TriMesh, progress: &dyn Progress) -> Opt
     }
 }
 
+/// The photograph's colour at every vertex of `mesh` (at the texture coordinates of the
+/// vertex's first triangle corner; a vertex on a seam has the same skin on both sides;
+/// a vertex in no triangle gets the first pixel's colour): the texture at the scan's own
+/// resolution, for a viewer that colours vertices. `None` without texture coordinates.
+pub fn vertex_colours(mesh: &TriMesh, texture: &render::Texture) -> Option<Vec<[u8; 3]>> {
+    let uv = mesh.uv.as_ref()?;
+    let mut at = vec![None; mesh.vertex_count()];
+    for (corners, uv_corners) in mesh.triangles.iter().zip(&uv.triangles) {
+        for (&v, &k) in corners.iter().zip(uv_corners) {
+            let slot = &mut at[v as usize];
+            if slot.is_none() {
+                *slot = uv.coords.get(k as usize).copied();
+            }
+        }
+    }
+    Some(
+        at.into_iter()
+            .map(|uv| texture.colour_at(uv.unwrap_or(glam::DVec2::new(0.0, 1.0))))
+            .collect(),
+    )
+}
+
 /// Decodes a JPEG or PNG image to RGB pixels.
 pub fn decode(path: &Path) -> Result<render::Texture> {
     let image = image::ImageReader::open(path)

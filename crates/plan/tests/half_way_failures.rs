@@ -64,7 +64,7 @@ fn a_demo_that_fails_at_the_report_leaves_the_folder_as_it_was() {
         stage: "report",
         obstacle: folder.join("report.html"),
     };
-    let error = plan::demo::demo(&folder, &block).unwrap_err();
+    let error = plan::demo::demo(&folder, false, &block).unwrap_err();
     assert!(format!("{error:#}").contains("report.html"), "{error:#}");
     assert_previous_result(&folder);
 
@@ -73,7 +73,7 @@ fn a_demo_that_fails_at_the_report_leaves_the_folder_as_it_was() {
         stage: "report",
         obstacle: new_folder.join("report.html"),
     };
-    plan::demo::demo(&new_folder, &block).unwrap_err();
+    plan::demo::demo(&new_folder, false, &block).unwrap_err();
     assert!(!new_folder.exists());
 }
 

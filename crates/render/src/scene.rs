@@ -37,6 +37,13 @@ impl Texture {
         self.height
     }
 
+    /// The colour (sRGB) at texture coordinates `uv`, bilinear between pixel centres in
+    /// linear light, clamped at the borders: what a picture paints there.
+    pub fn colour_at(&self, uv: glam::DVec2) -> [u8; 3] {
+        crate::shade::sample_bilinear(self, uv.x as f32, uv.y as f32)
+            .map(crate::shade::linear_to_srgb)
+    }
+
     /// The pixel in column `x`, row `y` (from the top).
     pub(crate) fn pixel(&self, x: u32, y: u32) -> [u8; 3] {
         self.rgb[(y * self.width + x) as usize]

@@ -259,7 +259,7 @@ fn light(albedo: [f32; 3], normal: Vec3) -> [f32; 3] {
 
 /// The texture's colour (linear) at texture coordinates `(u, v)`, bilinear between pixel
 /// centres, clamped at the borders.
-fn sample_bilinear(texture: &Texture, u: f32, v: f32) -> [f32; 3] {
+pub(crate) fn sample_bilinear(texture: &Texture, u: f32, v: f32) -> [f32; 3] {
     let (width, height) = (texture.width(), texture.height());
     let x = (u * width as f32 - 0.5).clamp(0.0, (width - 1) as f32);
     let y = ((1.0 - v) * height as f32 - 0.5).clamp(0.0, (height - 1) as f32);
