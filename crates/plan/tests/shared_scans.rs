@@ -5,7 +5,9 @@ use anatomy::register::RigidTransform;
 use glam::{DQuat, DVec3};
 use plan::{MarkedScan, Progress, Scan, Silent, Up, UpSource};
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
+
+mod warnings;
+use warnings::Warnings;
 
 fn shared_scans() -> Option<PathBuf> {
     let dir = PathBuf::from(concat!(
@@ -295,18 +297,6 @@ fn the_simulated_breasts_can_be_cut_again(
 // The standing frame: up is the file's vertical on these upright files, a known turn
 // of the file is undone exactly by giving up, and a scan lying on its back gets an
 // estimate and a warning.
-
-/// Collects warnings.
-#[derive(Default)]
-struct Warnings(Mutex<Vec<String>>);
-
-impl Progress for Warnings {
-    fn stage(&self, _: &str, _: u64) {}
-    fn step(&self) {}
-    fn warn(&self, message: &str) {
-        self.0.lock().unwrap().push(message.to_string());
-    }
-}
 
 /// v02_average turned by `rotation` about the origin, with `up` given or not.
 fn turned_v02(dir: &Path, rotation: DQuat, up: Option<Up>, progress: &dyn Progress) -> MarkedScan {

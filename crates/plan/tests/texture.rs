@@ -5,22 +5,12 @@
 use anatomy::Up;
 use glam::DVec2;
 use phantom::PhantomParams;
+use plan::Scan;
 use plan::views::{ViewContent, standard_views};
-use plan::{Progress, Scan};
 use std::path::{Path, PathBuf};
-use std::sync::Mutex;
 
-/// Collects warnings.
-#[derive(Default)]
-struct Warnings(Mutex<Vec<String>>);
-
-impl Progress for Warnings {
-    fn stage(&self, _: &str, _: u64) {}
-    fn step(&self) {}
-    fn warn(&self, message: &str) {
-        self.0.lock().unwrap().push(message.to_string());
-    }
-}
+mod warnings;
+use warnings::Warnings;
 
 fn folder(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("mp-texture-{name}-{}", std::process::id()));
