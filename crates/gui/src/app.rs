@@ -8,6 +8,7 @@ mod dialogs;
 mod planning;
 mod postoperative;
 mod scripted;
+mod standing_frame;
 mod viewport;
 
 use crate::camera::{Camera, StandardView};
@@ -213,6 +214,7 @@ impl GuiApp {
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| {
                     section(ui, "Landmarks", |ui| self.landmark_panel(ui));
+                    section(ui, "Standing frame", |ui| self.up_panel(ui));
                     section(ui, "Breast model", |ui| self.model_panel(ui));
                     section(ui, "Post-operative scan", |ui| self.postoperative_panel(ui));
                 });

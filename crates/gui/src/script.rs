@@ -21,6 +21,7 @@
 //! display MODE                    pre-operative, simulated, overlay, deviation or
 //!                                 post-operative
 //! view NAME                       front, left-oblique, left, right-oblique, right
+//! up AXIS                         the scan's vertical: +y, -z, ... or automatic
 //! stats                           from now on, once a second on stderr: window frames
 //!                                 per second, view updates per second (window frames
 //!                                 that drew a newer simulated frame) and simulated
@@ -67,6 +68,8 @@ pub enum Action {
     },
     Display(DisplayMode),
     View(StandardView),
+    /// The scan's vertical (`None`: the automatic rule).
+    Up(Option<anatomy::Up>),
     Stats,
     Screenshot(PathBuf),
     SaveCase(PathBuf),
@@ -242,6 +245,15 @@ fn parse_action(code: &str) -> Result<Action> {
                     "unknown view `{other}`: front, left-oblique, left, right-oblique or right"
                 ),
             })
+        }
+        "up" => {
+            count(2)?;
+            match words[1] {
+                "automatic" => Action::Up(None),
+                axis => Action::Up(Some(
+                    anatomy::Up::parse(axis).map_err(|e| anyhow::anyhow!("{e}"))?,
+                )),
+            }
         }
         "stats" => Action::Stats,
         "screenshot" => Action::Screenshot(path()?),

@@ -254,6 +254,10 @@ impl GuiApp {
                 self.set_view(*view);
                 Step::Done
             }
+            Action::Up(up) => {
+                self.set_up(*up);
+                Step::Done
+            }
             Action::Stats => {
                 run.stats = Some(RateLog::new(
                     self.live.as_ref().map_or(0, |l| l.frames_received),
