@@ -1,0 +1,421 @@
+//! Preparing a session: the levels' tissue models, the cylinder, the fill-ins' and
+//! pockets' beds with their default anchors, the template candidates, the held wall and
+//! band, and the maps of the scan onto the finest level.
+
+use super::*;
+
+/// A bed's pocket: its bed and its limits, per side where a pocket can carry an implant.
+type PocketBeds = [Option<(ImplantBed, PocketBounds)>; 2];
+
+/// The vertices held at every stage and the finest level's boundary classes.
+struct HeldVertices {
+    wall: Vec<u32>,
+    on_wall: Vec<bool>,
+    on_band: Vec<bool>,
+    on_skin: Vec<bool>,
+    coarse_walls: Vec<Vec<u32>>,
+}
+
+/// The scan and the points carried on it, located in the finest level.
+struct ScanMaps {
+    scan_rest: Vec<DVec3>,
+    scan_map: PointMap,
+    scan_smoother: SurfaceSmoother,
+    landmark_feet: ScanFeet,
+    control_points: [Vec<DVec3>; 2],
+    control_point_feet: [ScanFeet; 2],
+}
+
+impl Simulation {
+    /// Prepares a session: the tissue model of every level, the implant beds at the
+    /// default shift with their default anchors, the template index, the held wall and
+    /// band vertices, and the maps of the scan and landmarks onto the finest level.
+    ///
+    /// Errors: bad options, a hierarchy without levels or with inverted elements, a
+    /// fill-in that cannot carry an implant.
+    pub fn new(
+        input: PatientInput,
+        options: SimulationOptions,
+    ) -> Result<Simulation, SimulationError> {
+        options.check()?;
+        let frame = *input.frame;
+        let (finest, spacing_mm, mut levels) = tissue_levels(&input, &options)?;
+        let closed = input.closed_surface;
+        // one cylinder about the body's axis through both fill-ins
+        let fill_points: Vec<DVec3> = Side::BOTH
+            .iter()
+            .flat_map(|&s| input.breasts.breast(s).fill.mesh.positions.iter().copied())
+            .collect();
+        let cylinder = ChestCylinder::fit(&fill_points, &frame.sternal());
+        let (sides, beds, pocket_beds) = sides_and_beds(&input, &options, &cylinder)?;
+        let bed_choices = bed_choices(&finest, closed, &options, &beds, &pocket_beds);
+        let finest_wall_and_band =
+            wall_vertices(&finest, closed, spacing_mm * WALL_TOLERANCE_FACTOR)?;
+        if let Some(skin) = options.skin {
+            let mut not_skin = vec![false; finest.positions.len()];
+            for &(v, _) in &finest_wall_and_band {
+                not_skin[v as usize] = true;
+            }
+            let materials = skin.materials(&finest, options.tissue, &not_skin);
+            for (e, material) in materials.into_iter().enumerate() {
+                if material != options.tissue {
+                    levels[0].set_material(e, material)?;
+                }
+            }
+        }
+        let HeldVertices {
+            wall,
+            on_wall,
+            on_band,
+            on_skin,
+            coarse_walls,
+        } = held_vertices(&input, &finest, &beds, levels.len(), &finest_wall_and_band)?;
+        let ScanMaps {
+            scan_rest,
+            scan_map,
+            scan_smoother,
+            landmark_feet,
+            control_points,
+            control_point_feet,
+        } = scan_maps(&input, &finest, spacing_mm, &options)?;
+        let n = finest.positions.len();
+        let (neighbour_ptr, neighbours) = vertex_neighbours(&finest);
+        Ok(Simulation {
+            pocket_bounds: bed_choices.each_ref().map(|choices| choices[0].bounds),
+            feet: bed_choices
+                .each_ref()
+                .map(|choices| choices[0].feet.clone()),
+            beds: bed_choices.each_ref().map(|choices| choices[0].bed.clone()),
+            bed_choices,
+            coarse_walls,
+            coarse_operator: options.multigrid.coarse_operator,
+            coarse_fallbacks: 0,
+            neighbour_ptr,
+            neighbours,
+            frame,
+            levels,
+            spacing_mm,
+            rear_wall_offset_mm: closed.rear_wall_offset_mm,
+            cylinder,
+            sides,
+            wall,
+            on_wall,
+            on_band,
+            on_skin,
+            implants: [None, None],
+            stage: Stage::Implant,
+            multigrid: None,
+            multigrid_builds: 0,
+            dirty: true,
+            u: vec![DVec3::ZERO; n],
+            f_ext: Vec::new(),
+            u_before_gravity: None,
+            gravity: None,
+            last_relative_residual: 0.0,
+            stage_cycles: 0,
+            fresh: true,
+            stage_one_search: false,
+            warmup_left: 0,
+            last_energy: None,
+            last_step: 1.0,
+            scan_rest,
+            scan_map,
+            scan_smoother,
+            scan_carry: None,
+            landmarks: input.landmarks.clone(),
+            landmark_feet,
+            control_points,
+            control_point_feet,
+            base: input.breasts.base.mesh.clone(),
+            mesh_maps: None,
+            finest,
+            options,
+        })
+    }
+}
+
+/// The finest level (mesh and spacing) and the tissue model of every level used.
+fn tissue_levels(
+    input: &PatientInput,
+    options: &SimulationOptions,
+) -> Result<(TetMesh, f64, Vec<FemModel>), SimulationError> {
+    let Some(level0) = input.tets.levels.first() else {
+        return Err(SimulationError::BadModel(
+            "the hierarchy has no level".into(),
+        ));
+    };
+    let finest = level0.mesh.clone();
+    let spacing_mm = level0.spacing_mm;
+    let level_count = options.max_levels.unwrap_or(usize::MAX).max(1);
+    let mut levels = input
+        .tets
+        .levels
+        .iter()
+        .take(level_count)
+        .map(|l| FemModel::homogeneous(&l.mesh, options.tissue))
+        .collect::<Result<Vec<_>, _>>()?;
+    levels[0].set_inversion_barrier(options.inversion_barrier)?;
+    levels[0].set_compression_penalty(options.compression_penalty)?;
+    Ok((finest, spacing_mm, levels))
+}
+
+/// Each side's data with its default anchor, its fill-in's bed (over the chest's
+/// cylinder, or its own where the fill-in folds over seen from that axis) and its
+/// pocket's bed where the pocket can carry an implant.
+fn sides_and_beds(
+    input: &PatientInput,
+    options: &SimulationOptions,
+    cylinder: &ChestCylinder,
+) -> Result<([SideData; 2], [ImplantBed; 2], PocketBeds), SimulationError> {
+    let frame = *input.frame;
+    let closed = input.closed_surface;
+    let sides = Side::BOTH.map(|side| {
+        let b = input.breasts.breast(side);
+        let (volume_before_ml, centre_before_mm) = closed_volume(&b.patch.mesh, &b.fill.mesh);
+        SideData {
+            fill: b.fill.mesh.clone(),
+            boundary_count: b.fill.boundary_to_base.len(),
+            base_loop: b.fill.boundary_to_base.clone(),
+            patch: b.patch.mesh.clone(),
+            volume_before_ml,
+            centre_before_mm,
+            default_uv: DVec2::ZERO,
+        }
+    });
+    // the chest-wide cylinder, or where the fill-in folds over seen from its axis
+    // (a steep lateral fill-in), one fitted to that fill-in alone
+    let bed_over = |side: Side, surface: &TriMesh, boundary_count: usize| {
+        let data = &sides[side as usize];
+        ImplantBed::new(side, surface, boundary_count, cylinder, options.shift_mm).or_else(
+            |error| {
+                let own = ChestCylinder::fit(&data.fill.positions, &frame.sternal());
+                ImplantBed::new(side, surface, boundary_count, &own, options.shift_mm)
+                    .map_err(|_| error)
+            },
+        )
+    };
+    let pockets = Side::BOTH.map(|side| {
+        let limits = options.pocket?[side as usize];
+        // as deep as any implant's planned fold; each implant's own bounds are
+        // checked when it is placed
+        let deepest = limits.fold_lowering.deepest_mm();
+        let bounds = PocketBounds::new(side, &frame, input.landmarks, &limits, deepest);
+        let surface = pocket_surface(
+            &input.breasts.base.mesh,
+            &input.breasts.breast(side).fill,
+            &frame,
+            &bounds,
+            Some(&closed.clip_box),
+            limits.margin_mm,
+        )?;
+        Some((bounds, surface))
+    });
+    // the fill-in's bed, and the pocket's where it can carry an implant (a graph
+    // over the same cylinder once its folding chest triangles are dropped)
+    let fill_bed_of = |side: Side| {
+        let data = &sides[side as usize];
+        bed_over(side, &data.fill, data.boundary_count)
+    };
+    let beds = [fill_bed_of(Side::Left)?, fill_bed_of(Side::Right)?];
+    let pocket_beds = Side::BOTH.map(|side| {
+        let (bounds, pocket) = pockets[side as usize].as_ref()?;
+        let fill_bed = &beds[side as usize];
+        let pocket = pocket
+            .clone()
+            .without_folds(&fill_bed.cylinder, options.shift_mm)?;
+        let bed = ImplantBed::new(
+            side,
+            &pocket.mesh,
+            pocket.boundary_count,
+            &fill_bed.cylinder,
+            options.shift_mm,
+        )
+        .ok()?;
+        Some((bed, *bounds))
+    });
+    let mut sides = sides;
+    for side in Side::BOTH {
+        let bed = &beds[side as usize];
+        let uv = match options.anchor_rule {
+            AnchorRule::FootprintCentre => bed.centroid_uv(),
+            // on-fold walks down from behind the nipple for each implant
+            AnchorRule::BehindNipple | AnchorRule::OnFold => {
+                let nipple = input.landmarks.get(nipple_of(side));
+                let c = bed.cylinder.to_cylindrical(nipple);
+                DVec2::new(c.x, c.y)
+            }
+        };
+        if bed.at(uv).is_none() {
+            return Err(SimulationError::BadFillIn {
+                side,
+                reason: format!(
+                    "the default anchor ({}) does not lie on it",
+                    options.anchor_rule
+                ),
+            });
+        }
+        sides[side as usize].default_uv = uv;
+    }
+    Ok((sides, beds, pocket_beds))
+}
+
+/// Each side's beds to try with their template candidates: the fill-in's, then the
+/// pocket's where there is one.
+fn bed_choices(
+    finest: &TetMesh,
+    closed: &ClosedSurface,
+    options: &SimulationOptions,
+    beds: &[ImplantBed; 2],
+    pocket_beds: &PocketBeds,
+) -> [Vec<BedChoice>; 2] {
+    let max_edge = finest
+        .tets
+        .iter()
+        .flat_map(|t| {
+            [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)].map(|(a, b)| {
+                finest.positions[t[a] as usize].distance(finest.positions[t[b] as usize])
+            })
+        })
+        .fold(0.0, f64::max);
+    let (back_mm, front_mm) = (
+        closed.rear_wall_offset_mm + 2.0 * max_edge,
+        MAX_FORWARD_SHIFT_MM + options.shift_mm.max(0.0) + 2.0 * max_edge,
+    );
+    // candidates over the fill-in's bed (the paper's), and over each pocket
+    let [fill_left, fill_right] =
+        TemplateIndex::new(finest, [&beds[0], &beds[1]], back_mm, front_mm).sides;
+
+    let pocket_candidates = pocket_beds.each_ref().map(|pocket| {
+        let (bed, _) = pocket.as_ref()?;
+        let [left, right] = TemplateIndex::new(finest, [bed, bed], back_mm, front_mm).sides;
+        Some(match bed.side {
+            Side::Left => left,
+            Side::Right => right,
+        })
+    });
+    let [pocket_left, pocket_right] = pocket_candidates;
+    let sides_candidates = [
+        (Side::Left, fill_left, pocket_left),
+        (Side::Right, fill_right, pocket_right),
+    ];
+    sides_candidates.map(|(side, candidates, pocket_candidates)| {
+        let s = side as usize;
+        let fill = BedChoice {
+            feet: candidates.feet(&beds[s]),
+            candidates,
+            bed: beds[s].clone(),
+            bounds: None,
+        };
+        let pocket =
+            (pocket_beds[s].as_ref())
+                .zip(pocket_candidates)
+                .map(|((bed, bounds), candidates)| BedChoice {
+                    feet: candidates.feet(bed),
+                    candidates,
+                    bed: bed.clone(),
+                    bounds: Some(*bounds),
+                });
+        match pocket {
+            Some(pocket) => vec![fill, pocket],
+            None => vec![fill],
+        }
+    })
+}
+
+/// The wall and band vertices held at every stage (the band except where a clip plane
+/// cuts breast tissue in front of an implant bed), on every level used, and the finest
+/// level's wall, band and skin vertices.
+fn held_vertices(
+    input: &PatientInput,
+    finest: &TetMesh,
+    beds: &[ImplantBed; 2],
+    level_count: usize,
+    finest_wall_and_band: &[(u32, bool)],
+) -> Result<HeldVertices, SimulationError> {
+    let closed = input.closed_surface;
+    // the band is held except where a clip plane cuts through breast tissue in front
+    // of an implant bed
+    let held = |mesh: &TetMesh, wall_and_band: &[(u32, bool)]| -> Vec<u32> {
+        wall_and_band
+            .iter()
+            .filter(|&&(v, band)| {
+                !band
+                    || !beds.iter().any(|bed| {
+                        let c = bed.cylinder.to_cylindrical(mesh.positions[v as usize]);
+                        bed.at(DVec2::new(c.x, c.y)).is_some_and(|b| c.z > b.w)
+                    })
+            })
+            .map(|&(v, _)| v)
+            .collect()
+    };
+    let wall = held(finest, finest_wall_and_band);
+    let mut on_band = vec![false; finest.positions.len()];
+    let mut on_skin = vec![false; finest.positions.len()];
+    for &v in &finest.boundary().tet_vertex {
+        on_skin[v as usize] = true;
+    }
+    for &(v, band) in finest_wall_and_band {
+        on_band[v as usize] = band;
+        on_skin[v as usize] = false;
+    }
+    let mut on_wall = vec![false; finest.positions.len()];
+    for &v in &wall {
+        on_wall[v as usize] = true;
+    }
+    let coarse_walls = input.tets.levels[1..level_count]
+        .iter()
+        .map(|l| {
+            let wall_and_band =
+                wall_vertices(&l.mesh, closed, l.spacing_mm * WALL_TOLERANCE_FACTOR)?;
+            Ok(held(&l.mesh, &wall_and_band))
+        })
+        .collect::<Result<Vec<_>, SimulationError>>()?;
+    Ok(HeldVertices {
+        wall,
+        on_wall,
+        on_band,
+        on_skin,
+        coarse_walls,
+    })
+}
+
+/// The scan's vertices, landmarks and cut-curve points located in the finest level.
+fn scan_maps(
+    input: &PatientInput,
+    finest: &TetMesh,
+    spacing_mm: f64,
+    options: &SimulationOptions,
+) -> Result<ScanMaps, SimulationError> {
+    let locator = FieldLocator::new(finest, spacing_mm)
+        .ok_or_else(|| SimulationError::BadModel("the finest level has no tetrahedra".into()))?;
+    let scan_rest = input.scan.positions.clone();
+    let scan_map = PointMap::new(&locator, &scan_rest, options.falloff_mm);
+    let scan_smoother = SurfaceSmoother::with_support(
+        input.scan,
+        options.scan_smoothing_mm.unwrap_or(0.5 * spacing_mm),
+        &scan_map.support(),
+    );
+    let scan_index = mesh::SurfaceIndex::new(input.scan)
+        .ok_or_else(|| SimulationError::BadModel("the scan has no triangles".into()))?;
+    let landmark_feet = ScanFeet::locate(
+        input.scan,
+        &scan_index,
+        input.landmarks.iter().map(|(_, p)| p),
+    );
+    let control_points = Side::BOTH.map(|side| {
+        let curve = &input.breasts.breast(side).curve;
+        let positions: Vec<DVec3> = curve.points.iter().map(|p| p.position).collect();
+        points_along_loop(&positions, CARRIED_CONTROL_POINT_SPACING_MM)
+    });
+    let control_point_feet = control_points
+        .each_ref()
+        .map(|points| ScanFeet::locate(input.scan, &scan_index, points.iter().copied()));
+    Ok(ScanMaps {
+        scan_rest,
+        scan_map,
+        scan_smoother,
+        landmark_feet,
+        control_points,
+        control_point_feet,
+    })
+}

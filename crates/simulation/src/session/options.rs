@@ -1,0 +1,285 @@
+//! The session's settings and their defaults, and the check of their ranges.
+
+use super::*;
+
+/// A finest vertex belongs to the posterior wall or band when its closest point on the
+/// closed surface lies on such a triangle within this many finest spacings.
+pub const WALL_TOLERANCE_FACTOR: f64 = 0.25;
+
+/// Default Young's modulus of implant elements as a fraction of the tissue's: "very soft"
+/// (paper V-A). Only stage 2 sees it (in stage 1 every implant element has all its corners
+/// prescribed).
+pub const DEFAULT_IMPLANT_YOUNG_RATIO: f64 = 0.01;
+
+/// Default inversion barrier of the finest level: elements squeezed below half their
+/// volume resist with a modulus of 100 kPa (about forty times the tissue's Young's
+/// modulus), the soft implant elements too, and stiffer elements (the skin's) with forty
+/// times their own modulus (docs/dev/skin.md): the least that left no element inverted
+/// on the shared scans (docs/dev/session-choices.md).
+pub const DEFAULT_INVERSION_BARRIER: InversionBarrier = InversionBarrier {
+    min_volume_ratio: 0.5,
+    modulus_kpa: 100.0,
+    young_multiple: 40.0,
+};
+
+/// Default compression penalty of the finest level: beyond 10% volume loss an element
+/// resists with its own first Lamé parameter, `λ V (0.9 - J)²`, so small strains stay
+/// linear-elastic and tissue squeezed over an implant keeps its volume
+/// (docs/dev/volume-loss.md).
+pub const DEFAULT_COMPRESSION_PENALTY: CompressionPenalty = CompressionPenalty {
+    onset_volume_ratio: 0.9,
+    lambda_multiple: 1.0,
+};
+
+/// Default radius of the implant rim's mollifier in finest lattice spacings. Linear
+/// tetrahedra cannot follow a rim that rises by 10 mm within 3 mm (the square-root edge
+/// of eqs. 3 and 10); two spacings (12-14 mm) inverted the fewest elements over the rim
+/// and is about a real round implant's rounded edge (docs/dev/session-choices.md).
+pub const RIM_SMOOTHING_SPACINGS: f64 = 2.0;
+
+/// Default thickness of the tissue layer that moves with the implant in finest lattice
+/// spacings. The paper's template displaces only the front vertices of the elements
+/// crossing the bed, a ragged set: free vertices at the same height between displaced
+/// ones lagged and folded their elements over (docs/dev/session-choices.md).
+pub const TEMPLATE_LAYER_SPACINGS: f64 = 1.0;
+
+/// Largest [`SimulationOptions::scan_smoothing_mm`] (mm): the smoothing is meant for
+/// the element scale, and its cost grows with the radius squared.
+pub const MAX_SCAN_SMOOTHING_MM: f64 = 20.0;
+
+/// Default implant density (kg/m³): silicone gel, 0.97 g/cm³.
+pub const DEFAULT_IMPLANT_DENSITY_KG_M3: f64 = 970.0;
+
+/// Half the width of the vertical section [`Simulation::simulated_fold`] looks on (mm).
+pub const FOLD_SECTION_HALF_WIDTH_MM: f64 = 3.0;
+
+/// How far forward the skin must have moved to count as breast in
+/// [`Simulation::simulated_fold`] (mm): above the scan's noise and the gravity
+/// correction's small shifts of the chest.
+pub const FOLD_MOVED_FORWARD_MM: f64 = 2.0;
+
+/// Default relative residual at which [`Simulation::solve`] stops.
+pub const DEFAULT_RELATIVE_TOLERANCE: f64 = 1e-3;
+
+/// Default cycle limit of [`Simulation::solve`].
+pub const DEFAULT_MAX_CYCLES: usize = 40;
+
+/// Relative residual at which the linear warm-up stops.
+pub const WARMUP_TOLERANCE: f64 = 0.05;
+
+/// Most halvings of a cycle's step by the line search.
+pub const MAX_HALVINGS: usize = 5;
+
+/// Furthest the bed may be moved in front of the fill-in (mm).
+pub const MAX_FORWARD_SHIFT_MM: f64 = 10.0;
+
+/// Least tissue kept between the bed and the posterior wall (mm).
+pub const MIN_WALL_CLEARANCE_MM: f64 = 3.0;
+
+/// Settings of a [`Simulation`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimulationOptions {
+    /// Backward shift of the implant bed behind the fill-in (mm).
+    pub shift_mm: f64,
+    /// Where the default anchor lies.
+    pub anchor_rule: AnchorRule,
+    /// The pocket the implant may lie in ([`crate::pocket`]): the fill-in widened over
+    /// the chest within anatomical limits, per side `[left, right]` (the fold lowering
+    /// may differ). `None`: the paper's bed, the fill-in alone.
+    pub pocket: Option<[PocketLimits; 2]>,
+    /// Move an implant whose footprint overhangs the bed at the requested anchor to the
+    /// nearest anchor where it fits ([`crate::template::fit_footprint`]; the move is
+    /// reported as [`PlacedImplant::fit_shift_mm`]) instead of refusing it.
+    pub fit_footprint: bool,
+    /// Hold the whole bed, not only its part under the implant: every back vertex of a
+    /// fill-in element is fixed (the paper fixes the back vertices inside the footprint
+    /// only). The tissue behind the bed is the pectoral muscle on the ribs; leaving it
+    /// free next to the implant's rim let the rim elements, pushed out by the steep
+    /// edge of the implant on one side and dragged along the free slab on the other,
+    /// invert and the corotated iteration stall (docs/dev/session-choices.md).
+    pub hold_bed: bool,
+    /// Radius of the kernel that mollifies the implant's thickness in the template
+    /// (mm); `None`: [`RIM_SMOOTHING_SPACINGS`] finest lattice spacings. `Some(0.0)`: no
+    /// smoothing.
+    pub rim_smoothing_mm: Option<f64>,
+    /// Thickness of the tissue layer over the footprint that moves with the implant
+    /// (mm), besides the front vertices of the elements crossing the bed (the paper's
+    /// template); `None`: [`TEMPLATE_LAYER_SPACINGS`] finest lattice spacings.
+    pub template_layer_mm: Option<f64>,
+    /// Breast tissue.
+    pub tissue: Material,
+    /// The skin over it ([`crate::skin`]); `None`: tissue up to the surface (the
+    /// paper's homogeneous model).
+    pub skin: Option<SkinLayer>,
+    /// Implant elements' Young's modulus over the tissue's.
+    pub implant_young_ratio: f64,
+    /// Implant elements' Poisson ratio.
+    pub implant_poisson_ratio: f64,
+    /// Implant density (kg/m³) for the gravity correction.
+    pub implant_density_kg_m3: f64,
+    /// Gravity (m/s²), acting along the anatomical frame's `-y`.
+    pub gravity_m_s2: f64,
+    /// The corotated tangent `K` of the gravity stage's linear system (stage 1 uses the
+    /// multigrid's, the paper's warped stiffness). [`Tangent::Full`] adds the positive
+    /// part of the geometric stiffness, the better linearisation where tissue is
+    /// stretched and turned.
+    pub gravity_tangent: Tangent,
+    /// The multigrid's settings. With Galerkin coarse operators (the default) a
+    /// singular coarse operator (see [`Simulation::coarse_fallbacks`]) makes the session
+    /// switch to rediscretised ones, whose coarse levels hold their own wall and band
+    /// vertices.
+    pub multigrid: MultigridOptions,
+    /// In stage 1, once the residual grows from one corotated cycle to the next,
+    /// backtrack each cycle's step on the potential energy (halving up to
+    /// [`MAX_HALVINGS`] times until it does not grow): the multigrid's matrix is the
+    /// warped stiffness `R K Rᵀ` without the geometric term, so the plain fixed-point
+    /// iteration can overshoot into an oscillation (docs/dev/session-choices.md). It
+    /// starts only then: an energy costs a fair part of a cycle, and most placements
+    /// never need it. (The gravity stage is linear and needs none.)
+    pub line_search: bool,
+    /// Linear (small-strain) cycles before the corotated ones when stage 1 starts cold
+    /// (zero displacement): at most this many, stopping once the relative residual is
+    /// below [`WARMUP_TOLERANCE`]. From zero, the first corotated cycles push the implant
+    /// vertices through their neighbours and take many cycles to untangle
+    /// (docs/dev/session-choices.md).
+    pub linear_warmup_cycles: usize,
+    /// The finest level's safeguard against inverted elements (see
+    /// [`fem::InversionBarrier`]; `None`: the paper's plain corotated energy). Default
+    /// [`DEFAULT_INVERSION_BARRIER`].
+    pub inversion_barrier: Option<InversionBarrier>,
+    /// The finest level's resistance to large volume loss (see
+    /// [`fem::CompressionPenalty`]; `None`: the paper's corotated energy). Default
+    /// [`DEFAULT_COMPRESSION_PENALTY`].
+    pub compression_penalty: Option<CompressionPenalty>,
+    /// Use at most this many levels of the hierarchy, finest first (`None`: all).
+    pub max_levels: Option<usize>,
+    /// Cycle limit and relative residual of [`Simulation::solve`].
+    pub max_cycles: usize,
+    pub relative_tolerance: f64,
+    /// Fade length of the displacement beyond the finest mesh (mm), see [`crate::field`].
+    pub falloff_mm: f64,
+    /// Radius over which the displacement is smoothed on the scan (mm, see
+    /// [`SurfaceSmoother`]); `None`: half the finest lattice spacing; `Some(0.0)`: none.
+    pub scan_smoothing_mm: Option<f64>,
+    /// Fill-in parameters for re-measuring the simulated breasts (the cylinder axis
+    /// defaults to the frame's `y`, as when the model was built).
+    pub fill_in: FillInParams,
+}
+
+impl Default for SimulationOptions {
+    fn default() -> Self {
+        SimulationOptions {
+            shift_mm: DEFAULT_SHIFT_MM,
+            anchor_rule: AnchorRule::default(),
+            pocket: Some([PocketLimits::default(); 2]),
+            fit_footprint: true,
+            hold_bed: true,
+            rim_smoothing_mm: None,
+            template_layer_mm: None,
+            tissue: Material::default(),
+            skin: Some(SkinLayer::default()),
+            implant_young_ratio: DEFAULT_IMPLANT_YOUNG_RATIO,
+            implant_poisson_ratio: 0.3,
+            implant_density_kg_m3: DEFAULT_IMPLANT_DENSITY_KG_M3,
+            gravity_m_s2: fem::STANDARD_GRAVITY_M_S2,
+            multigrid: MultigridOptions::default(),
+            inversion_barrier: Some(DEFAULT_INVERSION_BARRIER),
+            compression_penalty: Some(DEFAULT_COMPRESSION_PENALTY),
+            max_levels: None,
+            line_search: true,
+            linear_warmup_cycles: 6,
+            max_cycles: DEFAULT_MAX_CYCLES,
+            relative_tolerance: DEFAULT_RELATIVE_TOLERANCE,
+            falloff_mm: DEFAULT_FALLOFF_MM,
+            scan_smoothing_mm: None,
+            gravity_tangent: Tangent::Full,
+            fill_in: FillInParams::default(),
+        }
+    }
+}
+
+impl SimulationOptions {
+    /// Checks every setting's range; the error names the first bad one.
+    pub(super) fn check(&self) -> Result<(), SimulationError> {
+        check_option("shift_mm", self.shift_mm, true, "a finite number of mm")?;
+        check_option(
+            "implant_young_ratio",
+            self.implant_young_ratio,
+            self.implant_young_ratio > 0.0,
+            "a positive fraction",
+        )?;
+        check_option(
+            "implant_density_kg_m3",
+            self.implant_density_kg_m3,
+            self.implant_density_kg_m3 >= 0.0,
+            "a non-negative density",
+        )?;
+        check_option(
+            "gravity_m_s2",
+            self.gravity_m_s2,
+            true,
+            "a finite acceleration",
+        )?;
+        check_option(
+            "relative_tolerance",
+            self.relative_tolerance,
+            self.relative_tolerance > 0.0,
+            "a positive number",
+        )?;
+        check_option(
+            "falloff_mm",
+            self.falloff_mm,
+            self.falloff_mm > 0.0,
+            "a positive length",
+        )?;
+        for (what, value, max, expected) in [
+            (
+                "rim_smoothing_mm",
+                self.rim_smoothing_mm,
+                f64::INFINITY,
+                "a length of at least 0 mm",
+            ),
+            (
+                "template_layer_mm",
+                self.template_layer_mm,
+                f64::INFINITY,
+                "a length of at least 0 mm",
+            ),
+            (
+                "scan_smoothing_mm",
+                self.scan_smoothing_mm,
+                MAX_SCAN_SMOOTHING_MM,
+                "a length from 0 to 20 mm",
+            ),
+        ] {
+            if let Some(v) = value {
+                check_option(what, v, (0.0..=max).contains(&v), expected)?;
+            }
+        }
+        self.tissue
+            .check()
+            .map_err(|what| SimulationError::BadModel(format!("tissue material: {what}")))?;
+        if let Some(skin) = &self.skin {
+            skin.check(&self.tissue)
+                .map_err(|what| SimulationError::BadModel(format!("skin: {what}")))?;
+        }
+        Ok(())
+    }
+}
+
+fn check_option(
+    what: &'static str,
+    value: f64,
+    ok: bool,
+    expected: &'static str,
+) -> Result<(), SimulationError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(SimulationError::BadOption {
+            what,
+            value,
+            expected,
+        })
+    }
+}

@@ -1,0 +1,513 @@
+//! The cycles: constraints and materials handed to the one multigrid hierarchy, the
+//! corotated implant stage with its line search, the linear gravity correction, and the
+//! solve to a tolerance.
+
+use super::*;
+
+impl Simulation {
+    pub(super) fn constraints_changed(&mut self) {
+        self.stage = Stage::Implant;
+        self.f_ext.clear();
+        self.u_before_gravity = None;
+        self.gravity = None;
+        self.stage_cycles = 0;
+        self.dirty = true;
+        self.fresh = true;
+        self.stage_one_search = false;
+        self.warmup_left = 0;
+    }
+
+    /// The constraints of stage 1 (or of stage 2 without the implant vertices).
+    ///
+    /// Besides the wall and the templates, a free vertex all of whose neighbours are held
+    /// at zero is held at zero too (repeatedly): in stage 1 its equilibrium displacement
+    /// is zero anyway (no load acts on it), and such islands, found between the fixed
+    /// back vertices and the posterior wall, leave coarse multigrid functions that only
+    /// see one free fine vertex, which made the Galerkin coarse operator singular.
+    pub(super) fn constraints(&self, with_implant_vertices: bool) -> Constraints {
+        let n = self.finest.positions.len();
+        let mut zero = vec![false; n];
+        let mut held = vec![false; n];
+        for &v in &self.wall {
+            zero[v as usize] = true;
+        }
+        for implant in self.implants.iter().flatten() {
+            for &v in implant
+                .template
+                .fixed_vertices
+                .iter()
+                .chain(&implant.fold_vertices)
+            {
+                zero[v as usize] = true;
+            }
+        }
+        if with_implant_vertices {
+            for implant in self.implants.iter().flatten() {
+                for &(v, _) in &implant.template.implant_vertices {
+                    held[v as usize] = true;
+                    zero[v as usize] = false;
+                }
+            }
+        }
+        let mut islands = Vec::new();
+        loop {
+            let before = islands.len();
+            for v in 0..n {
+                if zero[v] || held[v] {
+                    continue;
+                }
+                let nb = &self.neighbours[self.neighbour_ptr[v]..self.neighbour_ptr[v + 1]];
+                if !nb.is_empty() && nb.iter().all(|&w| zero[w as usize]) {
+                    zero[v] = true;
+                    islands.push(v as u32);
+                }
+            }
+            if islands.len() == before {
+                break;
+            }
+        }
+        let mut c = Constraints::new();
+        for &v in &self.wall {
+            c.fix(v);
+        }
+        for &v in &islands {
+            c.fix(v);
+        }
+        for implant in self.implants.iter().flatten() {
+            for &v in implant
+                .template
+                .fixed_vertices
+                .iter()
+                .chain(&implant.fold_vertices)
+            {
+                c.fix(v);
+            }
+            for &(v, d) in &implant.template.implant_vertices {
+                if with_implant_vertices {
+                    c.prescribe(v, d);
+                } else if self.on_band[v as usize] {
+                    // where the model is cut through the body, the holding force includes
+                    // the unmodelled tissue's: released, the vertex would hang on the soft
+                    // implant elements alone, so it keeps its stage-1 place
+                    c.fix(v);
+                }
+            }
+        }
+        c
+    }
+
+    /// The finest model with the implant elements' soft material.
+    pub(super) fn finest_model(&self) -> Result<FemModel, SimulationError> {
+        let mut model = self.levels[0].clone();
+        let t = self.options.tissue;
+        let soft = Material {
+            young_kpa: t.young_kpa * self.options.implant_young_ratio,
+            poisson_ratio: self.options.implant_poisson_ratio,
+            density_kg_m3: self.options.implant_density_kg_m3,
+        };
+        for implant in self.implants.iter().flatten() {
+            for &e in &implant.template.implant_elements {
+                model.set_material(e as usize, soft)?;
+            }
+        }
+        Ok(model)
+    }
+
+    /// A multigrid over the hierarchy with the posterior wall as its permanent
+    /// constraints and `finest` set as the changeable ones.
+    pub(super) fn build_multigrid(
+        &self,
+        finest: Constraints,
+        tangent: Tangent,
+    ) -> Result<Multigrid, SimulationError> {
+        let mut levels = Vec::with_capacity(self.levels.len());
+        let mut wall = Constraints::new();
+        for &v in &self.wall {
+            wall.fix(v);
+        }
+        levels.push((self.finest_model()?, wall));
+        let galerkin = self.coarse_operator == CoarseOperator::Galerkin;
+        for (m, wall) in self.levels[1..].iter().zip(&self.coarse_walls) {
+            let mut c = Constraints::new();
+            if !galerkin {
+                for &v in wall {
+                    c.fix(v);
+                }
+            }
+            levels.push((m.clone(), c));
+        }
+        let options = MultigridOptions {
+            coarse_operator: self.coarse_operator,
+            tangent,
+            ..self.options.multigrid
+        };
+        let mut mg = Multigrid::with_permanent_constraints(levels, options)?;
+        mg.set_constraints(&finest)?;
+        Ok(mg)
+    }
+
+    /// Gives a stage's finest model the current implants' soft elements (and the
+    /// tissue back to the elements of earlier implants).
+    pub(super) fn update_implant_materials(
+        &self,
+        stage: &mut StageMultigrid,
+    ) -> Result<(), SimulationError> {
+        let t = self.options.tissue;
+        let soft = Material {
+            young_kpa: t.young_kpa * self.options.implant_young_ratio,
+            poisson_ratio: self.options.implant_poisson_ratio,
+            density_kg_m3: self.options.implant_density_kg_m3,
+        };
+        let current: Vec<u32> = self
+            .implants
+            .iter()
+            .flatten()
+            .flat_map(|i| i.template.implant_elements.iter().copied())
+            .collect();
+        for &e in &stage.soft_elements {
+            let own = self.levels[0].materials()[e as usize];
+            stage.multigrid.set_material(e as usize, own)?;
+        }
+        for &e in &current {
+            stage.multigrid.set_material(e as usize, soft)?;
+        }
+        stage.soft_elements = current;
+        Ok(())
+    }
+
+    /// How many multigrid hierarchies the session has built: one at its first cycle (or
+    /// at the first start of the gravity correction, if that comes first), and again
+    /// after a switch of coarse operator ([`Simulation::coarse_fallbacks`]).
+    pub fn multigrid_builds(&self) -> usize {
+        self.multigrid_builds
+    }
+
+    /// How often a Galerkin coarse operator turned out singular and the session switched
+    /// to rediscretised coarse operators (at most once per session), and the operator in
+    /// use.
+    pub fn coarse_fallbacks(&self) -> (usize, CoarseOperator) {
+        (self.coarse_fallbacks, self.coarse_operator)
+    }
+
+    /// Brings the stage-1 multigrid up to date with the current constraints. Returns
+    /// whether it had to be built.
+    pub(super) fn ensure_multigrid(&mut self) -> Result<bool, SimulationError> {
+        if !self.dirty
+            && self
+                .multigrid
+                .as_ref()
+                .is_some_and(|m| m.stage == Stage::Implant)
+        {
+            return Ok(false);
+        }
+        let built = self.prepare_multigrid(Stage::Implant)?;
+        self.dirty = false;
+        Ok(built)
+    }
+
+    /// Gives the session's hierarchy the constraints, tangent and implant materials of
+    /// `stage`, building it if there is none yet; returns whether it was built. A new
+    /// implant or position changes the constrained set: the kept hierarchy keeps its
+    /// patterns and only swaps the changeable constraints (fem's symmetric elimination
+    /// over a fixed pattern) and the tangent it assembles.
+    pub(super) fn prepare_multigrid(&mut self, stage: Stage) -> Result<bool, SimulationError> {
+        let (constraints, tangent) = match stage {
+            Stage::Implant => (self.constraints(true), self.options.multigrid.tangent),
+            Stage::Gravity => (self.constraints(false), self.options.gravity_tangent),
+        };
+        let (mut kept, built) = match self.multigrid.take() {
+            Some(mut kept) => {
+                kept.multigrid.set_constraints(&constraints)?;
+                kept.multigrid.set_tangent(tangent);
+                kept.stage = stage;
+                (kept, false)
+            }
+            None => {
+                let kept = StageMultigrid {
+                    multigrid: self.build_multigrid(constraints, tangent)?,
+                    soft_elements: Vec::new(),
+                    stage,
+                };
+                self.multigrid_builds += 1;
+                (kept, true)
+            }
+        };
+        self.update_implant_materials(&mut kept)?;
+        self.multigrid = Some(kept);
+        Ok(built)
+    }
+
+    /// The session's multigrid, once built.
+    pub(super) fn stage_multigrid(&self) -> Option<&Multigrid> {
+        self.multigrid.as_ref().map(|stage| &stage.multigrid)
+    }
+
+    /// The load scale of the relative residual: the reaction forces at the held
+    /// vertices (from the latest assembly) plus the external loads (mN).
+    pub(super) fn load_scale(&self) -> f64 {
+        let mg = self.stage_multigrid().expect("assembled");
+        let reaction = mg.system().reaction_norm_squared();
+        let external: f64 = self.f_ext.iter().map(|x| x.length_squared()).sum();
+        (reaction + external).sqrt().max(1e-12)
+    }
+
+    /// One interactive step: rotation update, reassembly and one V(2,1)-cycle of the
+    /// current stage, warm-started from the current displacement (giving stage 1's
+    /// multigrid the new constraints first if they changed, building it at the session's
+    /// first cycle).
+    pub fn cycle(&mut self) -> Result<CycleInfo, SimulationError> {
+        if self.stage == Stage::Implant && self.fresh && self.u.iter().all(|d| *d == DVec3::ZERO) {
+            self.warmup_left = self.options.linear_warmup_cycles;
+        }
+        if self.warmup_left > 0 {
+            self.warmup_left -= 1;
+            let info = self.cycle_with(Formulation::Linear)?;
+            if info.relative_residual < WARMUP_TOLERANCE {
+                self.warmup_left = 0;
+            }
+            // the first corotated cycle starts afresh (no line search, energy unknown)
+            self.fresh = self.warmup_left == 0 || self.fresh;
+            return Ok(info);
+        }
+        self.cycle_with(Formulation::Corotated)
+    }
+
+    /// [`Simulation::cycle`] with a chosen formulation (the linear one as a warm-up).
+    pub fn cycle_with(&mut self, formulation: Formulation) -> Result<CycleInfo, SimulationError> {
+        let u_before = self.u.clone();
+        match self.cycle_once(formulation) {
+            Err(SimulationError::Fem(fem::FemError::Singular { .. }))
+                if self.coarse_operator == CoarseOperator::Galerkin && self.levels.len() > 1 =>
+            {
+                // a singular Galerkin coarse operator: rediscretised levels from now on
+                self.coarse_operator = CoarseOperator::Rediscretised;
+                self.coarse_fallbacks += 1;
+                self.u = u_before;
+                self.rebuild_current_stage()?;
+                self.cycle_once(formulation)
+            }
+            other => other,
+        }
+    }
+
+    /// Rebuilds the multigrid for the current stage after a change of coarse operator.
+    pub(super) fn rebuild_current_stage(&mut self) -> Result<(), SimulationError> {
+        self.multigrid = None;
+        match self.stage {
+            Stage::Implant => self.dirty = true,
+            Stage::Gravity => {
+                self.prepare_multigrid(Stage::Gravity)?;
+                self.gravity = None;
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn cycle_once(
+        &mut self,
+        formulation: Formulation,
+    ) -> Result<CycleInfo, SimulationError> {
+        let start = Instant::now();
+        if self.stage == Stage::Gravity {
+            return self.gravity_cycle(start);
+        }
+        let rebuilt = self.ensure_multigrid()?;
+        let fresh = std::mem::take(&mut self.fresh) || rebuilt;
+        let search = self.options.line_search
+            && self.stage_one_search
+            && !fresh
+            && formulation == Formulation::Corotated;
+        let u_old = search.then(|| self.u.clone());
+        let mg = &mut self.multigrid.as_mut().expect("ensured").multigrid;
+        let report = mg.cycle(&mut self.u, &self.f_ext, formulation)?;
+        if let Some(u_old) = u_old {
+            // backtracking on the potential energy (the corotated forces are conservative)
+            let model = mg.model();
+            let energy = |u: &[DVec3]| model.potential_energy(u, &self.f_ext, formulation);
+            let e0 = match self.last_energy {
+                Some(e) => e,
+                None => energy(&u_old),
+            };
+            let step: Vec<DVec3> = self.u.iter().zip(&u_old).map(|(a, b)| *a - *b).collect();
+            let mut alpha = 1.0;
+            let mut e = energy(&self.u);
+            let mut halvings = 0;
+            while (e > e0 || e.is_nan()) && halvings < MAX_HALVINGS {
+                alpha *= 0.5;
+                halvings += 1;
+                for ((u, o), d) in self.u.iter_mut().zip(&u_old).zip(&step) {
+                    *u = *o + *d * alpha;
+                }
+                e = energy(&self.u);
+            }
+            self.last_energy = Some(e);
+            self.last_step = alpha;
+        } else {
+            self.last_energy = None;
+            self.last_step = 1.0;
+        }
+
+        let relative = report.residual_before / self.load_scale();
+        if self.stage == Stage::Implant
+            && !fresh
+            && formulation == Formulation::Corotated
+            && relative > self.last_relative_residual
+        {
+            self.stage_one_search = true;
+        }
+        self.last_relative_residual = relative;
+        self.stage_cycles += 1;
+        Ok(CycleInfo {
+            stage: self.stage,
+            residual_mn: report.residual_before,
+            relative_residual: relative,
+            rebuilt,
+            step: self.last_step,
+            linear: formulation == Formulation::Linear,
+            time_ms: elapsed_ms(start),
+        })
+    }
+
+    /// One cycle of stage 2: one iteration of conjugate gradients preconditioned by a
+    /// symmetric V-cycle on the tangent system of the stage-1 state (assembled at the stage's first
+    /// cycle); the displacement is stage 1's plus the correction so far.
+    pub(super) fn gravity_cycle(&mut self, start: Instant) -> Result<CycleInfo, SimulationError> {
+        let u1 = self
+            .u_before_gravity
+            .as_deref()
+            .expect("stage 2 starts from stage 1's displacement");
+        let mg = &mut self
+            .multigrid
+            .as_mut()
+            .expect("prepared when the stage started")
+            .multigrid;
+        if self.gravity.is_none() {
+            mg.assemble(u1, &self.f_ext, Formulation::Corotated)?;
+            let rhs = mg.system().rhs.clone();
+            let rhs_norm = rhs.iter().map(|d| d.length_squared()).sum::<f64>().sqrt();
+            let zero = vec![DVec3::ZERO; rhs.len()];
+            self.gravity = Some((PcgIteration::new(mg, &rhs, zero), rhs_norm));
+        }
+        let (cg, rhs_norm) = self.gravity.as_mut().expect("assembled above");
+        let rhs_norm = *rhs_norm;
+        let residual = cg.residual_norm();
+        cg.step(mg);
+        self.u.copy_from_slice(u1);
+        let sys = mg.system();
+        for ((&v, d), &held) in sys.free.iter().zip(cg.solution()).zip(sys.eliminated()) {
+            if !held {
+                self.u[v as usize] += *d;
+            }
+        }
+        self.last_energy = None;
+        self.last_step = 1.0;
+        self.fresh = false;
+        // relative to the stage's own load: against stage 1's reaction forces (the
+        // wall's, the fold's) the added weight's residual started below the tolerance
+        // and the correction stopped after one conjugate gradient step
+        let relative = residual / rhs_norm.max(f64::MIN_POSITIVE);
+        self.last_relative_residual = relative;
+        self.stage_cycles += 1;
+        Ok(CycleInfo {
+            stage: self.stage,
+            residual_mn: residual,
+            relative_residual: relative,
+            rebuilt: false,
+            step: 1.0,
+            linear: false,
+            time_ms: elapsed_ms(start),
+        })
+    }
+
+    /// Cycles the current stage until the relative residual before a cycle is below
+    /// `relative_tolerance` (that cycle is still run) or `max_cycles` were run.
+    pub fn solve(
+        &mut self,
+        max_cycles: usize,
+        relative_tolerance: f64,
+    ) -> Result<SolveReport, SimulationError> {
+        let start = Instant::now();
+        let mut cycles = 0;
+        let mut relative = f64::INFINITY;
+        while cycles < max_cycles {
+            let info = self.cycle()?;
+            cycles += 1;
+            relative = info.relative_residual;
+            if relative < relative_tolerance && !info.linear {
+                break;
+            }
+        }
+        Ok(SolveReport {
+            stage: self.stage,
+            cycles,
+            relative_residual: relative,
+            converged: relative < relative_tolerance,
+            time_ms: elapsed_ms(start),
+        })
+    }
+
+    /// Switches to stage 2 (paper V-B) from the current (stage-1) displacement: the
+    /// implant vertices' holding forces and the added implant weight become loads, the
+    /// implant vertices are released. Does nothing without implants or when already
+    /// there. The session's multigrid only swaps its constraints and tangent (see the
+    /// module documentation). Run
+    /// [`Simulation::cycle`] or [`Simulation::solve`] afterwards.
+    pub fn start_gravity_correction(&mut self) -> Result<(), SimulationError> {
+        if self.stage == Stage::Gravity || self.implants.iter().all(Option::is_none) {
+            return Ok(());
+        }
+        self.ensure_multigrid()?;
+        let model = self.multigrid.as_ref().expect("ensured").multigrid.model();
+        let f_int = model.internal_forces(&self.u, Formulation::Corotated)?;
+        let mut f_ext = vec![DVec3::ZERO; self.u.len()];
+        let g = -self.frame.up()
+            * (self.options.gravity_m_s2
+                * self.options.implant_density_kg_m3
+                * fem::model::KG_M3_TIMES_M_S2_TO_MN_MM3);
+        let wall: std::collections::HashSet<u32> = self.wall.iter().copied().collect();
+        for implant in self.implants.iter().flatten() {
+            for &(v, _) in &implant.template.implant_vertices {
+                if !wall.contains(&v) {
+                    f_ext[v as usize] = f_int[v as usize];
+                }
+            }
+        }
+        for implant in self.implants.iter().flatten() {
+            for &e in &implant.template.implant_elements {
+                let t = self.finest.tets[e as usize];
+                let p = t.map(|v| self.finest.positions[v as usize]);
+                let q = [0, 1, 2, 3].map(|k| p[k] + self.u[t[k] as usize]);
+                let added = tetra::quality::signed_volume(q) - tetra::quality::signed_volume(p);
+                for &v in &t {
+                    f_ext[v as usize] += g * (added * 0.25);
+                }
+            }
+        }
+        self.prepare_multigrid(Stage::Gravity)?;
+        self.u_before_gravity = Some(self.u.clone());
+        self.gravity = None;
+        self.f_ext = f_ext;
+        self.stage = Stage::Gravity;
+        self.stage_cycles = 0;
+        self.fresh = true;
+        Ok(())
+    }
+
+    /// Solves stage 1 to convergence and, unless `no_gravity`, the gravity correction,
+    /// with the options' cycle limit and tolerance.
+    pub fn run(&mut self, no_gravity: bool) -> Result<RunReport, SimulationError> {
+        if self.stage == Stage::Gravity {
+            // start from the Dirichlet problem again
+            self.constraints_changed();
+        }
+        let (max, tol) = (self.options.max_cycles, self.options.relative_tolerance);
+        let implant = self.solve(max, tol)?;
+        let gravity = if no_gravity || self.implants.iter().all(Option::is_none) {
+            None
+        } else {
+            self.start_gravity_correction()?;
+            Some(self.solve(max, tol)?)
+        };
+        Ok(RunReport { implant, gravity })
+    }
+}
