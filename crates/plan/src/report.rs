@@ -41,6 +41,12 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
+mod pictures;
+mod record;
+use pictures::reconstruction_note;
+pub use pictures::report_views;
+use record::{ImplantRecord, SimulationRecord, read_simulation_record};
+
 /// What a report is made from.
 #[derive(Debug, Clone)]
 pub struct ReportInputs {
@@ -138,148 +144,6 @@ pub struct ReportScans {
     pub preoperative: ShownScan,
     pub simulated: ShownScan,
     pub postoperative: Option<ShownScan>,
-}
-
-/// The rendered views of the report: the pre-operative, the simulated and (when given)
-/// the post-operative scan from the front, the obliques and the sides, with landmarks
-/// (labelled) and cut curves, then the simulated scan coloured by its distance from the
-/// pre-operative surface (where the implants changed the shape), front and obliques.
-pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
-    let mut views = Vec::new();
-    let mut shown = vec![
-        ("Pre-operative", &scans.preoperative),
-        ("Simulated", &scans.simulated),
-    ];
-    if let Some(postoperative) = &scans.postoperative {
-        shown.push(("Post-operative", postoperative));
-    }
-    for (title, scan) in shown {
-        let curves = scan.breasts.as_ref().map(cut_curves).unwrap_or_default();
-        let reconstructed = scan
-            .breasts
-            .as_ref()
-            .map(reconstructed_skin)
-            .unwrap_or_default();
-        let content = ViewContent {
-            curves: &curves,
-            reconstructed: &reconstructed,
-            texture: scan.marked.scan.texture.as_ref().map(|t| &t.image),
-            ..Default::default()
-        };
-        for view in standard_views(
-            &scan.marked.scan.mesh,
-            &scan.marked.landmarks,
-            scan.marked.up(),
-            &content,
-        )? {
-            views.push(report_view(format!("{title}, {}", view.name), view, None)?);
-        }
-    }
-    let pre = &scans.preoperative.marked.scan;
-    let reference = DistanceSurface::new(&pre.mesh, &pre.index, &pre.topology);
-    let colours: Vec<[u8; 3]> = reference
-        .deviations(
-            &scans.simulated.marked.scan.mesh.positions,
-            DEFAULT_MAX_DISTANCE_MM,
-        )
-        .iter()
-        .map(|d| deviation_color(d.map_or(f64::NAN, |d| d.distance_mm)))
-        .collect();
-    let content = ViewContent {
-        colours: Some(&colours),
-        ..Default::default()
-    };
-    let simulated = &scans.simulated.marked;
-    for view in standard_views(
-        &simulated.scan.mesh,
-        &simulated.landmarks,
-        simulated.up(),
-        &content,
-    )? {
-        if matches!(
-            view.view,
-            StandardView::Front | StandardView::LeftOblique | StandardView::RightOblique
-        ) {
-            let title = format!("Change from the pre-operative surface, {}", view.name);
-            views.push(report_view(
-                title,
-                view,
-                Some(deviation_scale(
-                    "Distance from the pre-operative surface (mm)",
-                )),
-            )?);
-        }
-    }
-    Ok(views)
-}
-
-/// The cut curves of both breasts as points on the surface (mm).
-/// What the views' grey-blue patches are, where the pre-operative breasts have any.
-fn reconstruction_note(scans: &ReportScans) -> Option<String> {
-    let breasts = scans.preoperative.breasts.as_ref()?;
-    let shares = Side::BOTH.map(|side| breasts.breast(side).reconstructed.area_share);
-    (shares.iter().any(|&share| share > 0.0)).then(|| {
-        format!(
-            "Skin drawn in grey-blue was not seen by the scanner and is reconstructed by the \
-             model ({:.0}% of the left breast's skin, {:.0}% of the right's): its shape is \
-             an estimate, not a measurement.",
-            100.0 * shares[0],
-            100.0 * shares[1]
-        )
-    })
-}
-
-/// Each breast's reconstructed skin, as a mesh of its own.
-fn reconstructed_skin(breasts: &BreastModel) -> Vec<mesh::TriMesh> {
-    Side::BOTH
-        .map(|side| {
-            let breast = breasts.breast(side);
-            breast.reconstructed.skin(&breast.patch.mesh)
-        })
-        .into()
-}
-
-fn cut_curves(breasts: &BreastModel) -> Vec<Vec<DVec3>> {
-    [&breasts.left, &breasts.right]
-        .map(|breast| breast.curve.points.iter().map(|p| p.position).collect())
-        .to_vec()
-}
-
-/// A rendered view for the report, its visible landmarks labelled.
-fn report_view(
-    title: String,
-    view: RenderedView,
-    colour_scale: Option<report::ColourScale>,
-) -> Result<report::View> {
-    let mut shown = report::View::new(title, view.png).context("a rendered view")?;
-    shown.labels = view
-        .markers
-        .into_iter()
-        .filter(|m| m.visibility == Visibility::Visible)
-        .map(|m| report::ImageLabel {
-            text: m.label,
-            x_px: m.pixel.x,
-            y_px: m.pixel.y,
-        })
-        .collect();
-    shown.colour_scale = colour_scale;
-    Ok(shown)
-}
-
-/// The legend of [`assess::deviation_color`], sampled at its ramp's corners.
-fn deviation_scale(label: &str) -> report::ColourScale {
-    report::ColourScale {
-        label: label.into(),
-        min: 0.0,
-        max: DEVIATION_COLOR_MAX_MM,
-        saturates_above_max: true,
-        stops: [0.0, 0.5, 1.0]
-            .map(|fraction| report::ColourStop {
-                fraction,
-                rgb: deviation_color(fraction * DEVIATION_COLOR_MAX_MM),
-            })
-            .to_vec(),
-    }
 }
 
 /// The surface deviation of the simulated scan from the post-operative scan (RMS, mean
@@ -446,6 +310,83 @@ pub fn report_content(
     })?;
     let preoperative_distances = measure(&preoperative.marked, &[], progress)?.distances;
     progress.step();
+    let (simulated, carried) =
+        load_simulated(simulation_dir, &preoperative, &model, model_dir, progress)?;
+    progress.step();
+    let (postoperative, postoperative_distances) = match &inputs.postoperative {
+        None => (None, None),
+        Some(files) => {
+            let scan = ShownScan::load_with_breasts(
+                &files.scan,
+                files.units,
+                &files.landmarks,
+                files.up,
+                None,
+                progress,
+            )
+            .context("the post-operative scan")?;
+            progress.step();
+            let distances = measure(&scan.marked, &[], progress)?.distances;
+            progress.step();
+            (Some(scan), Some(distances))
+        }
+    };
+    let scans = ReportScans {
+        preoperative,
+        simulated,
+        postoperative,
+    };
+    let comparison = match &scans.postoperative {
+        Some(postoperative) => compare_with_postoperative(
+            &scans.simulated,
+            carried.as_deref(),
+            postoperative,
+            progress,
+        )?,
+        None => None,
+    };
+    let views = report_views(&scans)?;
+    progress.step();
+
+    let volumes = volume_table(&model, &simulation, &scans);
+    let symmetry = symmetry_rows(&scans, &volumes);
+
+    let case = case_info(inputs, &model, &simulation)?;
+
+    Ok(report::ReportContent {
+        title: "Breast augmentation plan".into(),
+        notes: notes(&simulation, model_dir)
+            .into_iter()
+            .chain(reconstruction_note(&scans))
+            .collect(),
+        case,
+        implants: report::PerSide {
+            left: (simulation.implants.left).map(|i| implant_choice(i, simulation.anchor)),
+            right: (simulation.implants.right).map(|i| implant_choice(i, simulation.anchor)),
+        },
+        views,
+        measurements: measurement_rows(
+            &preoperative_distances,
+            &simulation.distances,
+            postoperative_distances.as_deref(),
+        ),
+        volumes,
+        comparison,
+        symmetry,
+    })
+}
+
+/// The simulated scan of `simulation_dir` (wearing the pre-operative photograph), cut
+/// along the model's curves carried with the tissue where the folder has them (their
+/// file then comes back too: the comparison cuts along them); it must be the model's
+/// scan moved (the same vertex count).
+fn load_simulated(
+    simulation_dir: &Path,
+    preoperative: &ShownScan,
+    model: &crate::model::ModelRecord,
+    model_dir: &Path,
+    progress: &dyn Progress,
+) -> Result<(ShownScan, Option<PathBuf>)> {
     let mut simulated = ShownScan::load(
         &simulation_dir.join("simulated_scan.ply"),
         &simulation_dir.join("simulated_landmarks.json"),
@@ -490,43 +431,17 @@ pub fn report_content(
         model.scan.display(),
         model_dir.display()
     );
-    progress.step();
-    let (postoperative, postoperative_distances) = match &inputs.postoperative {
-        None => (None, None),
-        Some(files) => {
-            let scan = ShownScan::load_with_breasts(
-                &files.scan,
-                files.units,
-                &files.landmarks,
-                files.up,
-                None,
-                progress,
-            )
-            .context("the post-operative scan")?;
-            progress.step();
-            let distances = measure(&scan.marked, &[], progress)?.distances;
-            progress.step();
-            (Some(scan), Some(distances))
-        }
-    };
-    let scans = ReportScans {
-        preoperative,
-        simulated,
-        postoperative,
-    };
-    let comparison = match &scans.postoperative {
-        Some(postoperative) => compare_with_postoperative(
-            &scans.simulated,
-            carried.as_deref(),
-            postoperative,
-            progress,
-        )?,
-        None => None,
-    };
-    let views = report_views(&scans)?;
-    progress.step();
+    Ok((simulated, carried))
+}
 
-    let volumes = report::VolumeTable {
+/// The breast and quadrant volumes before (the model's), as simulated (`result.json`'s)
+/// and after (the post-operative scan's breast model, when given).
+fn volume_table(
+    model: &crate::model::ModelRecord,
+    simulation: &SimulationRecord,
+    scans: &ReportScans,
+) -> report::VolumeTable {
+    report::VolumeTable {
         preoperative: report::PerSide {
             left: breast_volumes(
                 model.breast_volume_ml.left,
@@ -552,7 +467,11 @@ pub fn report_content(
             .as_ref()
             .and_then(|scan| scan.breasts.as_ref())
             .map(model_volumes),
-    };
+    }
+}
+
+/// The symmetry rows of every scan with volumes.
+fn symmetry_rows(scans: &ReportScans, volumes: &report::VolumeTable) -> Vec<report::SymmetryRow> {
     let mut symmetry = vec![symmetry_row(
         "Pre-operative",
         &scans.preoperative.marked,
@@ -568,7 +487,16 @@ pub fn report_content(
     if let (Some(scan), Some(post_volumes)) = (&scans.postoperative, &volumes.postoperative) {
         symmetry.push(symmetry_row("Post-operative", &scan.marked, post_volumes));
     }
+    symmetry
+}
 
+/// The case: its files, the model's parameters and the solver's figures.
+fn case_info(
+    inputs: &ReportInputs,
+    model: &crate::model::ModelRecord,
+    simulation: &SimulationRecord,
+) -> Result<report::CaseInfo> {
+    let simulation_dir = &inputs.simulation_dir;
     let mut files = vec![
         case_file("Pre-operative scan", &model.scan),
         case_file("Pre-operative landmarks", &model.landmarks),
@@ -582,7 +510,7 @@ pub fn report_content(
         .levels
         .first()
         .context("model.json lists no tetrahedral level")?;
-    let case = report::CaseInfo {
+    Ok(report::CaseInfo {
         created: utc_date_time(inputs.created),
         software: format!("mammaplan {}", env!("CARGO_PKG_VERSION")),
         files,
@@ -618,28 +546,6 @@ pub fn report_content(
                 converged: simulation.solver.converged,
             },
         },
-    };
-
-    Ok(report::ReportContent {
-        title: "Breast augmentation plan".into(),
-        notes: notes(&simulation, model_dir)
-            .into_iter()
-            .chain(reconstruction_note(&scans))
-            .collect(),
-        case,
-        implants: report::PerSide {
-            left: (simulation.implants.left).map(|i| implant_choice(i, simulation.anchor)),
-            right: (simulation.implants.right).map(|i| implant_choice(i, simulation.anchor)),
-        },
-        views,
-        measurements: measurement_rows(
-            &preoperative_distances,
-            &simulation.distances,
-            postoperative_distances.as_deref(),
-        ),
-        volumes,
-        comparison,
-        symmetry,
     })
 }
 
@@ -667,158 +573,6 @@ fn pocket_in_words(pocket: &PerSide<crate::simulate::PocketReport>) -> String {
         pocket.right.fold_lowering_mm,
         rule(&pocket.right),
     )
-}
-
-/// What the report reads back from `result.json`.
-#[derive(Debug, Deserialize)]
-struct SimulationRecord {
-    model: PathBuf,
-    implants: PerSide<Option<ImplantRecord>>,
-    breast_volume_ml: PerSide<f64>,
-    /// Absent from folders written before it existed.
-    #[serde(default)]
-    quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,
-    distances: Vec<Distance>,
-    solver: SolverRecord,
-    no_gravity: bool,
-    /// Absent from folders written before it existed: the only rule then.
-    #[serde(default = "footprint_centre")]
-    anchor: AnchorRule,
-    /// Absent from folders written before it existed (no pocket then).
-    #[serde(default)]
-    pocket: Option<PerSide<crate::simulate::PocketReport>>,
-    materials: MaterialsReport,
-}
-
-#[derive(Debug, Deserialize)]
-struct ImplantRecord {
-    spec: String,
-    catalog_id: Option<String>,
-    family: Option<String>,
-    shape: ShapeRecord,
-    width_mm: f64,
-    height_mm: f64,
-    projection_mm: f64,
-    volume_ml: f64,
-    move_mm: [f64; 3],
-    rotation_deg: f64,
-    fit_shift_mm: [f64; 2],
-}
-
-/// The implant shape's kind and variant in `result.json`.
-#[derive(Debug, Deserialize)]
-struct ShapeRecord {
-    shape: String,
-    profile: Option<String>,
-    taper: Option<String>,
-}
-
-#[derive(Debug, Deserialize)]
-struct SolverRecord {
-    vcycles: usize,
-    relative_residual: f64,
-    converged: bool,
-    inverted_elements: usize,
-}
-
-/// Reads `result.json`; its numbers must be ones a simulation can give.
-fn read_simulation_record(simulation_dir: &Path) -> Result<SimulationRecord> {
-    let record: SimulationRecord =
-        read_folder_json(simulation_dir, "result.json", "simulation", "simulate")?;
-    record
-        .check()
-        .finish(&simulation_dir.join("result.json"), "mammaplan simulate")?;
-    Ok(record)
-}
-
-impl SimulationRecord {
-    /// The first number out of the range any simulation gives, by its field.
-    fn check(&self) -> FieldCheck {
-        let mut check = FieldCheck::default();
-        check.breast_volumes(&self.breast_volume_ml, |side| {
-            self.quadrant_volume_ml.get(side).as_ref()
-        });
-        for (k, distance) in self.distances.iter().enumerate() {
-            let lengths = [
-                Some(("euclidean_mm", distance.euclidean_mm)),
-                distance.surface_mm.map(|mm| ("surface_mm", mm)),
-                distance.geodesic_mm.map(|mm| ("geodesic_mm", mm)),
-            ];
-            check.values(
-                &format!("distances[{k}]"),
-                lengths.into_iter().flatten(),
-                &LENGTH_MM,
-                "mm",
-            );
-        }
-        for side in Side::BOTH {
-            let Some(implant) = self.implants.get(side) else {
-                continue;
-            };
-            let field = format!("implants.{side}");
-            check
-                .values(
-                    &field,
-                    [
-                        ("width_mm", implant.width_mm),
-                        ("height_mm", implant.height_mm),
-                        ("projection_mm", implant.projection_mm),
-                    ],
-                    &LENGTH_MM,
-                    "mm",
-                )
-                .values(&field, [("volume_ml", implant.volume_ml)], &VOLUME_ML, "ml")
-                .values(
-                    &field,
-                    [
-                        ("move_mm[0]", implant.move_mm[0]),
-                        ("move_mm[1]", implant.move_mm[1]),
-                        ("move_mm[2]", implant.move_mm[2]),
-                        ("fit_shift_mm[0]", implant.fit_shift_mm[0]),
-                        ("fit_shift_mm[1]", implant.fit_shift_mm[1]),
-                    ],
-                    &SHIFT_MM,
-                    "mm",
-                )
-                .values(
-                    &field,
-                    [("rotation_deg", implant.rotation_deg)],
-                    &(-360.0..=360.0),
-                    "degrees",
-                );
-        }
-        for (name, material) in [
-            ("materials.tissue", &self.materials.tissue),
-            ("materials.implant", &self.materials.implant),
-        ] {
-            check
-                .values(
-                    name,
-                    [("young_kpa", material.young_kpa)],
-                    &(f64::MIN_POSITIVE..=1e9),
-                    "kPa",
-                )
-                .values(
-                    name,
-                    [("poisson_ratio", material.poisson_ratio)],
-                    &(0.0..=0.4999),
-                    "",
-                )
-                .values(
-                    name,
-                    [("density_kg_m3", material.density_kg_m3)],
-                    &(f64::MIN_POSITIVE..=1e5),
-                    "kg/m³",
-                );
-        }
-        check.values(
-            "solver",
-            [("relative_residual", self.solver.relative_residual)],
-            &(0.0..=f64::MAX),
-            "",
-        );
-        check
-    }
 }
 
 fn breast_volumes(breast_ml: f64, quadrants: Option<QuadrantVolumes>) -> report::BreastVolumes {
@@ -1019,48 +773,4 @@ fn civil_date(days_since_epoch: u64) -> (u64, u64, u64) {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use glam::{DMat3, DQuat};
-    use std::time::Duration;
-
-    #[test]
-    fn dates_match_the_calendar() {
-        // Seconds since 1970 of known UTC times (computed with Python's datetime).
-        let at = |seconds| utc_date_time(UNIX_EPOCH + Duration::from_secs(seconds));
-        assert_eq!(at(0), "1970-01-01 00:00 UTC");
-        assert_eq!(at(951_782_400), "2000-02-29 00:00 UTC");
-        assert_eq!(at(951_868_799), "2000-02-29 23:59 UTC");
-        assert_eq!(at(1_767_225_599), "2025-12-31 23:59 UTC");
-        assert_eq!(at(4_107_542_400), "2100-03-01 00:00 UTC");
-        assert_eq!(at(1_795_339_260), "2026-11-22 09:21 UTC");
-    }
-
-    #[test]
-    fn nipple_symmetry_follows_the_frame_not_the_file() {
-        // Landmarks built in the anatomical frame (x left, y up, z forwards, Pj at the
-        // origin), then moved rigidly: the figures come from the local positions.
-        let local = |name| match name {
-            LandmarkName::Pj => DVec3::ZERO,
-            LandmarkName::Px => DVec3::new(0.0, -180.0, 0.0),
-            LandmarkName::Pcl => DVec3::new(80.0, -10.0, -5.0),
-            LandmarkName::Pcr => DVec3::new(-80.0, -10.0, -5.0),
-            LandmarkName::Pnl => DVec3::new(95.0, -180.0, 80.0),
-            LandmarkName::Pnr => DVec3::new(-90.0, -185.0, 78.0),
-            _ => DVec3::new(0.0, -200.0, 50.0),
-        };
-        let turn = DQuat::from_axis_angle(DVec3::new(0.3, 1.0, -0.2).normalize(), 0.7);
-        let rotation = DMat3::from_quat(turn);
-        let shift = DVec3::new(12.0, 900.0, -40.0);
-        let landmarks = Landmarks::new(|name| rotation * local(name) + shift);
-        let up = Up::FILE_VERTICAL.rotated(turn);
-        let frame = AnatomicalFrame::from_landmarks(&landmarks, up).unwrap();
-        let nipples = NippleSymmetry::new(&frame, &landmarks);
-        // Left 5 mm higher, 5 mm further from the midline, 2 mm further forward.
-        let tolerance_mm = 1e-9; // round-off of a rigid motion of ~1 m coordinates
-        assert!((nipples.height_difference_mm - 5.0).abs() < tolerance_mm);
-        assert!((nipples.midline_difference_mm - 5.0).abs() < tolerance_mm);
-        let expected = (5f64 * 5.0 + 5.0 * 5.0 + 2.0 * 2.0).sqrt();
-        assert!((nipples.mirror_distance_mm - expected).abs() < tolerance_mm);
-    }
-}
+mod tests;

@@ -1,0 +1,288 @@
+//! What `result.json` records of a simulation (GUIDE section 5): the implants as
+//! placed, the solver, the materials, the pockets and the fold.
+
+use super::*;
+
+/// The finite-element solve of a simulation.
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverReport {
+    /// V-cycles run (both stages).
+    pub vcycles: usize,
+    /// Relative residual before the last cycle of the last stage.
+    pub relative_residual: f64,
+    pub converged: bool,
+    /// Wall-clock time of the solve (ms).
+    pub time_ms: f64,
+    /// Cycles of the implant stage and of the gravity correction.
+    pub implant_stage_vcycles: usize,
+    pub gravity_stage_vcycles: Option<usize>,
+    /// Deformed finest elements with non-positive volume.
+    pub inverted_elements: usize,
+}
+
+/// One side's implant as placed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ImplantSummary {
+    pub spec: String,
+    /// The catalog entry's id and family, for a `catalog:ID` spec.
+    pub catalog_id: Option<String>,
+    pub family: Option<String>,
+    pub shape: ImplantShape,
+    /// Width (the diameter of a round implant), height and projection (mm).
+    pub width_mm: f64,
+    pub height_mm: f64,
+    pub projection_mm: f64,
+    pub volume_ml: f64,
+    /// The volume the displacement template alone inserts into the finest mesh (ml: the
+    /// implant elements' growth with only the template's displacements applied), the
+    /// implant as the mesh resolves it: 0.92-1.07 times `volume_ml` on the phantom and
+    /// the shared scans with the implants of their tests, 0.89-0.91 for R-MOD-100 on
+    /// `pair1_pre`, nearly as wide as its breasts' base.
+    pub template_volume_ml: f64,
+    /// The implant's volume over the part of its footprint the finest mesh reaches (ml):
+    /// less than `volume_ml` where the footprint lies beyond the model's side, where the
+    /// scan ends; that part is left out of the prediction.
+    pub covered_volume_ml: f64,
+    /// The move asked for (mm, anatomical frame).
+    pub move_mm: [f64; 3],
+    /// The turn asked for about the bed's normal (degrees, counter-clockwise from the
+    /// front).
+    pub rotation_deg: f64,
+    /// The further move of the anchor along the bed that made the footprint fit (mm,
+    /// implant's `x'` to the patient's left and `y'` up; zero when it fitted as asked).
+    pub fit_shift_mm: [f64; 2],
+    /// How far the fold is lowered for this implant (mm below the native fold's lowest
+    /// point; 0 on the fill-in's bed).
+    pub fold_lowering_mm: f64,
+    /// Where the implant's anchor (the centre of its back) ended up on the bed (mm, the
+    /// scan's frame).
+    pub anchor_mm: [f64; 3],
+}
+
+impl ImplantSummary {
+    /// What the prediction leaves out where more than 5% of the implant's volume lies
+    /// beyond the finest mesh ([`ImplantSummary::covered_volume_ml`]).
+    pub fn uncovered(&self) -> Option<String> {
+        let outside_ml = self.volume_ml - self.covered_volume_ml;
+        (outside_ml > UNCOVERED_WARNING_SHARE * self.volume_ml).then(|| {
+            format!(
+                "{outside_ml:.0} of its {:.0} ml lie beyond the model's side, where the scan \
+                 ends: the prediction leaves that part out (a narrower implant, a more medial \
+                 position, or a scan that reaches further round the side would include it)",
+                self.volume_ml
+            )
+        })
+    }
+    /// The summary of an implant placed as `request` asked, `catalog_entry` the entry
+    /// its spec names, if any.
+    pub fn new(
+        request: &ImplantRequest,
+        placed: &PlacedImplant,
+        catalog_entry: Option<&implant::CatalogEntry>,
+    ) -> ImplantSummary {
+        ImplantSummary {
+            spec: request.spec.clone(),
+            catalog_id: catalog_entry.map(|entry| entry.id().to_string()),
+            family: catalog_entry.map(|entry| entry.family().to_string()),
+            shape: placed.shape,
+            width_mm: placed.shape.width_mm(),
+            height_mm: placed.shape.height_mm(),
+            projection_mm: placed.shape.projection_mm(),
+            volume_ml: placed.shape.volume_ml(),
+            template_volume_ml: placed.template.template_volume_ml,
+            covered_volume_ml: placed.template.covered_volume_ml,
+            move_mm: request.move_mm.to_array(),
+            rotation_deg: request.rotation_deg,
+            fit_shift_mm: placed.fit_shift_mm.to_array(),
+            fold_lowering_mm: placed.fold_lowering_mm,
+            anchor_mm: placed.anchor.position.to_array(),
+        }
+    }
+}
+
+/// An isotropic elastic material of the simulation.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct MaterialReport {
+    pub young_kpa: f64,
+    pub poisson_ratio: f64,
+    pub density_kg_m3: f64,
+}
+
+/// The skin layer of the simulation ([`simulation::skin`]).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct SkinReport {
+    pub young_kpa: f64,
+    pub thickness_mm: f64,
+}
+
+/// The resistance to large volume loss ([`fem::CompressionPenalty`]).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct CompressionPenaltyReport {
+    pub onset_volume_ratio: f64,
+    pub lambda_multiple: f64,
+}
+
+/// The materials of the simulation.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct MaterialsReport {
+    pub tissue: MaterialReport,
+    pub implant: MaterialReport,
+    /// The skin over the tissue; `null`: homogeneous tissue up to the surface (older
+    /// results and `--no-skin`).
+    #[serde(default)]
+    pub skin: Option<SkinReport>,
+    /// `null`: the paper's corotated energy (older results and
+    /// `--no-compression-penalty`).
+    #[serde(default)]
+    pub compression_penalty: Option<CompressionPenaltyReport>,
+}
+
+impl MaterialsReport {
+    pub(super) fn new(options: &SimulationOptions) -> MaterialsReport {
+        let tissue = options.tissue;
+        MaterialsReport {
+            tissue: MaterialReport {
+                young_kpa: tissue.young_kpa,
+                poisson_ratio: tissue.poisson_ratio,
+                density_kg_m3: tissue.density_kg_m3,
+            },
+            implant: MaterialReport {
+                young_kpa: tissue.young_kpa * options.implant_young_ratio,
+                poisson_ratio: options.implant_poisson_ratio,
+                density_kg_m3: options.implant_density_kg_m3,
+            },
+            skin: options.skin.map(|skin| SkinReport {
+                young_kpa: skin.young_kpa,
+                thickness_mm: skin.thickness_mm,
+            }),
+            compression_penalty: options.compression_penalty.map(|penalty| {
+                CompressionPenaltyReport {
+                    onset_volume_ratio: penalty.onset_volume_ratio,
+                    lambda_multiple: penalty.lambda_multiple,
+                }
+            }),
+        }
+    }
+}
+
+/// The JSON of `simulate` and `result.json` (GUIDE section 5).
+#[derive(Debug, Clone, Serialize)]
+pub struct SimulateReport {
+    pub model: PathBuf,
+    pub implants: PerSide<Option<ImplantSummary>>,
+    /// Breast volumes after the simulation, measured as on a real scan (ml).
+    pub breast_volume_ml: PerSide<f64>,
+    /// Breast volumes of the model before (ml).
+    pub breast_volume_before_ml: PerSide<f64>,
+    /// Per side: `breast_volume_ml` stands on the pre-operative fill-in joined to the
+    /// moved cut curve (no fill-in could be rebuilt on it), not on a rebuilt one.
+    pub breast_volume_on_preoperative_fill: PerSide<bool>,
+    /// Quadrant volumes of the simulated breasts (ml; `null` where the moved landmarks
+    /// no longer bound quadrants).
+    pub quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,
+    /// The implants' volumes (ml; 0 on a side without implant).
+    pub implant_volume_ml: PerSide<f64>,
+    /// Clinical distances on the simulated scan.
+    pub distances: Vec<crate::Distance>,
+    pub solver: SolverReport,
+    pub no_gravity: bool,
+    /// Where the implants' default positions lay (`footprint-centre`, `behind-nipple`).
+    pub anchor: AnchorRule,
+    /// The pockets' limits (`null`: the paper's bed, the fill-in alone).
+    pub pocket: Option<PerSide<PocketReport>>,
+    /// Nipple to the fold's lowest point (PSMF), straight (mm): before, as planned (before
+    /// plus the fold lowering) and on the simulated scan (the landmark carried with the
+    /// tissue).
+    pub nipple_to_fold_mm: PerSide<NippleToFold>,
+    pub materials: MaterialsReport,
+    pub out_dir: PathBuf,
+    pub files: Vec<String>,
+}
+
+/// A pocket's limits as `result.json` records them (see [`simulation::pocket`]).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+pub struct PocketReport {
+    /// Reach beyond the native breast's cut curve (mm, along the skin).
+    pub margin_mm: f64,
+    /// Distance kept from the sternal midline (mm).
+    pub midline_clearance_mm: f64,
+    /// Reach beyond the lateral end of the fold, towards the anterior axillary line (mm).
+    pub lateral_beyond_fold_mm: f64,
+    /// The planned fold lowering of the implant in the pocket (mm; 0 where it lies on
+    /// the fill-in's bed).
+    pub fold_lowering_mm: f64,
+    /// Where the lowering comes from. Absent from folders written before it existed
+    /// (given then).
+    #[serde(default)]
+    pub fold_lowering_rule: FoldLoweringRule,
+}
+
+/// Where a planned fold lowering comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum FoldLoweringRule {
+    /// The ICE principle for the implant (see [`simulation::pocket::ice_fold_lowering_mm`]).
+    Ice,
+    /// Given by the user (`--lower-fold-left`, `--lower-fold-right`).
+    #[default]
+    Given,
+}
+
+impl PocketReport {
+    /// The record of `limits` with the fold lowering an implant got (mm).
+    pub fn new(limits: &PocketLimits, fold_lowering_mm: f64) -> PocketReport {
+        PocketReport {
+            margin_mm: limits.margin_mm,
+            midline_clearance_mm: limits.midline_clearance_mm,
+            lateral_beyond_fold_mm: limits.lateral_beyond_fold_mm,
+            fold_lowering_mm,
+            fold_lowering_rule: match limits.fold_lowering {
+                FoldLowering::ForImplant => FoldLoweringRule::Ice,
+                FoldLowering::Mm(_) => FoldLoweringRule::Given,
+            },
+        }
+    }
+}
+
+/// Nipple to fold distances of one side (mm, straight).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct NippleToFold {
+    pub before_mm: f64,
+    /// The distance before plus the fold lowering.
+    pub planned_mm: f64,
+    /// From the moved nipple to the simulated fold
+    /// ([`simulation::Simulation::simulated_fold`]; to the carried PSMF landmark where no
+    /// skin moved forward on its section).
+    pub simulated_mm: f64,
+    /// How far the simulated fold lies below the native one (mm, standing frame);
+    /// `null` where no skin moved forward on its section.
+    pub simulated_fold_lowering_mm: Option<f64>,
+}
+
+impl NippleToFold {
+    pub(super) fn new(
+        side: Side,
+        simulation: &simulation::Simulation,
+        before: &Landmarks,
+        after: &Landmarks,
+        lowering_mm: f64,
+    ) -> NippleToFold {
+        use anatomy::LandmarkName::{PSMFl, PSMFr, Pnl, Pnr};
+        let (nipple, fold) = match side {
+            Side::Left => (Pnl, PSMFl),
+            Side::Right => (Pnr, PSMFr),
+        };
+        let before_mm = before.get(nipple).distance(before.get(fold));
+        let simulated_fold = simulation.simulated_fold(side);
+        let frame = simulation.frame();
+        NippleToFold {
+            before_mm,
+            planned_mm: before_mm + lowering_mm,
+            simulated_mm: after
+                .get(nipple)
+                .distance(simulated_fold.unwrap_or_else(|| after.get(fold))),
+            simulated_fold_lowering_mm: simulated_fold
+                .map(|p| frame.to_local(before.get(fold)).y - frame.to_local(p).y),
+        }
+    }
+}
