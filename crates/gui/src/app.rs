@@ -5,6 +5,7 @@
 //! `plan`/`mesh`/`anatomy` functions behind them.
 
 mod dialogs;
+mod implant_panel;
 mod planning;
 mod postoperative;
 mod scripted;

@@ -1,12 +1,12 @@
 //! The planning half of the window: the breast model (settings, "Build model" with its
-//! progress, volumes, cut curves), the implant panel, the simulation's indicator and
+//! progress, volumes, cut curves), the simulation's indicator and
 //! display modes, the measurements and their export, and planning cases.
 
 use super::ControlPointTool;
-use super::{ERROR_COLOR, GuiApp, PLACED_COLOR, Status, WARNING_COLOR};
+use super::{ERROR_COLOR, GuiApp, PLACED_COLOR, Status};
 use crate::carried::{SurfaceAnchor, anchors};
 use crate::document::Document;
-use crate::implant_plan::{Editing, ImplantPlan, MoveDirection, Source};
+use crate::implant_plan::ImplantPlan;
 use crate::live_simulation::{
     ExportPaths, ImplantSet, LiveSimulation, MeasurementState, ReportState, SolverStatus,
 };
@@ -16,10 +16,9 @@ use anatomy::breast::{QuadrantVolumes, Side};
 use eframe::egui::{self, Color32};
 use glam::DVec3;
 use plan::case::PlanningCase;
-use plan::catalog::ShapeKind;
 use plan::model::{DEFAULT_ELEMENTS, PerSide};
 use plan::report::PostoperativeScan;
-use plan::simulate::{Material, Session, SolveState, Stage};
+use plan::simulate::{Material, Session, SimulatedMeasurements, SolveState, Stage};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Duration;
@@ -428,33 +427,7 @@ impl GuiApp {
                 "The landmarks changed since the model was built: rebuild it.",
             );
         }
-        egui::Grid::new("breast volumes")
-            .striped(true)
-            .show(ui, |ui| {
-                ui.strong("Volume (ml)");
-                ui.strong("left");
-                ui.strong("right");
-                ui.end_row();
-                ui.label("breast");
-                for side in Side::BOTH {
-                    ui.label(format!("{:.1}", model.breast_volume_ml.get(side)));
-                }
-                ui.end_row();
-                type Quadrant = fn(&QuadrantVolumes) -> f64;
-                let quadrants: [(&str, Quadrant); 4] = [
-                    ("upper outer", |q| q.upper_outer),
-                    ("upper inner", |q| q.upper_inner),
-                    ("lower inner", |q| q.lower_inner),
-                    ("lower outer", |q| q.lower_outer),
-                ];
-                for (name, value) in quadrants {
-                    ui.label(name);
-                    for side in Side::BOTH {
-                        ui.label(format!("{:.1}", value(model.quadrant_volume_ml.get(side))));
-                    }
-                    ui.end_row();
-                }
-            });
+        volume_table(ui, model);
         ui.checkbox(&mut self.show_curves, "Show cut curves");
         if let Some(points) = &self.settings.control_points {
             ui.label(format!(
@@ -512,242 +485,6 @@ impl GuiApp {
             model.levels,
             model.build_time.as_secs_f64()
         ));
-    }
-
-    pub(super) fn implant_panel(&mut self, ui: &mut egui::Ui) {
-        if self.live.is_none() {
-            ui.weak("Build the model to simulate implants; you can choose them already.");
-        }
-        let mut editing = self.implants.editing;
-        ui.horizontal(|ui| {
-            ui.selectable_value(&mut editing, Editing::Side(Side::Right), "Right breast");
-            ui.selectable_value(&mut editing, Editing::Linked, "Both, mirrored");
-            ui.selectable_value(&mut editing, Editing::Side(Side::Left), "Left breast");
-        });
-        if editing != self.implants.editing {
-            self.implants.edit(editing);
-        }
-        let catalog = &self.catalog;
-        let linked = self.implants.linked();
-        let design = self.implants.edited();
-        ui.checkbox(
-            &mut design.enabled,
-            if linked {
-                "Implants on both sides"
-            } else {
-                "Implant on this side"
-            },
-        );
-        ui.horizontal(|ui| {
-            ui.radio_value(&mut design.source, Source::Catalog, "Catalog");
-            let custom = ui.radio_value(&mut design.source, Source::Custom, "Custom size");
-            // Custom sizes start from the catalog entry chosen.
-            if custom.changed()
-                && let Some(entry) = catalog.get(&design.catalog_id)
-            {
-                design.set_dimensions(entry.shape());
-            }
-        });
-        let mut suggested = None;
-        match design.source {
-            Source::Catalog => {
-                let current = catalog.get(&design.catalog_id);
-                let family = current.map_or("", |e| e.family());
-                let mut families: Vec<&str> = Vec::new();
-                for entry in catalog.entries() {
-                    if !families.contains(&entry.family()) {
-                        families.push(entry.family());
-                    }
-                }
-                let mut chosen = None;
-                egui::ComboBox::from_label("Family")
-                    .selected_text(family)
-                    .show_ui(ui, |ui| {
-                        for name in &families {
-                            if ui.selectable_label(*name == family, *name).clicked() {
-                                // The family's entry closest in width to the current one.
-                                chosen = catalog
-                                    .entries()
-                                    .iter()
-                                    .filter(|e| e.family() == *name)
-                                    .min_by(|a, b| {
-                                        let d = |e: &&plan::catalog::CatalogEntry| {
-                                            (e.shape().width_mm() - design.width_mm).abs()
-                                        };
-                                        d(a).total_cmp(&d(b))
-                                    })
-                                    .map(|e| e.id().to_string());
-                            }
-                        }
-                    });
-                egui::ComboBox::from_label("Implant")
-                    .selected_text(design.catalog_id.as_str())
-                    .height(400.0)
-                    .show_ui(ui, |ui| {
-                        for entry in catalog.entries().iter().filter(|e| e.family() == family) {
-                            let shape = entry.shape();
-                            let text = format!(
-                                "{}: {:.0} × {:.0} × {:.1} mm, {:.0} ml",
-                                entry.id(),
-                                shape.width_mm(),
-                                shape.height_mm(),
-                                shape.projection_mm(),
-                                entry.volume_ml()
-                            );
-                            if ui
-                                .selectable_label(entry.id() == design.catalog_id, text)
-                                .clicked()
-                            {
-                                chosen = Some(entry.id().to_string());
-                            }
-                        }
-                    });
-                if let Some(id) = chosen {
-                    design.choose(&id, catalog);
-                }
-            }
-            Source::Custom => {
-                ui.horizontal(|ui| {
-                    ui.radio_value(&mut design.kind, ShapeKind::Round, "Round");
-                    ui.radio_value(&mut design.kind, ShapeKind::Anatomic, "Anatomic");
-                });
-                ui.add(egui::Slider::new(&mut design.width_mm, 80.0..=180.0).text("Width (mm)"));
-                if design.kind == ShapeKind::Anatomic {
-                    ui.add(
-                        egui::Slider::new(&mut design.height_mm, 80.0..=180.0).text("Height (mm)"),
-                    );
-                }
-                ui.add(
-                    egui::Slider::new(&mut design.projection_mm, 10.0..=80.0)
-                        .text("Projection (mm)"),
-                );
-                if ui
-                    .button("Suggest catalog implant")
-                    .on_hover_text("the catalog entry closest to these dimensions")
-                    .clicked()
-                {
-                    suggested = Some(design.suggest(catalog));
-                }
-            }
-        }
-        match design.shape(catalog) {
-            Ok(shape) => {
-                ui.label(format!(
-                    "Volume {:.1} ml ({:.0} × {:.0} × {:.1} mm)",
-                    shape.volume_ml(),
-                    shape.width_mm(),
-                    shape.height_mm(),
-                    shape.projection_mm()
-                ));
-            }
-            Err(error) => {
-                ui.colored_label(ERROR_COLOR, error);
-            }
-        }
-
-        ui.separator();
-        ui.strong("Position");
-        let mut pressed = None;
-        egui::Grid::new("move buttons").show(ui, |ui| {
-            let mut button = |ui: &mut egui::Ui, direction: MoveDirection, hint: &str| {
-                if ui.button(direction.label()).on_hover_text(hint).clicked() {
-                    pressed = Some(direction);
-                }
-            };
-            ui.label("");
-            button(ui, MoveDirection::Up, "key ↑");
-            button(
-                ui,
-                MoveDirection::Front,
-                "shallower (anterior), key Page Up",
-            );
-            ui.end_row();
-            button(
-                ui,
-                MoveDirection::Right,
-                "towards the patient's right (screen left from the front), key ←",
-            );
-            ui.label("");
-            button(
-                ui,
-                MoveDirection::Left,
-                "towards the patient's left (screen right from the front), key →",
-            );
-            ui.end_row();
-            ui.label("");
-            button(ui, MoveDirection::Down, "key ↓");
-            button(ui, MoveDirection::Back, "deeper (posterior), key Page Down");
-            ui.end_row();
-        });
-        let design = self.implants.edited();
-        ui.add(egui::Slider::new(&mut design.rotation_deg, -45.0..=45.0).text("Rotation (°)"))
-            .on_hover_text(
-                "about the chest wall's normal, counter-clockwise seen from the front \
-                 (anatomic implants; a round one looks the same turned)",
-            );
-        fold_lowering_control(ui, design);
-        let moved = design.move_mm;
-        ui.horizontal(|ui| {
-            ui.label(format!(
-                "Moved {:+.1} left, {:+.1} up, {:+.1} front (mm)",
-                moved.x, moved.y, moved.z
-            ));
-            if ui.small_button("Reset").clicked() {
-                design.move_mm = DVec3::ZERO;
-                design.rotation_deg = 0.0;
-            }
-        });
-        ui.add(egui::Slider::new(&mut self.implants.step_mm, 1.0..=20.0).text("Step (mm)"));
-        if let Some(direction) = pressed {
-            self.implants.step(direction);
-        }
-        ui.checkbox(&mut self.implants.gravity, "Gravity correction")
-            .on_hover_text("the implant's weight lets the breast sag (paper V-B)");
-        ui.checkbox(&mut self.show_outlines, "Show implant and pocket outlines")
-            .on_hover_text(
-                "the footprint of each implant (cyan) and, where it lies beyond the native \
-                 breast, its pocket within the planned limits (pink), seen through the skin",
-            );
-
-        if let Some(error) = &self.implant_error {
-            ui.colored_label(ERROR_COLOR, error);
-        }
-        if let Some(live) = &self.live {
-            for side in [Side::Right, Side::Left] {
-                let state = live.sides.get(side);
-                if let Some(placed) = &state.placed {
-                    let fit_mm = glam::DVec2::from_array(placed.fit_shift_mm).length();
-                    let fit_note = if fit_mm > 0.05 {
-                        format!(", moved {fit_mm:.1} mm further to fit")
-                    } else {
-                        String::new()
-                    };
-                    let fold_note = if placed.fold_lowering_mm > 0.05 {
-                        format!(", fold lowered {:.0} mm", placed.fold_lowering_mm)
-                    } else {
-                        String::new()
-                    };
-                    ui.label(format!(
-                        "{side}: {}, {:.0} ml{fold_note}{fit_note}",
-                        placed.spec, placed.volume_ml
-                    ));
-                    if let Some(warning) = placed.uncovered() {
-                        ui.colored_label(WARNING_COLOR, format!("{side}: {warning}"));
-                    }
-                }
-                if let Some(error) = &state.error {
-                    ui.colored_label(ERROR_COLOR, format!("{side}: {error}"));
-                }
-            }
-        }
-        match suggested {
-            Some(Ok(id)) => {
-                self.implants.edited().choose(&id, &self.catalog);
-                self.info(format!("suggested {id} for these dimensions"));
-            }
-            Some(Err(error)) => self.status = Status::Error(error),
-            None => {}
-        }
     }
 
     pub(super) fn simulation_panel(&mut self, ui: &mut egui::Ui) {
@@ -830,62 +567,7 @@ impl GuiApp {
                 if *at != frame {
                     ui.weak("measured before the latest change");
                 }
-                egui::Grid::new("measurements")
-                    .striped(true)
-                    .show(ui, |ui| {
-                        ui.strong("surface (mm)");
-                        ui.strong("before");
-                        ui.strong("simulated");
-                        ui.strong("change");
-                        ui.end_row();
-                        for change in &measured.distances {
-                            let before = change.before.surface_mm;
-                            let after = change.simulated.surface_mm;
-                            ui.label(change.name.as_str());
-                            ui.label(super::format_optional(before));
-                            ui.label(super::format_optional(after));
-                            ui.label(super::format_optional(
-                                before.zip(after).map(|(b, a)| a - b),
-                            ));
-                            ui.end_row();
-                        }
-                        for side in Side::BOTH {
-                            let before = *measured.breast_volume_before_ml.get(side);
-                            let after = *measured.breast_volume_ml.get(side);
-                            ui.label(format!("{side} breast (ml)"));
-                            ui.label(format!("{before:.1}"));
-                            ui.label(format!("{after:.1}"));
-                            ui.label(format!("{:+.1}", after - before));
-                            ui.end_row();
-                        }
-                        // The breast's halves above and below the lines from the
-                        // nipple to the fold's ends: the upper pole's fullness.
-                        type Half = fn(&QuadrantVolumes) -> f64;
-                        let halves: [(&str, Half); 2] = [
-                            ("upper half", |q| q.upper_outer + q.upper_inner),
-                            ("lower half", |q| q.lower_outer + q.lower_inner),
-                        ];
-                        for side in Side::BOTH {
-                            for (name, half) in halves {
-                                let before = half(measured.quadrant_volume_before_ml.get(side));
-                                let after =
-                                    measured.quadrant_volume_ml.get(side).as_ref().map(half);
-                                ui.label(format!("{side} {name} (ml)"));
-                                ui.label(format!("{before:.1}"));
-                                ui.label(super::format_optional(after));
-                                ui.label(
-                                    after.map_or("–".into(), |a| format!("{:+.1}", a - before)),
-                                );
-                                ui.end_row();
-                            }
-                        }
-                        for side in Side::BOTH {
-                            ui.label(format!("{side} implant (ml)"));
-                            ui.label("");
-                            ui.label(format!("{:.1}", measured.implant_volume_ml.get(side)));
-                            ui.end_row();
-                        }
-                    });
+                measurement_table(ui, measured);
             }
         }
         ui.horizontal(|ui| {
@@ -1017,31 +699,97 @@ fn solver_summary(solver: &SolverStatus) -> (Color32, String) {
     }
 }
 
+/// The model's breast and quadrant volumes.
+fn volume_table(ui: &mut egui::Ui, model: &ModelFigures) {
+    egui::Grid::new("breast volumes")
+        .striped(true)
+        .show(ui, |ui| {
+            ui.strong("Volume (ml)");
+            ui.strong("left");
+            ui.strong("right");
+            ui.end_row();
+            ui.label("breast");
+            for side in Side::BOTH {
+                ui.label(format!("{:.1}", model.breast_volume_ml.get(side)));
+            }
+            ui.end_row();
+            type Quadrant = fn(&QuadrantVolumes) -> f64;
+            let quadrants: [(&str, Quadrant); 4] = [
+                ("upper outer", |q| q.upper_outer),
+                ("upper inner", |q| q.upper_inner),
+                ("lower inner", |q| q.lower_inner),
+                ("lower outer", |q| q.lower_outer),
+            ];
+            for (name, value) in quadrants {
+                ui.label(name);
+                for side in Side::BOTH {
+                    ui.label(format!("{:.1}", value(model.quadrant_volume_ml.get(side))));
+                }
+                ui.end_row();
+            }
+        });
+}
+
+/// The clinical distances, breast, half and implant volumes before and as simulated.
+fn measurement_table(ui: &mut egui::Ui, measured: &SimulatedMeasurements) {
+    egui::Grid::new("measurements")
+        .striped(true)
+        .show(ui, |ui| {
+            ui.strong("surface (mm)");
+            ui.strong("before");
+            ui.strong("simulated");
+            ui.strong("change");
+            ui.end_row();
+            for change in &measured.distances {
+                let before = change.before.surface_mm;
+                let after = change.simulated.surface_mm;
+                ui.label(change.name.as_str());
+                ui.label(super::format_optional(before));
+                ui.label(super::format_optional(after));
+                ui.label(super::format_optional(
+                    before.zip(after).map(|(b, a)| a - b),
+                ));
+                ui.end_row();
+            }
+            for side in Side::BOTH {
+                let before = *measured.breast_volume_before_ml.get(side);
+                let after = *measured.breast_volume_ml.get(side);
+                ui.label(format!("{side} breast (ml)"));
+                ui.label(format!("{before:.1}"));
+                ui.label(format!("{after:.1}"));
+                ui.label(format!("{:+.1}", after - before));
+                ui.end_row();
+            }
+            // The breast's halves above and below the lines from the
+            // nipple to the fold's ends: the upper pole's fullness.
+            type Half = fn(&QuadrantVolumes) -> f64;
+            let halves: [(&str, Half); 2] = [
+                ("upper half", |q| q.upper_outer + q.upper_inner),
+                ("lower half", |q| q.lower_outer + q.lower_inner),
+            ];
+            for side in Side::BOTH {
+                for (name, half) in halves {
+                    let before = half(measured.quadrant_volume_before_ml.get(side));
+                    let after = measured.quadrant_volume_ml.get(side).as_ref().map(half);
+                    ui.label(format!("{side} {name} (ml)"));
+                    ui.label(format!("{before:.1}"));
+                    ui.label(super::format_optional(after));
+                    ui.label(after.map_or("–".into(), |a| format!("{:+.1}", a - before)));
+                    ui.end_row();
+                }
+            }
+            for side in Side::BOTH {
+                ui.label(format!("{side} implant (ml)"));
+                ui.label("");
+                ui.label(format!("{:.1}", measured.implant_volume_ml.get(side)));
+                ui.end_row();
+            }
+        });
+}
+
 fn stage_name(stage: Stage) -> &'static str {
     match stage {
         Stage::Implant => "implant",
         Stage::Gravity => "gravity",
-    }
-}
-
-/// The fold lowering of the edited implant: as planned for it (the ICE principle), or a
-/// given depth below the native fold.
-fn fold_lowering_control(ui: &mut egui::Ui, design: &mut crate::implant_plan::ImplantDesign) {
-    let mut for_implant = design.fold_lowering_mm.is_none();
-    ui.checkbox(&mut for_implant, "Fold lowered as planned for the implant")
-        .on_hover_text(
-            "the ICE principle: half the implant's height plus its projection, less the \
-             nipple-to-fold distance (0 to 30 mm)",
-        );
-    if for_implant {
-        design.fold_lowering_mm = None;
-    } else {
-        let mut mm = design.fold_lowering_mm.unwrap_or(0.0);
-        ui.add(
-            egui::Slider::new(&mut mm, 0.0..=plan::simulate::MAX_ICE_FOLD_LOWERING_MM)
-                .text("Fold lowering (mm)"),
-        )
-        .on_hover_text("how far the pocket and the new fold reach below the native fold");
-        design.fold_lowering_mm = Some(mm);
     }
 }
