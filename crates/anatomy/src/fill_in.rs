@@ -79,7 +79,7 @@
 //! # Files
 //! - `base.rs`: the base's normals along the loop (step 1's reference, step 4's slopes).
 //! - `frame.rs`: the fitted plane or cylinder and its coordinates (step 1).
-//! - `polygon.rs`: predicates on the projected loop: orientation, simplicity (step 2).
+//! - `polygon.rs`: exact predicates on the projected loop: orientation, simplicity (step 2).
 //! - `lattice.rs`: the lattice of interior points (step 3).
 //! - `triangulate.rs`: the constrained Delaunay triangulation (step 3).
 //! - `boundary.rs`: the projected loop and the Hermite heights of the lattice (step 4).

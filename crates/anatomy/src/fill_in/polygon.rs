@@ -1,8 +1,9 @@
 //! Predicates on the projected loop, a polygon in the plane: its orientation and whether
-//! it is simple.
+//! it is simple, the latter with exact orientation signs (`robust::orient2d`).
 
 use super::FillInError;
 use glam::DVec2;
+use robust::{Coord, orient2d};
 
 /// Whether a simple polygon runs counter-clockwise (its signed area is positive).
 pub(super) fn is_counter_clockwise(polygon: &[DVec2]) -> bool {
@@ -45,9 +46,14 @@ pub(super) fn check_simple(polygon: &[DVec2]) -> Result<(), FillInError> {
     Ok(())
 }
 
-/// Twice the signed area of triangle `abc` (positive counter-clockwise).
-fn orientation(a: DVec2, b: DVec2, c: DVec2) -> f64 {
-    (b - a).perp_dot(c - a)
+/// Twice the signed area of triangle `abc` (positive counter-clockwise), with the exact
+/// sign (`robust::orient2d`, adaptive precision): zero exactly when the three points are
+/// collinear. The plain `(b - a) × (c - a)` in floating point gets the sign wrong, or
+/// gives zero, for points nearly collinear, and so could pass a loop that touches itself
+/// or refuse one that does not.
+pub(super) fn orientation(a: DVec2, b: DVec2, c: DVec2) -> f64 {
+    let coord = |p: DVec2| Coord { x: p.x, y: p.y };
+    orient2d(coord(a), coord(b), coord(c))
 }
 
 /// Whether segments `ab` and `cd` share at least one point.

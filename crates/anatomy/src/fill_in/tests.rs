@@ -1,3 +1,4 @@
+use super::polygon::orientation;
 use super::*;
 use mesh::shapes::{cylinder, grid, icosphere};
 use mesh::topology::{NO_TRIANGLE, Topology};
@@ -480,4 +481,50 @@ fn arbitrary_loops_and_parameters_never_panic() {
         }
     }
     assert!(filled > 100, "{filled}");
+}
+
+/// Sign of `x` as -1, 0 or 1.
+fn sign(x: f64) -> i128 {
+    if x > 0.0 {
+        1
+    } else if x < 0.0 {
+        -1
+    } else {
+        0
+    }
+}
+
+/// The classic failure of a floating-point orientation test (Kettner et al., "Classroom
+/// examples of robustness problems in geometric computations", 2008): points `p` within
+/// 64 ulps of `(0.5, 0.5)` against the line through `(12, 12)` and `(24, 24)`. Every
+/// coordinate is a multiple of 2^-53, so scaled by 2^53 they are integers and the exact
+/// determinant is computed in i128; `orientation` must give its sign (zero exactly on the
+/// line `x = y`), which the plain floating-point expression gets wrong for about half of
+/// these points.
+#[test]
+fn orientation_signs_are_exact_for_nearly_collinear_points() {
+    let ulp = 0.5f64.powi(53);
+    let scale = 2f64.powi(53);
+    let (q, r) = (DVec2::new(12.0, 12.0), DVec2::new(24.0, 24.0));
+    let integer = |x: f64| {
+        let scaled = x * scale;
+        assert_eq!(scaled.fract(), 0.0, "{x} is not a multiple of 2^-53");
+        scaled as i128
+    };
+    let exact_sign = |p: DVec2| {
+        let [px, py, qx, qy, rx, ry] = [p.x, p.y, q.x, q.y, r.x, r.y].map(integer);
+        ((qx - px) * (ry - py) - (qy - py) * (rx - px)).signum()
+    };
+    let (mut collinear, mut plain_wrong) = (0, 0);
+    for i in 0..64 {
+        for j in 0..64 {
+            let p = DVec2::new(0.5 + i as f64 * ulp, 0.5 + j as f64 * ulp);
+            let exact = exact_sign(p);
+            assert_eq!(sign(orientation(p, q, r)), exact, "p = {p:?}");
+            collinear += usize::from(exact == 0);
+            plain_wrong += usize::from(sign((q - p).perp_dot(r - p)) != exact);
+        }
+    }
+    assert_eq!(collinear, 64);
+    assert!(plain_wrong > 0, "{plain_wrong}");
 }
