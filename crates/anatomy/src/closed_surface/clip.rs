@@ -1,0 +1,409 @@
+//! Clipping a surface to the box: triangles split exactly at the planes, the largest
+//! piece kept, and its border loop split into the four sides.
+
+use super::clip_box::{ClipBox, ClipPlane, PLANE_NAMES};
+use super::stitch::triangulate_in_plane;
+use super::{ClosedSurfaceError, MIN_CLIPPED_TRIANGLES, SurfaceRole};
+use crate::frame::AnatomicalFrame;
+use crate::wall_clearance::{FixedAxes, keep_wall_clear};
+use glam::DVec3;
+use mesh::{Topology, TriMesh};
+use std::collections::HashMap;
+
+/// Vertices closer to a clip plane than this fraction of the mean edge length are moved
+/// onto it (at most 2% of an edge, about 0.05 mm on a scan), so clipping leaves no
+/// sliver triangles.
+const SNAP_FRACTION: f64 = 0.02;
+
+/// One side of a clipped border: the plane index into [`ClipBox::planes`] and the
+/// border vertices on it from corner to corner, in the scan's border direction.
+pub(super) struct Side {
+    pub(super) plane: usize,
+    pub(super) chain: Vec<u32>,
+}
+
+/// A surface clipped to the box, in frame coordinates, with its single border loop.
+pub(super) struct ClippedPart {
+    role: SurfaceRole,
+    planes: [ClipPlane; 4],
+    frame: AnatomicalFrame,
+    clip_box: ClipBox,
+    /// In the box's coordinates ([`ClipBox::to_box`]).
+    pub(super) positions: Vec<DVec3>,
+    pub(super) triangles: Vec<[u32; 3]>,
+    /// Border vertices in the direction of the triangles' edges.
+    pub(super) border: Vec<u32>,
+}
+
+impl ClippedPart {
+    pub(super) fn new(
+        surface: &TriMesh,
+        role: SurfaceRole,
+        frame: &AnatomicalFrame,
+        clip_box: &ClipBox,
+    ) -> Result<ClippedPart, ClosedSurfaceError> {
+        surface
+            .validate()
+            .map_err(|source| ClosedSurfaceError::InvalidMesh { role, source })?;
+        let mut positions: Vec<DVec3> = surface
+            .positions
+            .iter()
+            .map(|&p| clip_box.to_box(frame.to_local(p)))
+            .collect();
+        let mut triangles = surface.triangles.clone();
+        let snap = SNAP_FRACTION * surface.mean_edge_length();
+        let planes = clip_box.planes();
+        for plane in &planes {
+            triangles = clip_by_plane(&mut positions, &triangles, plane, snap);
+        }
+        let (positions, triangles) = largest_piece(&positions, &triangles);
+        if triangles.len() < MIN_CLIPPED_TRIANGLES {
+            return Err(ClosedSurfaceError::TooFewTriangles {
+                role,
+                count: triangles.len(),
+            });
+        }
+        let mut part = ClippedPart {
+            role,
+            planes,
+            frame: *frame,
+            clip_box: *clip_box,
+            positions,
+            triangles,
+            border: Vec::new(),
+        };
+        part.cap_islands()?;
+        part.border = part.single_border_loop()?;
+        Ok(part)
+    }
+
+    fn to_file(&self, local: DVec3) -> [f64; 3] {
+        self.frame
+            .to_file(self.clip_box.box_to_local(local))
+            .to_array()
+    }
+
+    /// Pushes this part's vertices (a wall) that lie less than `clearance_mm` behind
+    /// `scan` (or in front of it) further in ([`keep_wall_clear`]); border vertices stay
+    /// on their planes. Returns how many are still too close.
+    pub(super) fn keep_clear_of(&mut self, scan: &ClippedPart, clearance_mm: f64) -> usize {
+        let scan_mesh = TriMesh::new(scan.positions.clone(), scan.triangles.clone());
+        let mut wall = TriMesh::new(self.positions.clone(), self.triangles.clone());
+        let fixed: Vec<FixedAxes> = (0..self.positions.len() as u32)
+            .map(|v| {
+                let mask = self.plane_mask(v);
+                let on_axis = |axis: usize| {
+                    self.planes
+                        .iter()
+                        .enumerate()
+                        .any(|(i, plane)| plane.axis == axis && mask & (1 << i) != 0)
+                };
+                FixedAxes {
+                    x: on_axis(0),
+                    y: on_axis(1),
+                }
+            })
+            .collect();
+        let done = keep_wall_clear(&scan_mesh, &mut wall, &fixed, clearance_mm);
+        self.positions = wall.positions;
+        done.still_too_close
+    }
+
+    /// Bit `i` set if vertex `v` lies on plane `i`.
+    fn plane_mask(&self, v: u32) -> u8 {
+        let p = self.positions[v as usize];
+        self.planes
+            .iter()
+            .enumerate()
+            .filter(|(_, plane)| p[plane.axis] == plane.value)
+            .fold(0, |mask, (i, _)| mask | (1 << i))
+    }
+
+    /// Closes the holes a plane leaves where it grazes the surface: where a bump (a
+    /// breast's lateral side, say) pokes through a plane by a little, clipping cuts its
+    /// tip off and leaves a small border cycle lying entirely on that plane, apart from
+    /// the main border or touching it at a vertex. The tip is replaced by its section, a
+    /// flat cap on the plane (a constrained Delaunay triangulation of the cycle), as
+    /// clipping a solid does. The cycle must enclose material (the skin's inside, behind
+    /// the scan or in front of the filled base), so the cap faces out of the box; a
+    /// cycle around air (a pocket) is an error.
+    fn cap_islands(&mut self) -> Result<(), ClosedSurfaceError> {
+        let mesh = TriMesh::new(self.positions.clone(), self.triangles.clone());
+        let loops = Topology::new(&mesh).boundary_loops(&mesh);
+        // +1 if the triangles face away from the material: an anterior-facing scan, or
+        // a posterior-facing base.
+        let faces_anteriorly = self.anterior_area() > 0.0;
+        let away_from_material = match (self.role, faces_anteriorly) {
+            (SurfaceRole::Scan, true) | (SurfaceRole::FilledBase, false) => 1.0,
+            _ => -1.0,
+        };
+        let mut caps = Vec::new();
+        for island in loops.iter().flat_map(|walk| simple_cycles(walk)) {
+            let on_all = island
+                .iter()
+                .fold(0b1111u8, |mask, &v| mask & self.plane_mask(v));
+            if on_all == 0 || island.len() < 3 {
+                continue;
+            }
+            let plane = on_all.trailing_zeros() as usize;
+            let name = PLANE_NAMES[plane];
+            let cap = triangulate_in_plane(&self.positions, plane, &island).map_err(|defect| {
+                ClosedSurfaceError::Stitch(format!(
+                    "where the {} grazes the {name} plane, its section {}",
+                    self.role,
+                    defect.describe("crosses itself", "touches itself")
+                ))
+            })?;
+            let clip = self.planes[plane];
+            let normal: f64 = cap
+                .iter()
+                .map(|tri| {
+                    let [a, b, c] = tri.map(|v| self.positions[v as usize]);
+                    (b - a).cross(c - a)[clip.axis]
+                })
+                .sum();
+            // Towards the clipped-away side, as the triangles face.
+            let out_of_box = if clip.keep_above { -normal } else { normal };
+            if out_of_box * away_from_material <= 0.0 {
+                let center = island
+                    .iter()
+                    .map(|&v| self.positions[v as usize])
+                    .sum::<DVec3>()
+                    / island.len() as f64;
+                let [x, y, z] = self.to_file(center);
+                return Err(ClosedSurfaceError::Stitch(format!(
+                    "the {} passes through the {name} plane around a pocket of air near \
+                     ({x:.1}, {y:.1}, {z:.1}) mm; move the plane",
+                    self.role
+                )));
+            }
+            caps.extend(cap);
+        }
+        self.triangles.extend(caps);
+        Ok(())
+    }
+
+    /// The border loop, which must be the only one and lie on the planes.
+    fn single_border_loop(&self) -> Result<Vec<u32>, ClosedSurfaceError> {
+        let mesh = TriMesh::new(self.positions.clone(), self.triangles.clone());
+        let loops = Topology::new(&mesh).boundary_loops(&mesh);
+        let role = self.role;
+        if let Some(hole) = loops
+            .iter()
+            .find(|l| l.iter().all(|&v| self.plane_mask(v) == 0))
+        {
+            let center = hole
+                .iter()
+                .map(|&v| self.positions[v as usize])
+                .sum::<DVec3>()
+                / hole.len() as f64;
+            return Err(ClosedSurfaceError::HoleInsideBox {
+                role,
+                vertices: hole.len(),
+                center_mm: self.to_file(center),
+            });
+        }
+        // Every border edge must lie on one plane.
+        for border in &loops {
+            for (k, &a) in border.iter().enumerate() {
+                let b = border[(k + 1) % border.len()];
+                if self.plane_mask(a) & self.plane_mask(b) == 0 {
+                    let middle = 0.5 * (self.positions[a as usize] + self.positions[b as usize]);
+                    return Err(ClosedSurfaceError::RunsOffBorder {
+                        role,
+                        near_mm: self.to_file(middle),
+                    });
+                }
+            }
+        }
+        match <[Vec<u32>; 1]>::try_from(loops) {
+            Ok([border]) => Ok(border),
+            Err(loops) => Err(ClosedSurfaceError::Stitch(format!(
+                "the clipped {role} has {} border loops on the planes instead of one",
+                loops.len()
+            ))),
+        }
+    }
+
+    /// Reverses the orientation of the triangles and of the border.
+    pub(super) fn reverse(&mut self) {
+        for tri in &mut self.triangles {
+            tri.swap(1, 2);
+        }
+        self.border.reverse();
+    }
+
+    /// Twice the area of the surface projected on the coronal plane, signed positive
+    /// where the triangles face anteriorly (mm²).
+    pub(super) fn anterior_area(&self) -> f64 {
+        self.triangles
+            .iter()
+            .map(|tri| {
+                let [a, b, c] = tri.map(|v| self.positions[v as usize]);
+                (b - a).cross(c - a).z
+            })
+            .sum()
+    }
+
+    /// Twice the signed area of the border projected on the coronal plane.
+    pub(super) fn winding(&self) -> f64 {
+        let n = self.border.len();
+        (0..n)
+            .map(|k| {
+                let a = self.positions[self.border[k] as usize];
+                let b = self.positions[self.border[(k + 1) % n] as usize];
+                a.x * b.y - b.x * a.y
+            })
+            .sum()
+    }
+
+    /// The border split at its four corners, in [`ClipBox::planes`] order.
+    pub(super) fn sides(&self) -> Result<[Side; 4], ClosedSurfaceError> {
+        let is_corner = |v: u32| self.plane_mask(v).count_ones() == 2;
+        let corners = self.border.iter().filter(|&&v| is_corner(v)).count();
+        let missing = ClosedSurfaceError::MissingCorners {
+            role: self.role,
+            corners,
+        };
+        let Some(start) = self.border.iter().position(|&v| is_corner(v)) else {
+            return Err(missing);
+        };
+        if corners != 4 {
+            return Err(missing);
+        }
+        let n = self.border.len();
+        let mut sides: [Option<Side>; 4] = Default::default();
+        let mut chain = vec![self.border[start]];
+        for k in 1..=n {
+            let v = self.border[(start + k) % n];
+            chain.push(v);
+            if is_corner(v) {
+                let common = self.plane_mask(chain[0]) & self.plane_mask(chain[1]);
+                let plane = common.trailing_zeros() as usize;
+                if chain
+                    .windows(2)
+                    .any(|w| self.plane_mask(w[0]) & self.plane_mask(w[1]) & common == 0)
+                    || plane >= 4
+                    || sides[plane].is_some()
+                {
+                    return Err(missing);
+                }
+                sides[plane] = Some(Side {
+                    plane,
+                    chain: std::mem::replace(&mut chain, vec![v]),
+                });
+            }
+        }
+        let [Some(a), Some(b), Some(c), Some(d)] = sides else {
+            return Err(missing);
+        };
+        Ok([a, b, c, d])
+    }
+}
+
+/// A closed walk (the last vertex followed by the first) split at its repeated
+/// vertices into simple cycles, each in walk order: `[a, b, c, d, b, e]` gives
+/// `[b, c, d]` and `[a, b, e]`.
+pub(super) fn simple_cycles(walk: &[u32]) -> Vec<Vec<u32>> {
+    let mut cycles = Vec::new();
+    let mut stack: Vec<u32> = Vec::with_capacity(walk.len());
+    let mut position: HashMap<u32, usize> = HashMap::new();
+    for &v in walk {
+        if let Some(&at) = position.get(&v) {
+            let cycle: Vec<u32> = stack.drain(at..).collect();
+            for u in &cycle {
+                position.remove(u);
+            }
+            cycles.push(cycle);
+        }
+        position.insert(v, stack.len());
+        stack.push(v);
+    }
+    if !stack.is_empty() {
+        cycles.push(stack);
+    }
+    cycles
+}
+
+/// Triangles of `triangles` clipped to the kept side of `plane`. Vertices within `snap`
+/// of the plane are moved onto it; crossed edges are split at the plane, each edge once
+/// (new vertices are appended to `positions`), so the result stays connected.
+fn clip_by_plane(
+    positions: &mut Vec<DVec3>,
+    triangles: &[[u32; 3]],
+    plane: &ClipPlane,
+    snap: f64,
+) -> Vec<[u32; 3]> {
+    for p in positions.iter_mut() {
+        if plane.distance(*p).abs() <= snap {
+            p[plane.axis] = plane.value;
+        }
+    }
+    let mut split_vertices: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut clipped = Vec::with_capacity(triangles.len());
+    for tri in triangles {
+        let d = tri.map(|v| plane.distance(positions[v as usize]));
+        if d.iter().all(|&x| x >= 0.0) {
+            if d.iter().any(|&x| x > 0.0) {
+                clipped.push(*tri);
+            }
+            continue;
+        }
+        if d.iter().all(|&x| x <= 0.0) {
+            continue;
+        }
+        // Sutherland-Hodgman on one triangle: three or four corners, orientation kept.
+        let mut polygon: Vec<u32> = Vec::with_capacity(4);
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            let (da, db) = (d[k], d[(k + 1) % 3]);
+            if da >= 0.0 {
+                polygon.push(a);
+            }
+            if (da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0) {
+                let key = (a.min(b), a.max(b));
+                let v = *split_vertices.entry(key).or_insert_with(|| {
+                    let (p, q) = (positions[key.0 as usize], positions[key.1 as usize]);
+                    let (dp, dq) = (plane.distance(p), plane.distance(q));
+                    let mut split = p + (q - p) * (dp / (dp - dq));
+                    split[plane.axis] = plane.value;
+                    positions.push(split);
+                    (positions.len() - 1) as u32
+                });
+                polygon.push(v);
+            }
+        }
+        match polygon[..] {
+            [a, b, c] => clipped.push([a, b, c]),
+            [a, b, c, e] => {
+                let at = |v: u32| positions[v as usize];
+                // The shorter diagonal gives the better pair of triangles.
+                if at(a).distance_squared(at(c)) <= at(b).distance_squared(at(e)) {
+                    clipped.extend([[a, b, c], [a, c, e]]);
+                } else {
+                    clipped.extend([[a, b, e], [b, c, e]]);
+                }
+            }
+            _ => {}
+        }
+    }
+    clipped
+}
+
+/// The connected piece (through edges) with the most triangles, its vertices renumbered
+/// without unused ones.
+fn largest_piece(positions: &[DVec3], triangles: &[[u32; 3]]) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let mesh = TriMesh::new(positions.to_vec(), triangles.to_vec());
+    let (component, count) = Topology::new(&mesh).triangle_components();
+    let mut sizes = vec![0usize; count];
+    for &c in &component {
+        sizes[c as usize] += 1;
+    }
+    let largest = (0..count).max_by_key(|&c| sizes[c]).unwrap_or(0) as u32;
+    let kept: Vec<[u32; 3]> = (triangles.iter().zip(&component))
+        .filter(|&(_, &c)| c == largest)
+        .map(|(tri, _)| *tri)
+        .collect();
+    let piece = TriMesh::from_used_vertices(positions, &kept);
+    (piece.positions, piece.triangles)
+}

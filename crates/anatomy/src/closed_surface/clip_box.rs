@@ -1,0 +1,532 @@
+//! The clip box: its four planes, fitted around the breasts and kept inside the scan.
+
+use super::{ClosedSurfaceError, ClosedSurfaceOptions, LANDMARK_MARGIN_MM};
+use crate::frame::AnatomicalFrame;
+use crate::landmarks::{LandmarkName, Landmarks};
+use glam::DVec3;
+use mesh::TriMesh;
+
+/// The landmarks the clip box must contain. The lateral fold ends PSMFll and PSMFlr are
+/// not among them: on a torso scanned round to the side they may lie beyond the scan's
+/// silhouette at the waist, so no lateral plane inside the scan can keep them.
+const BREAST_LANDMARKS: [LandmarkName; 6] = [
+    LandmarkName::Pnl,
+    LandmarkName::Pnr,
+    LandmarkName::PSMFl,
+    LandmarkName::PSMFr,
+    LandmarkName::PSMFml,
+    LandmarkName::PSMFmr,
+];
+
+/// The four clip planes in the anatomical frame (mm). Top and bottom are `y = y_max_mm`
+/// and `y = y_min_mm`. The lateral planes are parallel to the frame's z axis and may
+/// lean in the coronal plane (to follow a torso narrower at the waist than across the
+/// breasts): the patient's right plane is `x = x_min_mm + x_min_slope * (y - y_ref_mm)`,
+/// the left one `x = x_max_mm + x_max_slope * (y - y_ref_mm)`; so `x_min_mm` and
+/// `x_max_mm` are the planes' positions at the height `y_ref_mm` (the nipples' height
+/// for [`ClipBox::around_breasts`]). Slopes 0 give the upright box. The part kept lies
+/// between the four.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ClipBox {
+    pub x_min_mm: f64,
+    pub x_max_mm: f64,
+    pub y_min_mm: f64,
+    pub y_max_mm: f64,
+    /// dx/dy of the right (`x_min`) plane.
+    pub x_min_slope: f64,
+    /// dx/dy of the left (`x_max`) plane.
+    pub x_max_slope: f64,
+    /// The height at which the lateral planes lie at `x_min_mm` and `x_max_mm` (mm).
+    pub y_ref_mm: f64,
+}
+
+/// A clip box with how well it holds the breasts ([`ClipBox::around_breasts_and_footprints`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClipBoxFit {
+    pub clip_box: ClipBox,
+    /// How far the right and the left plane lie beyond the footprints (mm), negative
+    /// where they cut them.
+    pub lateral_room_mm: [f64; 2],
+    /// Footprints the scan leaves too little room for.
+    pub warnings: Vec<String>,
+}
+
+/// A lateral plane `x <= offset + slope (y - y_ref)` (mirrored for the right one) and its
+/// least distance beyond the points it keeps.
+#[derive(Debug, Clone, Copy)]
+struct LateralFit {
+    offset: f64,
+    slope: f64,
+    room: f64,
+}
+
+/// Steepest lean of a lateral plane (dx/dy): a torso's side narrows by some 20 to 30 mm
+/// from the breasts to the waist, about 0.2.
+const MAX_LATERAL_SLOPE: f64 = 0.6;
+/// Step of the search over the lean.
+const LATERAL_SLOPE_STEP: f64 = 0.002;
+
+/// The lateral plane that lies `clearance` inside the scan's outline (`limits`: heights
+/// and the outline's largest x there) and as far beyond the least-kept of `points`
+/// (height, x) as it can: a two-variable linear programme, solved by a search over the
+/// slope (the best offset of a slope is a minimum over the limits, the room a concave
+/// function of the slope). Ties go to the more upright plane.
+fn fit_lateral_plane(
+    limits: &[(f64, f64)],
+    points: &[(f64, f64)],
+    y_ref: f64,
+    clearance: f64,
+) -> LateralFit {
+    let steps = (MAX_LATERAL_SLOPE / LATERAL_SLOPE_STEP).round() as i64;
+    let mut best: Option<LateralFit> = None;
+    for k in 0..=2 * steps {
+        // 0, +1, -1, +2, -2, ...: the upright plane first.
+        let j = if k % 2 == 1 { (k + 1) / 2 } else { -(k / 2) };
+        let slope = j as f64 * LATERAL_SLOPE_STEP;
+        let offset = limits
+            .iter()
+            .map(|&(y, hi)| hi - clearance - slope * (y - y_ref))
+            .fold(f64::INFINITY, f64::min);
+        if !offset.is_finite() {
+            continue;
+        }
+        let room = points
+            .iter()
+            .map(|&(y, x)| offset + slope * (y - y_ref) - x)
+            .fold(f64::INFINITY, f64::min);
+        if best.is_none_or(|b| room > b.room + 1e-9) {
+            best = Some(LateralFit {
+                offset,
+                slope,
+                room,
+            });
+        }
+    }
+    best.unwrap_or(LateralFit {
+        offset: f64::INFINITY,
+        slope: 0.0,
+        room: f64::INFINITY,
+    })
+}
+
+/// The x-extent of `points` (frame coordinates) in bins of [`EXTENT_BIN_MM`] of height
+/// over `[lo, hi]`: for each non-empty bin, both its edges' heights with the bin's
+/// smallest and largest x.
+fn outline_by_height(points: &[DVec3], lo: f64, hi: f64) -> Vec<(f64, f64, f64)> {
+    let bins = ((hi - lo) / EXTENT_BIN_MM).ceil().clamp(1.0, 1e6) as usize;
+    let mut ranges = vec![(f64::INFINITY, f64::NEG_INFINITY); bins];
+    for p in points.iter().filter(|p| (lo..=hi).contains(&p.y)) {
+        let bin = (((p.y - lo) / EXTENT_BIN_MM) as usize).min(bins - 1);
+        let range = &mut ranges[bin];
+        *range = (range.0.min(p.x), range.1.max(p.x));
+    }
+    ranges
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| r.0 <= r.1)
+        .flat_map(|(bin, r)| {
+            let y0 = lo + bin as f64 * EXTENT_BIN_MM;
+            let y1 = (y0 + EXTENT_BIN_MM).min(hi);
+            [(y0, r.0, r.1), (y1, r.0, r.1)]
+        })
+        .collect()
+}
+
+impl ClipBox {
+    /// [`ClipBox::around_breasts_and_footprints`] without fill-ins: the lateral fold ends
+    /// stand for the breasts' lateral extent.
+    pub fn around_breasts(
+        scan: &TriMesh,
+        frame: &AnatomicalFrame,
+        landmarks: &Landmarks,
+        options: &ClosedSurfaceOptions,
+    ) -> Result<ClipBox, ClosedSurfaceError> {
+        Self::around_breasts_and_footprints(scan, frame, landmarks, &[], options)
+            .map(|fit| fit.clip_box)
+    }
+
+    /// The planes from the landmarks, the breast footprints and the margins of
+    /// `options`, kept the clearance inside the scan's extent:
+    /// 1. top and bottom from the clavicles and the folds' lowest points;
+    /// 2. each lateral plane, leaning as the torso's side does, as far beyond the
+    ///    footprints (`footprints`, file coordinates: the fill-ins' points; the lateral
+    ///    fold ends and the breast landmarks always count) as the scan allows: it stays
+    ///    `border_clearance_mm` inside the scan's outline at every height of the box, down
+    ///    to `min_border_clearance_mm` if the footprint would otherwise come closer than
+    ///    [`LANDMARK_MARGIN_MM`] to it, and at most `lateral_margin_mm` beyond the
+    ///    footprint. Where even then the scan ends too close beyond a breast, a warning
+    ///    says by how much the footprint is cut;
+    /// 3. top and bottom moved inside the scan's highest and lowest point at every x
+    ///    of the box.
+    ///
+    /// An error if a nipple or a fold's lowest point or medial end ends up outside.
+    pub fn around_breasts_and_footprints(
+        scan: &TriMesh,
+        frame: &AnatomicalFrame,
+        landmarks: &Landmarks,
+        footprints: &[DVec3],
+        options: &ClosedSurfaceOptions,
+    ) -> Result<ClipBoxFit, ClosedSurfaceError> {
+        let margins = [
+            ("top_margin_mm", options.top_margin_mm),
+            ("bottom_margin_mm", options.bottom_margin_mm),
+            ("lateral_margin_mm", options.lateral_margin_mm),
+            ("border_clearance_mm", options.border_clearance_mm),
+            ("min_border_clearance_mm", options.min_border_clearance_mm),
+        ];
+        if let Some((name, value)) = margins.iter().find(|(_, v)| !v.is_finite()) {
+            return Err(ClosedSurfaceError::InvalidInput(format!(
+                "{name} must be a finite number, got {value}"
+            )));
+        }
+        let local = |name: LandmarkName| frame.to_local(landmarks.get(name));
+        let mut clip_box = ClipBox {
+            y_ref_mm: 0.5 * (local(LandmarkName::Pnl).y + local(LandmarkName::Pnr).y),
+            ..landmark_box(frame, landmarks, options)
+        };
+        clip_box.check()?;
+
+        let clearance = options.border_clearance_mm.max(0.0);
+        let min_clearance = options.min_border_clearance_mm.clamp(0.0, clearance);
+        let local_scan: Vec<DVec3> = scan.positions.iter().map(|&p| frame.to_local(p)).collect();
+        // The scan's outline at every height of the box.
+        let outline = outline_by_height(&local_scan, clip_box.y_min_mm, clip_box.y_max_mm);
+        // The points each lateral plane should keep inside: the footprints, the lateral
+        // fold ends and the breast landmarks.
+        let mut keep: Vec<DVec3> = footprints.iter().map(|&p| frame.to_local(p)).collect();
+        keep.extend(
+            BREAST_LANDMARKS
+                .iter()
+                .chain(&[LandmarkName::PSMFll, LandmarkName::PSMFlr])
+                .map(|&name| local(name)),
+        );
+        let keep: Vec<DVec3> = keep
+            .into_iter()
+            .filter(|p| (clip_box.y_min_mm..=clip_box.y_max_mm).contains(&p.y))
+            .collect();
+        let mut room = [0.0; 2];
+        let mut warnings = Vec::new();
+        for (k, sign) in [(0usize, -1.0), (1, 1.0)] {
+            // Mirrored for the right plane, so both are "x <= a + s (y - y_ref)".
+            let limits: Vec<(f64, f64)> = outline
+                .iter()
+                .map(|&(y, lo, hi)| (y, if sign > 0.0 { hi } else { -lo }))
+                .collect();
+            let points: Vec<(f64, f64)> = keep.iter().map(|p| (p.y, sign * p.x)).collect();
+            let mut fit = fit_lateral_plane(&limits, &points, clip_box.y_ref_mm, clearance);
+            if fit.room < LANDMARK_MARGIN_MM && min_clearance < clearance {
+                let closer = fit_lateral_plane(&limits, &points, clip_box.y_ref_mm, min_clearance);
+                let needed = LANDMARK_MARGIN_MM - fit.room;
+                // Only as much closer to the scan's border as the footprint needs.
+                let shift = needed.min(closer.room - fit.room).max(0.0);
+                fit = if closer.room > fit.room {
+                    let t = shift / (closer.room - fit.room);
+                    LateralFit {
+                        offset: fit.offset + t * (closer.offset - fit.offset),
+                        slope: fit.slope + t * (closer.slope - fit.slope),
+                        room: fit.room + shift,
+                    }
+                } else {
+                    fit
+                };
+            }
+            if fit.room > options.lateral_margin_mm {
+                fit.offset -= fit.room - options.lateral_margin_mm;
+                fit.room = options.lateral_margin_mm;
+            }
+            room[k] = fit.room;
+            if fit.room < LANDMARK_MARGIN_MM {
+                warnings.push(format!(
+                    "the scan ends close beyond the {} breast: kept {min_clearance} mm inside \
+                     the scan's outline, the {} clip plane lies {:.1} mm beyond the breast's \
+                     footprint (wanted {LANDMARK_MARGIN_MM} mm){}",
+                    ["right", "left"][k],
+                    ["right", "left"][k],
+                    fit.room,
+                    if fit.room < 0.0 {
+                        ", so it cuts off part of it"
+                    } else {
+                        ""
+                    }
+                ));
+            }
+            if sign > 0.0 {
+                clip_box.x_max_mm = fit.offset;
+                clip_box.x_max_slope = fit.slope;
+            } else {
+                clip_box.x_min_mm = -fit.offset;
+                clip_box.x_min_slope = -fit.slope;
+            }
+        }
+        clip_box.check()?;
+        // Top and bottom inside the scan's height at every x of the box (in the box's
+        // coordinates, where the lateral planes are upright).
+        let boxed: Vec<DVec3> = local_scan.iter().map(|&p| clip_box.to_box(p)).collect();
+        let (y_min, y_max) = extent_limits(&boxed, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
+        clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
+        clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
+        clip_box.check()?;
+
+        if let Some(name) = clip_box.left_out(frame, landmarks) {
+            return Err(ClosedSurfaceError::InvalidInput(format!(
+                "the scan does not extend {min_clearance} mm beyond the breasts: kept clear of \
+                 its border, the clip box (x {:.1} to {:.1} mm at y {:.1}, y {:.1} to {:.1} mm \
+                 in the anatomical frame) leaves out landmark {}",
+                clip_box.x_min_mm,
+                clip_box.x_max_mm,
+                clip_box.y_ref_mm,
+                clip_box.y_min_mm,
+                clip_box.y_max_mm,
+                name.as_str()
+            )));
+        }
+        Ok(ClipBoxFit {
+            clip_box,
+            lateral_room_mm: room,
+            warnings,
+        })
+    }
+
+    /// The right plane's x at height `y` (mm).
+    pub fn x_min_at(&self, y: f64) -> f64 {
+        self.x_min_mm + self.x_min_slope * (y - self.y_ref_mm)
+    }
+
+    /// The left plane's x at height `y` (mm).
+    pub fn x_max_at(&self, y: f64) -> f64 {
+        self.x_max_mm + self.x_max_slope * (y - self.y_ref_mm)
+    }
+
+    /// Frame coordinates to the box's: `x` mapped affinely at each height so that the
+    /// lateral planes become `x = x_min_mm` and `x = x_max_mm` (heights outside the box
+    /// use its top or bottom row, so the map stays one-to-one and continuous); `y` and
+    /// `z` unchanged. The identity for an upright box.
+    pub(super) fn to_box(self, p: DVec3) -> DVec3 {
+        if self.x_min_slope == 0.0 && self.x_max_slope == 0.0 {
+            return p;
+        }
+        let y = p.y.clamp(self.y_min_mm, self.y_max_mm);
+        let (lo, hi) = (self.x_min_at(y), self.x_max_at(y));
+        let x = self.x_min_mm + (p.x - lo) * (self.x_max_mm - self.x_min_mm) / (hi - lo);
+        DVec3::new(x, p.y, p.z)
+    }
+
+    /// The inverse of [`ClipBox::to_box`].
+    pub(super) fn box_to_local(self, p: DVec3) -> DVec3 {
+        if self.x_min_slope == 0.0 && self.x_max_slope == 0.0 {
+            return p;
+        }
+        let y = p.y.clamp(self.y_min_mm, self.y_max_mm);
+        let (lo, hi) = (self.x_min_at(y), self.x_max_at(y));
+        let x = lo + (p.x - self.x_min_mm) * (hi - lo) / (self.x_max_mm - self.x_min_mm);
+        DVec3::new(x, p.y, p.z)
+    }
+
+    /// The first of [`BREAST_LANDMARKS`] outside the box, if any.
+    pub(super) fn left_out(
+        &self,
+        frame: &AnatomicalFrame,
+        landmarks: &Landmarks,
+    ) -> Option<LandmarkName> {
+        BREAST_LANDMARKS
+            .into_iter()
+            .find(|&name| !self.contains(frame.to_local(landmarks.get(name))))
+    }
+
+    pub(super) fn check(&self) -> Result<(), ClosedSurfaceError> {
+        let ordered = self.y_min_mm < self.y_max_mm
+            && self.x_min_at(self.y_min_mm) < self.x_max_at(self.y_min_mm)
+            && self.x_min_at(self.y_max_mm) < self.x_max_at(self.y_max_mm)
+            && self.x_min_mm < self.x_max_mm;
+        let finite = [
+            self.x_min_mm,
+            self.x_max_mm,
+            self.y_min_mm,
+            self.y_max_mm,
+            self.x_min_slope,
+            self.x_max_slope,
+            self.y_ref_mm,
+        ]
+        .iter()
+        .all(|v| v.is_finite());
+        if ordered && finite {
+            Ok(())
+        } else {
+            Err(ClosedSurfaceError::InvalidInput(format!(
+                "empty clip box: x {} to {} mm, y {} to {} mm in the anatomical frame",
+                self.x_min_mm, self.x_max_mm, self.y_min_mm, self.y_max_mm
+            )))
+        }
+    }
+
+    /// Whether a point (frame coordinates) lies inside the box.
+    pub fn contains(&self, local: DVec3) -> bool {
+        (self.y_min_mm..=self.y_max_mm).contains(&local.y)
+            && (self.x_min_at(local.y)..=self.x_max_at(local.y)).contains(&local.x)
+    }
+
+    /// The four planes as (axis, coordinate, keep-the-side-above).
+    pub(super) fn planes(&self) -> [ClipPlane; 4] {
+        [
+            ClipPlane {
+                axis: 0,
+                value: self.x_min_mm,
+                keep_above: true,
+            },
+            ClipPlane {
+                axis: 0,
+                value: self.x_max_mm,
+                keep_above: false,
+            },
+            ClipPlane {
+                axis: 1,
+                value: self.y_min_mm,
+                keep_above: true,
+            },
+            ClipPlane {
+                axis: 1,
+                value: self.y_max_mm,
+                keep_above: false,
+            },
+        ]
+    }
+}
+
+/// How far the right and left planes of `clip_box` lie beyond `footprint` (frame
+/// coordinates) and the lateral fold ends, at the points' heights inside the box (mm).
+pub(super) fn lateral_room(
+    clip_box: &ClipBox,
+    footprint: &[DVec3],
+    frame: &AnatomicalFrame,
+    landmarks: &Landmarks,
+) -> [f64; 2] {
+    let ends =
+        [LandmarkName::PSMFll, LandmarkName::PSMFlr].map(|n| frame.to_local(landmarks.get(n)));
+    let inside = footprint
+        .iter()
+        .chain(&ends)
+        .filter(|p| (clip_box.y_min_mm..=clip_box.y_max_mm).contains(&p.y));
+    inside.fold([f64::INFINITY; 2], |[right, left], p| {
+        [
+            right.min(p.x - clip_box.x_min_at(p.y)),
+            left.min(clip_box.x_max_at(p.y) - p.x),
+        ]
+    })
+}
+
+/// The upright box from the landmarks and margins alone (before any plane is moved to
+/// stay inside the scan): lateral planes beyond the fold ends, bottom below the lower
+/// fold point, top at the clavicles.
+fn landmark_box(
+    frame: &AnatomicalFrame,
+    landmarks: &Landmarks,
+    options: &ClosedSurfaceOptions,
+) -> ClipBox {
+    let local = |name: LandmarkName| frame.to_local(landmarks.get(name));
+    ClipBox {
+        x_min_mm: local(LandmarkName::PSMFlr).x - options.lateral_margin_mm,
+        x_max_mm: local(LandmarkName::PSMFll).x + options.lateral_margin_mm,
+        y_min_mm: local(LandmarkName::PSMFl)
+            .y
+            .min(local(LandmarkName::PSMFr).y)
+            - options.bottom_margin_mm,
+        y_max_mm: local(LandmarkName::Pcl).y.max(local(LandmarkName::Pcr).y)
+            + options.top_margin_mm,
+        ..ClipBox::default()
+    }
+}
+/// The upright box of earlier versions, the fallback of [`build_closed_surface`] where the
+/// fitted one cannot be closed: the lateral planes `lateral_margin_mm` beyond the lateral
+/// fold ends, moved inwards to stay the clearance inside the scan's narrowest width over
+/// the box's heights (less where the breast landmarks need it).
+///
+/// [`build_closed_surface`]: super::build_closed_surface
+pub(super) fn upright_box(
+    scan: &TriMesh,
+    frame: &AnatomicalFrame,
+    landmarks: &Landmarks,
+    options: &ClosedSurfaceOptions,
+) -> Result<ClipBox, ClosedSurfaceError> {
+    let mut clip_box = landmark_box(frame, landmarks, options);
+    clip_box.check()?;
+    let clearance = options.border_clearance_mm.max(0.0);
+    let min_clearance = options.min_border_clearance_mm.clamp(0.0, clearance);
+    let landmark_x = BREAST_LANDMARKS.map(|name| frame.to_local(landmarks.get(name)).x);
+    let needed_x_min = landmark_x.iter().fold(f64::INFINITY, |a, &b| a.min(b)) - LANDMARK_MARGIN_MM;
+    let needed_x_max =
+        landmark_x.iter().fold(f64::NEG_INFINITY, |a, &b| a.max(b)) + LANDMARK_MARGIN_MM;
+    let local_scan: Vec<DVec3> = scan.positions.iter().map(|&p| frame.to_local(p)).collect();
+    // Lateral planes inside the scan's width at every height of the box (by the
+    // clearance, less where the landmarks need it), then top and bottom inside its
+    // height at every x of the narrowed box.
+    let (x_min, x_max) = extent_limits(&local_scan, 1, clip_box.y_min_mm, clip_box.y_max_mm, 0);
+    clip_box.x_min_mm = clip_box
+        .x_min_mm
+        .max((x_min + clearance).min(needed_x_min))
+        .max(x_min + min_clearance);
+    clip_box.x_max_mm = clip_box
+        .x_max_mm
+        .min((x_max - clearance).max(needed_x_max))
+        .min(x_max - min_clearance);
+    let (y_min, y_max) = extent_limits(&local_scan, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
+    clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
+    clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
+    clip_box.check()?;
+    if let Some(name) = clip_box.left_out(frame, landmarks) {
+        return Err(ClosedSurfaceError::InvalidInput(format!(
+            "the scan does not extend {min_clearance} mm beyond the breasts: kept clear of \
+             its border, the clip box (x {:.1} to {:.1} mm, y {:.1} to {:.1} mm in the \
+             anatomical frame) leaves out landmark {}",
+            clip_box.x_min_mm,
+            clip_box.x_max_mm,
+            clip_box.y_min_mm,
+            clip_box.y_max_mm,
+            name.as_str()
+        )));
+    }
+    Ok(clip_box)
+}
+
+/// A plane of the clip box: `axis` 0 (x) or 1 (y) of the frame; the kept side is
+/// `coordinate >= value` if `keep_above`, else `<=`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct ClipPlane {
+    pub(super) axis: usize,
+    pub(super) value: f64,
+    pub(super) keep_above: bool,
+}
+
+impl ClipPlane {
+    /// Signed distance, positive on the kept side.
+    pub(super) fn distance(&self, p: DVec3) -> f64 {
+        let d = p[self.axis] - self.value;
+        if self.keep_above { d } else { -d }
+    }
+}
+
+/// Names of the planes in [`ClipBox::planes`] order, for messages.
+pub(super) const PLANE_NAMES: [&str; 4] = ["right", "left", "bottom", "top"];
+
+/// Height of the bins [`extent_limits`] scans the surface in (mm): a few vertex
+/// spacings, so no bin of a scan is empty, fine enough to follow the body's outline.
+const EXTENT_BIN_MM: f64 = 5.0;
+
+/// Over the points whose coordinate `across` lies in `[lo, hi]`, binned by it: the
+/// largest per-bin minimum and the smallest per-bin maximum of coordinate `along`,
+/// i.e. the range of `along` that the surface spans in every bin (mm). Empty bins
+/// (a gap across the whole surface) are skipped; no points give an unbounded range.
+fn extent_limits(points: &[DVec3], across: usize, lo: f64, hi: f64, along: usize) -> (f64, f64) {
+    let bins = ((hi - lo) / EXTENT_BIN_MM).ceil().clamp(1.0, 1e6) as usize;
+    let mut ranges = vec![(f64::INFINITY, f64::NEG_INFINITY); bins];
+    for p in points.iter().filter(|p| (lo..=hi).contains(&p[across])) {
+        let bin = (((p[across] - lo) / EXTENT_BIN_MM) as usize).min(bins - 1);
+        let range = &mut ranges[bin];
+        *range = (range.0.min(p[along]), range.1.max(p[along]));
+    }
+    ranges
+        .iter()
+        .filter(|r| r.0 <= r.1)
+        .fold((f64::NEG_INFINITY, f64::INFINITY), |(low, high), r| {
+            (low.max(r.0), high.min(r.1))
+        })
+}

@@ -1,0 +1,252 @@
+use super::clip::simple_cycles;
+use super::*;
+use glam::DMat3;
+use mesh::self_intersections;
+use mesh::shapes::grid;
+
+/// Radius of the synthetic chest (mm).
+const RADIUS_MM: f64 = 150.0;
+
+/// The frame equal to the file frame.
+fn identity_frame() -> AnatomicalFrame {
+    AnatomicalFrame {
+        origin: DVec3::ZERO,
+        axes: DMat3::IDENTITY,
+        sternal_axes: DMat3::IDENTITY,
+        up_source: crate::UpSource::FileVertical,
+    }
+}
+
+/// Part of a cylinder of radius 150 mm about the y axis, facing +z (anterior):
+/// x from -120 to 120 mm, y from -150 to 50 mm, 2 mm grid.
+fn cylinder_patch() -> TriMesh {
+    let mut patch = grid(120, 100, 2.0);
+    patch.map_positions(|p| {
+        let x = p.x - 120.0;
+        DVec3::new(
+            x,
+            p.y - 150.0,
+            (RADIUS_MM * RADIUS_MM - x * x).sqrt() - RADIUS_MM,
+        )
+    });
+    patch
+}
+
+/// Planes off the grid lines, so clipping splits triangles.
+fn clip_box() -> ClipBox {
+    ClipBox {
+        x_min_mm: -80.3,
+        x_max_mm: 79.1,
+        y_min_mm: -120.7,
+        y_max_mm: 10.2,
+        ..ClipBox::default()
+    }
+}
+
+fn assert_closed(surface: &ClosedSurface) {
+    let topology = Topology::new(&surface.mesh);
+    assert!(manifold_report(&surface.mesh, &topology).is_watertight_manifold());
+    assert!(self_intersections(&surface.mesh).is_empty());
+    assert!(surface.volume_ml > 0.0);
+    assert_eq!(surface.band.end, surface.mesh.triangles.len());
+    assert!(!surface.front.is_empty() && !surface.back_wall.is_empty());
+}
+
+#[test]
+fn a_translated_cylinder_patch_closes_to_the_analytic_slab_volume() {
+    let patch = cylinder_patch();
+    let offset_mm = 15.0;
+    let clip = clip_box();
+    let surface =
+        build_closed_surface_in_box(&patch, &patch, &identity_frame(), &clip, offset_mm).unwrap();
+    assert_closed(&surface);
+    // Front and wall are the same clipped surface, one translated by the offset
+    // along z, and the band lies in the planes: the solid is a slab of constant
+    // height over the box, whatever the surface's shape, so its volume is the box
+    // area times the offset up to round-off.
+    let area_mm2 = (clip.x_max_mm - clip.x_min_mm) * (clip.y_max_mm - clip.y_min_mm);
+    let expected_ml = area_mm2 * offset_mm / 1000.0;
+    assert!(
+        (surface.volume_ml - expected_ml).abs() < 1e-9 * expected_ml,
+        "{} vs {expected_ml} ml",
+        surface.volume_ml
+    );
+    // The band lies in the planes; the front faces anteriorly.
+    let on_plane = |p: DVec3| {
+        [clip.x_min_mm, clip.x_max_mm].contains(&p.x)
+            || [clip.y_min_mm, clip.y_max_mm].contains(&p.y)
+    };
+    for t in surface.band.clone() {
+        let [a, b, c] = surface.mesh.triangle_positions(t);
+        let centroid = (a + b + c) / 3.0;
+        assert!(on_plane(a) && on_plane(b) && on_plane(c), "{a} {b} {c}");
+        assert!((clip.x_min_mm..=clip.x_max_mm).contains(&centroid.x));
+    }
+    let front_normal_z: f64 = surface
+        .front
+        .clone()
+        .map(|t| surface.mesh.triangle_normal(t).z)
+        .sum();
+    assert!(front_normal_z > 0.0);
+}
+
+#[test]
+fn an_inward_base_or_scan_gives_the_same_outward_surface() {
+    let patch = cylinder_patch();
+    let mut flipped = patch.clone();
+    for tri in &mut flipped.triangles {
+        tri.swap(1, 2);
+    }
+    let frame = identity_frame();
+    let reference = build_closed_surface_in_box(&patch, &patch, &frame, &clip_box(), 15.0)
+        .unwrap()
+        .volume_ml;
+    for (scan, base) in [(&patch, &flipped), (&flipped, &patch), (&flipped, &flipped)] {
+        let surface = build_closed_surface_in_box(scan, base, &frame, &clip_box(), 15.0).unwrap();
+        assert_closed(&surface);
+        assert!((surface.volume_ml - reference).abs() < 1e-9 * reference);
+    }
+}
+
+#[test]
+fn a_hole_inside_the_box_is_an_error() {
+    let mut patch = cylinder_patch();
+    // Remove the triangles around the vertex at x = 0, y = -50.
+    let centre = (50 * 121 + 60) as u32;
+    patch.triangles.retain(|tri| !tri.contains(&centre));
+    let error = build_closed_surface_in_box(
+        &patch,
+        &cylinder_patch(),
+        &identity_frame(),
+        &clip_box(),
+        15.0,
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            error,
+            ClosedSurfaceError::HoleInsideBox {
+                role: SurfaceRole::Scan,
+                vertices: 6,
+                ..
+            }
+        ),
+        "{error}"
+    );
+    assert!(error.to_string().contains("hole"), "{error}");
+}
+
+#[test]
+fn walks_split_into_simple_cycles() {
+    assert_eq!(simple_cycles(&[1, 2, 3]), vec![vec![1, 2, 3]]);
+    assert_eq!(
+        simple_cycles(&[1, 2, 3, 4, 2, 5]),
+        vec![vec![2, 3, 4], vec![1, 2, 5]]
+    );
+    // Pinched at the first vertex, and nested.
+    assert_eq!(
+        simple_cycles(&[1, 2, 3, 1, 4, 5, 6, 5, 7]),
+        vec![vec![1, 2, 3], vec![5, 6], vec![1, 4, 5, 7]]
+    );
+}
+
+#[test]
+fn a_bump_grazing_a_plane_is_capped_flat() {
+    // One vertex of the scan (at x = 76 mm, 3.1 mm inside the left plane) pushed
+    // 3.5 mm out, past the plane: its tip is cut off, leaving a small hole on the
+    // plane, apart from the border, that the cap closes.
+    let mut scan = cylinder_patch();
+    let bump = (50 * 121 + 98) as usize;
+    assert_eq!(scan.positions[bump].x, 76.0);
+    scan.positions[bump].x += 3.5;
+    let clip = clip_box();
+    let frame = identity_frame();
+    let surface =
+        build_closed_surface_in_box(&scan, &cylinder_patch(), &frame, &clip, 15.0).unwrap();
+    assert_closed(&surface);
+    // Triangles lying in the left plane off the band: the cap.
+    let cap: Vec<usize> = surface
+        .front
+        .clone()
+        .filter(|&t| {
+            surface
+                .mesh
+                .triangle_positions(t)
+                .iter()
+                .all(|p| p.x == clip.x_max_mm)
+        })
+        .collect();
+    assert!(!cap.is_empty());
+    for &t in &cap {
+        assert!(
+            surface.mesh.triangle_normal(t).x > 0.99,
+            "the cap faces out"
+        );
+    }
+    // The bump adds a sliver of volume to the slab.
+    let reference =
+        build_closed_surface_in_box(&cylinder_patch(), &cylinder_patch(), &frame, &clip, 15.0)
+            .unwrap();
+    let added = surface.volume_ml - reference.volume_ml;
+    assert!(added > 0.0 && added < 0.01, "{added} ml");
+}
+
+#[test]
+fn a_plane_beyond_the_border_is_an_error() {
+    let patch = cylinder_patch();
+    let beyond = ClipBox {
+        x_max_mm: 130.0,
+        ..clip_box()
+    };
+    let error =
+        build_closed_surface_in_box(&patch, &patch, &identity_frame(), &beyond, 15.0).unwrap_err();
+    assert!(
+        matches!(
+            error,
+            ClosedSurfaceError::RunsOffBorder {
+                role: SurfaceRole::Scan,
+                ..
+            }
+        ),
+        "{error}"
+    );
+}
+
+#[test]
+fn a_base_in_front_of_the_scan_and_bad_options_are_errors() {
+    let patch = cylinder_patch();
+    let mut in_front = patch.clone();
+    in_front.map_positions(|p| p + DVec3::Z * 30.0);
+    let frame = identity_frame();
+    let error =
+        build_closed_surface_in_box(&patch, &in_front, &frame, &clip_box(), 15.0).unwrap_err();
+    assert!(
+        matches!(error, ClosedSurfaceError::WallInFront { .. }),
+        "{error}"
+    );
+
+    for offset in [0.0, -5.0, f64::NAN] {
+        assert!(matches!(
+            build_closed_surface_in_box(&patch, &patch, &frame, &clip_box(), offset),
+            Err(ClosedSurfaceError::InvalidInput(_))
+        ));
+    }
+    let empty = ClipBox {
+        x_min_mm: 10.0,
+        x_max_mm: -10.0,
+        ..clip_box()
+    };
+    assert!(matches!(
+        build_closed_surface_in_box(&patch, &patch, &frame, &empty, 15.0),
+        Err(ClosedSurfaceError::InvalidInput(_))
+    ));
+    let missing = ClipBox {
+        x_min_mm: 500.0,
+        x_max_mm: 600.0,
+        ..clip_box()
+    };
+    assert!(matches!(
+        build_closed_surface_in_box(&patch, &patch, &frame, &missing, 15.0),
+        Err(ClosedSurfaceError::TooFewTriangles { .. })
+    ));
+}

@@ -1,0 +1,212 @@
+//! What the base says along the loop: its normals there, fitted to the base around each
+//! loop vertex and smoothed along the loop.
+
+use super::polygon::is_counter_clockwise;
+use super::{arc_length_weights, edge_lengths};
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
+use glam::{DVec2, DVec3};
+use mesh::TriMesh;
+
+/// The Gaussian filter along the loop ignores vertices beyond this many sigmas.
+const GAUSSIAN_CUTOFF_SIGMAS: f64 = 3.0;
+
+/// Radius (mm) of the base patch whose fitted quadric gives the base's normal at a loop
+/// vertex: some 20 scan vertices on the base side, so a scanner's noise (0.2-0.3 mm on
+/// 2 mm triangles, 8° on a single normal) averages out, while the quadric keeps the
+/// chest's curvature from tilting the normal as a plain average over the patch would.
+const JET_RADIUS_MM: f64 = 6.0;
+
+/// A quadric fit needs at least this many points (it has six unknowns).
+const MIN_JET_POINTS: usize = 10;
+
+/// The base's normal at each loop vertex from a least-squares quadric
+/// `w = a + b·u + c·v + d·u² + e·u·v + f·v²` fitted to the base vertices within
+/// [`JET_RADIUS_MM`], in the tangent frame of its one-ring normal `normals[k]`: the normal
+/// of the quadric at the vertex, `(-b, -c, 1)`. Where too few points or a singular fit,
+/// the one-ring normal stays.
+pub(super) fn jet_normals(
+    base: &TriMesh,
+    loop_positions: &[DVec3],
+    normals: &[DVec3],
+) -> Vec<DVec3> {
+    let cell = |p: DVec3| (p / JET_RADIUS_MM).floor().as_ivec3();
+    let (low, high) = loop_positions
+        .iter()
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
+    let (low, high) = (low - JET_RADIUS_MM, high + JET_RADIUS_MM);
+    let mut cells: std::collections::HashMap<glam::IVec3, Vec<DVec3>> =
+        std::collections::HashMap::new();
+    for &p in &base.positions {
+        if p.cmpge(low).all() && p.cmple(high).all() {
+            cells.entry(cell(p)).or_default().push(p);
+        }
+    }
+    loop_positions
+        .iter()
+        .zip(normals)
+        .map(|(&centre, &normal)| {
+            let Some(normal) = normal.try_normalize() else {
+                return normal;
+            };
+            let (u_axis, v_axis) = normal.any_orthonormal_pair();
+            let mut normal_matrix = Mat::<f64>::zeros(6, 6);
+            let mut rhs = Mat::<f64>::zeros(6, 1);
+            let mut count = 0;
+            let home = cell(centre);
+            for offset in (-1..=1).flat_map(|x| {
+                (-1..=1).flat_map(move |y| (-1..=1).map(move |z| glam::IVec3::new(x, y, z)))
+            }) {
+                for &p in cells.get(&(home + offset)).into_iter().flatten() {
+                    let d = p - centre;
+                    if d.length_squared() > JET_RADIUS_MM * JET_RADIUS_MM {
+                        continue;
+                    }
+                    // Coordinates in units of the radius keep the system well scaled.
+                    let (u, v, w) = (
+                        d.dot(u_axis) / JET_RADIUS_MM,
+                        d.dot(v_axis) / JET_RADIUS_MM,
+                        d.dot(normal) / JET_RADIUS_MM,
+                    );
+                    let row = [1.0, u, v, u * u, u * v, v * v];
+                    for i in 0..6 {
+                        rhs[(i, 0)] += row[i] * w;
+                        for j in 0..6 {
+                            normal_matrix[(i, j)] += row[i] * row[j];
+                        }
+                    }
+                    count += 1;
+                }
+            }
+            if count < MIN_JET_POINTS {
+                return normal;
+            }
+            let Ok(cholesky) = normal_matrix.llt(Side::Lower) else {
+                return normal;
+            };
+            let x = cholesky.solve(&rhs);
+            let (slope_u, slope_v) = (x[(1, 0)], x[(2, 0)]);
+            let fitted = (normal - slope_u * u_axis - slope_v * v_axis).normalize_or_zero();
+            if fitted.is_finite() && fitted != DVec3::ZERO {
+                fitted
+            } else {
+                normal
+            }
+        })
+        .collect()
+}
+
+/// What the base says along the loop.
+pub(super) struct BaseAlongLoop {
+    /// Per loop vertex, the unit area-weighted normal of its base triangles (zero if none).
+    pub(super) normals: Vec<DVec3>,
+    /// Loop edges that a base triangle traverses in loop direction, minus those it
+    /// traverses against it.
+    forward_edge_votes: i64,
+}
+
+impl BaseAlongLoop {
+    /// One pass over the base's triangles; needs no topology and tolerates invalid ones.
+    pub(super) fn gather(base: &TriMesh, boundary_loop: &[u32]) -> BaseAlongLoop {
+        const NOT_ON_LOOP: usize = usize::MAX;
+        let n = boundary_loop.len();
+        let mut loop_index = vec![NOT_ON_LOOP; base.positions.len()];
+        for (k, &vertex) in boundary_loop.iter().enumerate() {
+            if let Some(slot) = loop_index.get_mut(vertex as usize) {
+                *slot = k;
+            }
+        }
+        let mut normals = vec![DVec3::ZERO; n];
+        let mut forward_edge_votes = 0;
+        for triangle in &base.triangles {
+            let on_loop =
+                triangle.map(|v| loop_index.get(v as usize).copied().unwrap_or(NOT_ON_LOOP));
+            if on_loop.iter().all(|&k| k == NOT_ON_LOOP) {
+                continue;
+            }
+            let corner = |k: usize| base.positions.get(triangle[k] as usize);
+            let (Some(&a), Some(&b), Some(&c)) = (corner(0), corner(1), corner(2)) else {
+                continue;
+            };
+            // Twice the area along the normal: area weighting for free.
+            let weighted_normal = (b - a).cross(c - a);
+            if !weighted_normal.is_finite() {
+                continue;
+            }
+            for corner in 0..3 {
+                let (from, to) = (on_loop[corner], on_loop[(corner + 1) % 3]);
+                if from == NOT_ON_LOOP {
+                    continue;
+                }
+                normals[from] += weighted_normal;
+                if to == (from + 1) % n {
+                    forward_edge_votes += 1;
+                } else if to != NOT_ON_LOOP && from == (to + 1) % n {
+                    forward_edge_votes -= 1;
+                }
+            }
+        }
+        BaseAlongLoop {
+            normals: normals.iter().map(|n| n.normalize_or_zero()).collect(),
+            forward_edge_votes,
+        }
+    }
+
+    /// Whether the counter-clockwise (in `(u, v)`) triangles of the triangulation must be
+    /// reversed so that the fill-in runs against the base along the loop. Without base
+    /// triangles on the loop they are kept, their normals along the fitted plane's.
+    pub(super) fn fill_must_flip(&self, polygon: &[DVec2]) -> bool {
+        // A counter-clockwise triangle inside a counter-clockwise polygon runs along it.
+        let triangles_run_along_loop = is_counter_clockwise(polygon);
+        match self.forward_edge_votes.signum() {
+            1 => triangles_run_along_loop,
+            -1 => !triangles_run_along_loop,
+            _ => false,
+        }
+    }
+}
+
+/// Gaussian filter (standard deviation `sigma_mm` of arc length) of per-vertex vectors
+/// along the closed loop, each vertex weighted by its arc-length share; unit results.
+pub(super) fn gaussian_along_loop(
+    values: &[DVec3],
+    loop_positions: &[DVec3],
+    sigma_mm: f64,
+) -> Vec<DVec3> {
+    if sigma_mm <= 0.0 {
+        return values.to_vec();
+    }
+    let n = values.len();
+    let lengths = edge_lengths(loop_positions);
+    let shares = arc_length_weights(loop_positions);
+    let cutoff = GAUSSIAN_CUTOFF_SIGMAS * sigma_mm;
+    let weighted = |j: usize, distance: f64| {
+        values[j] * shares[j] * (-0.5 * (distance / sigma_mm).powi(2)).exp()
+    };
+    (0..n)
+        .map(|i| {
+            let mut sum = weighted(i, 0.0);
+            // Forward and backward, visiting every other vertex at most once.
+            let mut distance = 0.0;
+            for step in 1..=n / 2 {
+                distance += lengths[(i + step - 1) % n];
+                if distance > cutoff {
+                    break;
+                }
+                sum += weighted((i + step) % n, distance);
+            }
+            distance = 0.0;
+            for step in 1..=(n - 1) / 2 {
+                let j = (i + n - step) % n;
+                distance += lengths[j];
+                if distance > cutoff {
+                    break;
+                }
+                sum += weighted(j, distance);
+            }
+            sum.normalize_or_zero()
+        })
+        .collect()
+}
