@@ -29,7 +29,6 @@ use glam::DVec3;
 use implant::{Catalog, ImplantShape, ImplantSpec};
 use serde::{Deserialize, Serialize};
 use simulation::{PatientInput, PlacedImplant, Simulation};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetra::vtu::{CONSTRAINED, DISPLACEMENT, Field};
@@ -461,7 +460,16 @@ impl SimulatedMeasurements {
     pub fn write_csv(&self, path: &Path) -> Result<()> {
         let cell = |value: Option<f64>| value.map_or(String::new(), |v| format!("{v:.2}"));
         mesh::io::write_atomically(path, |w| {
-            writeln!(w, "measurement,kind,unit,before,simulated,difference")?;
+            // the csv crate quotes a user's point name that holds a comma or a quote
+            let mut csv = csv::Writer::from_writer(w);
+            csv.write_record([
+                "measurement",
+                "kind",
+                "unit",
+                "before",
+                "simulated",
+                "difference",
+            ])?;
             for change in &self.distances {
                 let (b, a) = (&change.before, &change.simulated);
                 for (kind, before, after) in [
@@ -470,36 +478,40 @@ impl SimulatedMeasurements {
                     ("geodesic", b.geodesic_mm, a.geodesic_mm),
                 ] {
                     let difference = before.zip(after).map(|(b, a)| a - b);
-                    writeln!(
-                        w,
-                        "{},{kind},mm,{},{},{}",
-                        change.name,
-                        cell(before),
-                        cell(after),
-                        cell(difference)
-                    )?;
+                    csv.write_record([
+                        change.name.as_str(),
+                        kind,
+                        "mm",
+                        &cell(before),
+                        &cell(after),
+                        &cell(difference),
+                    ])?;
                 }
             }
             for side in Side::BOTH {
                 let before = *self.breast_volume_before_ml.get(side);
                 let after = *self.breast_volume_ml.get(side);
-                writeln!(
-                    w,
-                    "breast volume {side},volume,ml,{},{},{}",
-                    cell(Some(before)),
-                    cell(Some(after)),
-                    cell(Some(after - before))
-                )?;
+                csv.write_record([
+                    format!("breast volume {side}").as_str(),
+                    "volume",
+                    "ml",
+                    &cell(Some(before)),
+                    &cell(Some(after)),
+                    &cell(Some(after - before)),
+                ])?;
             }
             for side in Side::BOTH {
                 let implant = *self.implant_volume_ml.get(side);
-                writeln!(
-                    w,
-                    "implant volume {side},volume,ml,,{},",
-                    cell(Some(implant))
-                )?;
+                csv.write_record([
+                    format!("implant volume {side}").as_str(),
+                    "volume",
+                    "ml",
+                    "",
+                    &cell(Some(implant)),
+                    "",
+                ])?;
             }
-            Ok(())
+            csv.flush()
         })?;
         Ok(())
     }

@@ -168,17 +168,48 @@ fn fan(corners: usize) -> impl Iterator<Item = [usize; 3]> {
     (2..corners).map(|k| [0, k - 1, k])
 }
 
+/// A temporary name beside `path`, unique per process and per call: two threads (or
+/// two calls under way) writing the same path never share one.
 fn temporary_sibling(path: &Path) -> PathBuf {
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!(".{name}.{}.partial", std::process::id()))
+    path.with_file_name(format!(".{name}.{}-{call}.partial", std::process::id()))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Threads writing one path at once each write whole files through names of their
+    /// own: the path ends up holding one writer's complete content, never a mixture.
+    #[test]
+    fn threads_writing_one_path_do_not_share_a_temporary_file() {
+        let directory = tempfile::tempdir().unwrap();
+        let path = directory.path().join("shared.txt");
+        let contents: Vec<String> = (0..8).map(|k| format!("{k}").repeat(100_000)).collect();
+        std::thread::scope(|scope| {
+            for content in &contents {
+                let path = &path;
+                scope.spawn(move || {
+                    for _ in 0..5 {
+                        write_atomically(path, |out| out.write_all(content.as_bytes())).unwrap();
+                    }
+                });
+            }
+        });
+        let written = std::fs::read_to_string(&path).unwrap();
+        assert!(
+            contents.contains(&written),
+            "a mixture of {} bytes",
+            written.len()
+        );
+        let leftovers = std::fs::read_dir(directory.path()).unwrap().count();
+        assert_eq!(leftovers, 1, "temporary files left behind");
+    }
 
     /// A file one byte over the limit is refused, one at the limit read whole.
     #[test]
