@@ -1,4 +1,7 @@
-//! The writer: a mesh and its data arrays as ASCII `.vtu` text, written atomically.
+//! The writer: a mesh and its data arrays as a `.vtu` file with the arrays appended as
+//! raw binary, zlib-compressed in VTK's blocks (what ParaView writes), written atomically.
+//! Float64 values are stored exactly; a 327,000-element level takes a fraction of the
+//! ASCII text's 40 MB.
 
 use super::{Field, VTK_TETRA};
 use crate::error::TetraError;
@@ -38,8 +41,8 @@ pub fn write_vtu(
         }
     }
     mesh.validate_indices()?;
-    let text = vtu_text(mesh, point_data, cell_data);
-    mesh::io::write_atomically(path, |w| w.write_all(text.as_bytes())).map_err(|e| match e {
+    let bytes = vtu_bytes(mesh, point_data, cell_data);
+    mesh::io::write_atomically(path, |w| w.write_all(&bytes)).map_err(|e| match e {
         mesh::MeshError::Io { path, source } => TetraError::Io { path, source },
         other => TetraError::Vtu {
             path: path.to_path_buf(),
@@ -49,16 +52,8 @@ pub fn write_vtu(
     })
 }
 
-/// A number in shortest round-trip form, in exponent notation when plain digits would be
-/// long.
-fn number(out: &mut String, x: f64) {
-    let plain = x == 0.0 || (1e-4..1e15).contains(&x.abs());
-    let _ = if plain {
-        write!(out, "{x}")
-    } else {
-        write!(out, "{x:e}")
-    };
-}
+/// Bytes of one uncompressed block of VTK's zlib compressor.
+const BLOCK_BYTES: usize = 1 << 15;
 
 fn escape_attribute(name: &str) -> String {
     name.replace('&', "&amp;")
@@ -67,104 +62,113 @@ fn escape_attribute(name: &str) -> String {
         .replace('>', "&gt;")
 }
 
-fn data_array(
-    out: &mut String,
-    vtk_type: &str,
-    name: Option<&str>,
-    components: usize,
-    values: impl Iterator<Item = String>,
-    per_line: usize,
-) {
-    let name = name
-        .map(|n| format!(" Name=\"{}\"", escape_attribute(n)))
-        .unwrap_or_default();
-    let _ = writeln!(
-        out,
-        "        <DataArray type=\"{vtk_type}\"{name} NumberOfComponents=\"{components}\" format=\"ascii\">"
-    );
-    for (k, value) in values.enumerate() {
-        out.push_str(if k % per_line == 0 { "          " } else { " " });
-        out.push_str(&value);
-        if k % per_line == per_line - 1 {
-            out.push('\n');
-        }
+/// `data` as one appended block: the UInt64 header `[blocks, block size, last block
+/// size, compressed size of each block]` (a last size of 0: a full block) and the
+/// blocks, each a zlib stream.
+fn compressed_block(data: &[u8]) -> Vec<u8> {
+    let blocks: Vec<Vec<u8>> = data
+        .chunks(BLOCK_BYTES)
+        .map(|chunk| {
+            let mut encoder =
+                flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+            // writing into a Vec cannot fail
+            let _ = encoder.write_all(chunk);
+            encoder.finish().unwrap_or_default()
+        })
+        .collect();
+    let mut out = Vec::new();
+    let words = [
+        blocks.len() as u64,
+        BLOCK_BYTES as u64,
+        (data.len() % BLOCK_BYTES) as u64,
+    ];
+    for word in words
+        .into_iter()
+        .chain(blocks.iter().map(|b| b.len() as u64))
+    {
+        out.extend_from_slice(&word.to_le_bytes());
     }
-    if !out.ends_with('\n') {
-        out.push('\n');
+    for block in &blocks {
+        out.extend_from_slice(block);
     }
-    out.push_str("        </DataArray>\n");
+    out
 }
 
-fn float_strings(values: impl Iterator<Item = f64>) -> impl Iterator<Item = String> {
-    values.map(|x| {
-        let mut s = String::new();
-        number(&mut s, x);
-        s
-    })
+/// The XML and the appended data being built: each array's element refers to its block
+/// by offset.
+#[derive(Default)]
+struct Appended {
+    xml: String,
+    data: Vec<u8>,
 }
 
-fn vtu_text(mesh: &TetMesh, point_data: &[Field], cell_data: &[Field]) -> String {
-    let mut out = String::new();
-    out.push_str("<?xml version=\"1.0\"?>\n");
-    out.push_str(
-        "<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n",
+impl Appended {
+    fn array(&mut self, vtk_type: &str, name: Option<&str>, components: usize, bytes: &[u8]) {
+        let name = name
+            .map(|n| format!(" Name=\"{}\"", escape_attribute(n)))
+            .unwrap_or_default();
+        let _ = writeln!(
+            self.xml,
+            "        <DataArray type=\"{vtk_type}\"{name} NumberOfComponents=\"{components}\" format=\"appended\" offset=\"{}\"/>",
+            self.data.len()
+        );
+        self.data.extend(compressed_block(bytes));
+    }
+}
+
+fn f64_bytes(values: impl Iterator<Item = f64>) -> Vec<u8> {
+    values.flat_map(f64::to_le_bytes).collect()
+}
+
+fn vtu_bytes(mesh: &TetMesh, point_data: &[Field], cell_data: &[Field]) -> Vec<u8> {
+    let mut out = Appended::default();
+    out.xml.push_str("<?xml version=\"1.0\"?>\n");
+    out.xml.push_str(
+        "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" \
+         header_type=\"UInt64\" compressor=\"vtkZLibDataCompressor\">\n",
     );
-    out.push_str("  <UnstructuredGrid>\n");
+    out.xml.push_str("  <UnstructuredGrid>\n");
     let _ = writeln!(
-        out,
+        out.xml,
         "    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">",
         mesh.vertex_count(),
         mesh.tet_count()
     );
     for (tag, fields) in [("PointData", point_data), ("CellData", cell_data)] {
-        let _ = writeln!(out, "      <{tag}>");
+        let _ = writeln!(out.xml, "      <{tag}>");
         for field in fields {
-            let components = field.components();
-            data_array(
-                &mut out,
+            out.array(
                 "Float64",
                 Some(&field.name),
-                components,
-                float_strings(field.flat()),
-                if components == 3 { 3 } else { 6 },
+                field.components(),
+                &f64_bytes(field.flat()),
             );
         }
-        let _ = writeln!(out, "      </{tag}>");
+        let _ = writeln!(out.xml, "      </{tag}>");
     }
-    out.push_str("      <Points>\n");
-    data_array(
-        &mut out,
-        "Float64",
-        None,
-        3,
-        float_strings(mesh.positions.iter().flat_map(|p| p.to_array())),
-        3,
-    );
-    out.push_str("      </Points>\n      <Cells>\n");
-    data_array(
-        &mut out,
-        "Int64",
-        Some("connectivity"),
-        1,
-        mesh.tets.iter().flatten().map(|v| v.to_string()),
-        4,
-    );
-    data_array(
-        &mut out,
-        "Int64",
-        Some("offsets"),
-        1,
-        (1..=mesh.tet_count()).map(|k| (4 * k).to_string()),
-        12,
-    );
-    data_array(
-        &mut out,
+    out.xml.push_str("      <Points>\n");
+    let points = f64_bytes(mesh.positions.iter().flat_map(|p| p.to_array()));
+    out.array("Float64", None, 3, &points);
+    out.xml.push_str("      </Points>\n      <Cells>\n");
+    let connectivity: Vec<u8> = (mesh.tets.iter().flatten())
+        .flat_map(|&v| i64::from(v).to_le_bytes())
+        .collect();
+    out.array("Int64", Some("connectivity"), 1, &connectivity);
+    let offsets: Vec<u8> = (1..=mesh.tet_count() as i64)
+        .flat_map(|k| (4 * k).to_le_bytes())
+        .collect();
+    out.array("Int64", Some("offsets"), 1, &offsets);
+    out.array(
         "UInt8",
         Some("types"),
         1,
-        std::iter::repeat_n(VTK_TETRA.to_string(), mesh.tet_count()),
-        24,
+        &vec![VTK_TETRA; mesh.tet_count()],
     );
-    out.push_str("      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n");
-    out
+    out.xml
+        .push_str("      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n");
+    out.xml.push_str("  <AppendedData encoding=\"raw\">\n   _");
+    let mut bytes = out.xml.into_bytes();
+    bytes.extend(out.data);
+    bytes.extend_from_slice(b"\n  </AppendedData>\n</VTKFile>\n");
+    bytes
 }
