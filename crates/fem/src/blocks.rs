@@ -9,6 +9,7 @@
 //! loops behind `#[target_feature]`, not a global target flag. Blocks are row-major
 //! `[f64; 9]`; a block is loaded as lanes `(b₀ b₁ b₂ b₃)`, `(b₄ b₅ b₆ b₇)` and `b₈`.
 
+#![allow(unsafe_code)] // vector kernels and raw disjoint writes, each block with its SAFETY reason
 /// Whether the processor has AVX2 and FMA (detected once, then cached by the standard
 /// library), i.e. whether the [`Avx2Fma`] kernels may run.
 #[inline]

@@ -24,6 +24,7 @@
 //! both give the same bits; this is most of the time of a corotated assembly, and the
 //! scalar iteration is bound by the latency of its divisions, which the lanes overlap.
 
+#![allow(unsafe_code)] // vector kernels and raw disjoint writes, each block with its SAFETY reason
 use glam::{DMat3, DVec3};
 
 /// Symmetric eigendecomposition of a 3x3 matrix by cyclic Jacobi rotations. Returns the
@@ -335,41 +336,50 @@ impl LaneVector for Avx {
     // runs only where the processor has AVX2 (checked by `polar_rotations`).
     #[inline(always)]
     fn splat(v: f64) -> Self {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         Avx(unsafe { std::arch::x86_64::_mm256_set1_pd(v) })
     }
     #[inline(always)]
     fn from_lanes(v: [f64; POLAR_LANES]) -> Self {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         Avx(unsafe { std::arch::x86_64::_mm256_loadu_pd(v.as_ptr()) })
     }
     #[inline(always)]
     fn to_lanes(self) -> [f64; POLAR_LANES] {
         let mut v = [0.0; POLAR_LANES];
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         unsafe { std::arch::x86_64::_mm256_storeu_pd(v.as_mut_ptr(), self.0) };
         v
     }
     #[inline(always)]
     fn add(self, o: Self) -> Self {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         Avx(unsafe { std::arch::x86_64::_mm256_add_pd(self.0, o.0) })
     }
     #[inline(always)]
     fn sub(self, o: Self) -> Self {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         Avx(unsafe { std::arch::x86_64::_mm256_sub_pd(self.0, o.0) })
     }
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         Avx(unsafe { std::arch::x86_64::_mm256_mul_pd(self.0, o.0) })
     }
     #[inline(always)]
     fn div(self, o: Self) -> Self {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         Avx(unsafe { std::arch::x86_64::_mm256_div_pd(self.0, o.0) })
     }
     #[inline(always)]
     fn sqrt(self) -> Self {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         Avx(unsafe { std::arch::x86_64::_mm256_sqrt_pd(self.0) })
     }
     #[inline(always)]
     fn finite(self) -> Self::Mask {
         use std::arch::x86_64::*;
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         unsafe {
             let magnitude = _mm256_andnot_pd(_mm256_set1_pd(-0.0), self.0);
             _mm256_cmp_pd::<_CMP_LT_OQ>(magnitude, _mm256_set1_pd(f64::INFINITY))
@@ -378,35 +388,43 @@ impl LaneVector for Avx {
     #[inline(always)]
     fn less(self, o: Self) -> Self::Mask {
         use std::arch::x86_64::*;
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         unsafe { _mm256_cmp_pd::<_CMP_LT_OQ>(self.0, o.0) }
     }
     #[inline(always)]
     fn greater(self, o: Self) -> Self::Mask {
         use std::arch::x86_64::*;
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         unsafe { _mm256_cmp_pd::<_CMP_GT_OQ>(self.0, o.0) }
     }
     #[inline(always)]
     fn blend(self, if_true: Self, mask: Self::Mask) -> Self {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         Avx(unsafe { std::arch::x86_64::_mm256_blendv_pd(self.0, if_true.0, mask) })
     }
     #[inline(always)]
     fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         unsafe { std::arch::x86_64::_mm256_and_pd(a, b) }
     }
     #[inline(always)]
     fn and_not(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         unsafe { std::arch::x86_64::_mm256_andnot_pd(b, a) }
     }
     #[inline(always)]
     fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         unsafe { std::arch::x86_64::_mm256_or_pd(a, b) }
     }
     #[inline(always)]
     fn none() -> Self::Mask {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         unsafe { std::arch::x86_64::_mm256_setzero_pd() }
     }
     #[inline(always)]
     fn bits(mask: Self::Mask) -> u32 {
+        // SAFETY: AVX2 is present wherever an `Avx` exists (see above).
         unsafe { std::arch::x86_64::_mm256_movemask_pd(mask) as u32 }
     }
 }

@@ -21,12 +21,14 @@
 //! contains it. The free rows are therefore exactly those of a system built with all the
 //! constraints permanent.
 
+#![allow(unsafe_code)] // vector kernels and raw disjoint writes, each block with its SAFETY reason
 use crate::blocks::{self, BlockKernels};
 use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
 use crate::polar::POLAR_LANES;
 use glam::DVec3;
 use rayon::prelude::*;
+use std::marker::PhantomData;
 
 /// Marks a vertex that is not an unknown of the reduced system.
 pub const NOT_FREE: u32 = u32::MAX;
@@ -831,21 +833,26 @@ impl UpperTriangle {
 /// other task reads or writes at the same time (which the borrow checker cannot see:
 /// e.g. the rows of one colour of a Gauss-Seidel sweep, or the lower triangle of a matrix
 /// filled from its upper one).
+/// It borrows the slice mutably for its lifetime, so the slice cannot be used or freed
+/// otherwise while tasks hold it.
 #[derive(Clone, Copy)]
-pub(crate) struct DisjointWrites<T> {
+pub(crate) struct DisjointWrites<'a, T> {
     ptr: *mut T,
     len: usize,
+    slice: PhantomData<&'a mut [T]>,
 }
 
 // SAFETY: the users uphold the disjointness contract of `read` and `write`.
-unsafe impl<T: Send> Send for DisjointWrites<T> {}
-unsafe impl<T: Send> Sync for DisjointWrites<T> {}
+unsafe impl<T: Send> Send for DisjointWrites<'_, T> {}
+// SAFETY: as for `Send`: no entry is touched by two tasks at once.
+unsafe impl<T: Send> Sync for DisjointWrites<'_, T> {}
 
-impl<T: Copy> DisjointWrites<T> {
-    pub(crate) fn new(slice: &mut [T]) -> DisjointWrites<T> {
+impl<'a, T: Copy> DisjointWrites<'a, T> {
+    pub(crate) fn new(slice: &'a mut [T]) -> DisjointWrites<'a, T> {
         DisjointWrites {
             ptr: slice.as_mut_ptr(),
             len: slice.len(),
+            slice: PhantomData,
         }
     }
 

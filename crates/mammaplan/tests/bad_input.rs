@@ -2,6 +2,7 @@
 //! that names the problem and what to do, a non-zero exit, no panic, and no output
 //! left behind.
 
+#![allow(unsafe_code)] // setrlimit through libc, to make a write fail half way
 mod common;
 
 use common::*;

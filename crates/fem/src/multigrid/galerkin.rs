@@ -1,6 +1,7 @@
 //! Galerkin coarse operators: the coarse unknowns, and `Pᵀ A P` on fixed patterns (fused
 //! per fine row for the barycentric `P`, by slots for the smoothed one).
 
+#![allow(unsafe_code)] // vector kernels and raw disjoint writes, each block with its SAFETY reason
 use super::concat_rows;
 use super::transfer::{SmoothedProlongation, Transfer};
 use crate::blocks::{self, BlockKernels};

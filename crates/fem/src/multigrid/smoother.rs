@@ -1,6 +1,7 @@
 //! The smoother: a balanced multicolouring of the block graph and block SOR sweeps in
 //! colour order.
 
+#![allow(unsafe_code)] // vector kernels and raw disjoint writes, each block with its SAFETY reason
 use super::Level;
 use crate::system::{BlockCsr, DisjointWrites};
 use glam::{DMat3, DVec3};
