@@ -102,35 +102,7 @@ enum Command {
         json: bool,
     },
     /// Write the synthetic torso scan and its landmark file.
-    Phantom {
-        /// Output scan (.ply, .obj or .stl). An .obj wears the phantom's photograph: a
-        /// skin texture with areolas and a grid of marks (<name>.mtl and <name>.png beside
-        /// it).
-        #[arg(long, value_name = "SCAN")]
-        out: PathBuf,
-        /// Output landmark file (JSON), with the true breast volumes.
-        #[arg(long, value_name = "JSON")]
-        landmarks: PathBuf,
-        #[arg(long, default_value = "medium")]
-        cup: Cup,
-        /// Breast ptosis, 0 (none) to 1 (marked).
-        #[arg(long, default_value_t = PhantomParams::default().ptosis, value_parser = unit_interval)]
-        ptosis: f64,
-        /// Scanner noise along the normals, standard deviation in mm.
-        #[arg(long, default_value_t = 0.0, value_parser = non_negative)]
-        noise_mm: f64,
-        /// Natural left/right asymmetry, 0 (none) to 1 (noticeable).
-        #[arg(long, default_value_t = 0.0, value_parser = unit_interval)]
-        asymmetry: f64,
-        #[arg(long, default_value_t = PhantomParams::default().seed)]
-        seed: u64,
-        /// Leave out what a standing three-camera clinical scanner (cameras at -30, 0
-        /// and +30 degrees) does not see: the underside of full or hanging breasts, the
-        /// lateral fold, the sides; the largest connected piece is kept and hidden
-        /// landmarks move to the nearest seen vertex.
-        #[arg(long)]
-        occlusion: bool,
-    },
+    Phantom(PhantomArgs),
     /// Clinical distances between landmarks (Euclidean, plane-section and geodesic).
     Measure {
         #[arg(long, value_name = "SCAN")]
@@ -182,184 +154,16 @@ enum Command {
     },
     /// Compare a test scan with a reference scan: surface deviation (RMS, mean, Hausdorff)
     /// over the overlap and the breast regions, distances, volumes and symmetry of both.
-    Compare {
-        #[arg(long, value_name = "SCAN")]
-        reference: PathBuf,
-        #[arg(long, value_name = "JSON")]
-        reference_landmarks: PathBuf,
-        #[arg(long, value_name = "SCAN")]
-        test: PathBuf,
-        #[arg(long, value_name = "JSON")]
-        test_landmarks: PathBuf,
-        /// Register the test scan onto the reference first (bony landmarks, then ICP away
-        /// from the breasts).
-        #[arg(long)]
-        register: bool,
-        /// Write the test scan (registered) with the deviation colour map (green 0 mm to
-        /// red 20 mm) and the vertex properties distance_mm, signed_distance_mm and
-        /// asymmetry_mm (.ply).
-        #[arg(long, value_name = "DEVIATION.ply")]
-        out: Option<PathBuf>,
-        /// Points farther than this from the other scan are outside the overlap (mm).
-        #[arg(long, value_name = "MM", default_value_t = plan::compare::DEFAULT_MAX_DISTANCE_MM, value_parser = positive)]
-        max_distance_mm: f64,
-        /// Cut the reference's breasts along these control points (as `model
-        /// --control-points`) instead of the defaults from its landmarks.
-        #[arg(long, value_name = "JSON")]
-        reference_control_points: Option<PathBuf>,
-        /// Cut the test's breasts along these control points; for a simulated scan, its
-        /// simulation folder's simulated_control_points.json (the model's carried with
-        /// the tissue).
-        #[arg(long, value_name = "JSON")]
-        test_control_points: Option<PathBuf>,
-        /// Which way is up in both scans' files: an axis (+y, -z, ...) or a vector
-        /// x,y,z. Without it the file's +y, or an estimate (with a warning) where the
-        /// patient does not stand upright in the file.
-        #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
-        up: Option<plan::Up>,
-        /// The unit of the scan files' coordinates: mm, cm, m or in. Without it
-        /// millimetres, and a scan whose size is no torso's in millimetres is refused.
-        #[arg(long, value_name = "UNIT")]
-        units: Option<plan::LengthUnit>,
-        #[arg(long)]
-        json: bool,
-    },
+    Compare(CompareArgs),
     /// Build the breast model (cut curves, breast patches, fill-ins, breast and quadrant
     /// volumes) and the closed surface, and write them to MODEL_DIR.
-    Model {
-        #[arg(long, value_name = "SCAN")]
-        scan: PathBuf,
-        #[arg(long, value_name = "JSON")]
-        landmarks: PathBuf,
-        /// The model folder (created if needed).
-        #[arg(long, value_name = "MODEL_DIR")]
-        out: PathBuf,
-        /// Cut-curve control points to use instead of the defaults from the landmarks
-        /// (the format of MODEL_DIR/control_points.json).
-        #[arg(long, value_name = "JSON")]
-        control_points: Option<PathBuf>,
-        /// Where the upper control point lies on the on-surface line from Pc to Pn
-        /// (between 0 and 1); not with --control-points.
-        #[arg(long, value_name = "R", default_value_t = plan::model::DEFAULT_PC_RATIO, value_parser = open_unit_interval, conflicts_with = "control_points")]
-        pc_ratio: f64,
-        /// How far the filled base is shifted back to form the rear wall (mm, up to 60).
-        #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REAR_WALL_OFFSET_MM, value_parser = rear_wall_offset)]
-        rear_wall_offset_mm: f64,
-        /// About how many tetrahedra the finest uniform mesh level has (within about 20%;
-        /// default 60000).
-        #[arg(long, value_name = "N", value_parser = positive_integer)]
-        elements: Option<usize>,
-        /// The resolution by what it is for, instead of --elements: draft (15000
-        /// elements), standard (60000) or accurate (240000, for a report; see
-        /// docs/dev/discretisation.md).
-        #[arg(long, value_name = "QUALITY", conflicts_with = "elements")]
-        quality: Option<plan::model::Quality>,
-        /// Adds a finest level refined within this distance of both fill-ins, where the
-        /// implant sits (mm; e.g. 5). Costs several times the elements.
-        #[arg(long, value_name = "MM", value_parser = positive)]
-        refine_band_mm: Option<f64>,
-        /// Longest element edge in the refined band (mm).
-        #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REFINE_EDGE_MM, value_parser = positive, requires = "refine_band_mm")]
-        refine_edge_mm: f64,
-        /// Which way is up in the scan's file: an axis (+y, -z, ...) or a vector x,y,z.
-        /// Without it the file's +y, or an estimate (with a warning) where the patient
-        /// does not stand upright in the file.
-        #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
-        up: Option<plan::Up>,
-        /// The unit of the scan files' coordinates: mm, cm, m or in. Without it
-        /// millimetres, and a scan whose size is no torso's in millimetres is refused.
-        #[arg(long, value_name = "UNIT")]
-        units: Option<plan::LengthUnit>,
-        #[arg(long)]
-        json: bool,
-    },
+    Model(ModelArgs),
     /// Implants on a model: the predicted post-operative scan (finite elements).
-    Simulate {
-        /// A model folder written by `mammaplan model`.
-        #[arg(long, value_name = "MODEL_DIR")]
-        model: PathBuf,
-        /// Left implant: round:diameter=D,projection=P | anatomic:width=W,height=H,projection=P
-        /// | catalog:ID (mm).
-        #[arg(long, value_name = "SPEC", required_unless_present = "right")]
-        left: Option<String>,
-        /// Right implant, as --left.
-        #[arg(long, value_name = "SPEC")]
-        right: Option<String>,
-        /// Move the left implant from its default position (mm, anatomical frame: x to
-        /// the patient's left, y up, z anterior).
-        #[arg(long, value_name = "DX,DY,DZ", value_parser = vector_mm, requires = "left", allow_hyphen_values = true)]
-        move_left: Option<[f64; 3]>,
-        /// Move the right implant, as --move-left.
-        #[arg(long, value_name = "DX,DY,DZ", value_parser = vector_mm, requires = "right", allow_hyphen_values = true)]
-        move_right: Option<[f64; 3]>,
-        /// Turn the left implant about the chest wall's normal (degrees, counter-clockwise
-        /// seen from the front; for anatomic implants).
-        #[arg(long, value_name = "DEG", value_parser = angle_deg, requires = "left", allow_hyphen_values = true)]
-        rotate_left: Option<f64>,
-        /// Turn the right implant, as --rotate-left.
-        #[arg(long, value_name = "DEG", value_parser = angle_deg, requires = "right", allow_hyphen_values = true)]
-        rotate_right: Option<f64>,
-        /// Skip the gravity correction.
-        #[arg(long)]
-        no_gravity: bool,
-        /// Simulate homogeneous tissue up to the surface (the paper's model) instead of
-        /// a stiff skin layer over it.
-        #[arg(long)]
-        no_skin: bool,
-        /// Leave large volume loss to the corotated energy (the paper's model) instead
-        /// of resisting it beyond 10% (see docs/dev/volume-loss.md).
-        #[arg(long)]
-        no_compression_penalty: bool,
-        /// A CSV catalog for catalog:ID specs instead of the built-in one.
-        #[arg(long, value_name = "CSV")]
-        catalog: Option<PathBuf>,
-        /// Default implant position, which the moves start from: on-fold (the implant's
-        /// lower edge on the planned fold, straight down from behind the nipple), footprint-centre (centred on
-        /// the breast's base) or behind-nipple (straight behind the nipple); each is moved
-        /// along the chest wall until the implant fits in its pocket.
-        #[arg(long, value_name = "RULE", default_value = "on-fold")]
-        anchor: plan::simulate::AnchorRule,
-        /// Lower the left fold by this much (mm): the pocket reaches this far below the
-        /// native fold's lowest point (PSMFl). Default: as the ICE principle plans it for
-        /// the implant (half its height plus its projection, less the nipple-to-fold
-        /// distance; 0 to 30 mm).
-        #[arg(long, value_name = "MM", value_parser = non_negative)]
-        lower_fold_left: Option<f64>,
-        /// Lower the right fold by this much (mm), as --lower-fold-left.
-        #[arg(long, value_name = "MM", value_parser = non_negative)]
-        lower_fold_right: Option<f64>,
-        /// The simulation folder (created if needed).
-        #[arg(long, value_name = "SIM_DIR")]
-        out: PathBuf,
-        #[arg(long)]
-        json: bool,
-    },
+    Simulate(SimulateArgs),
     /// One self-contained HTML page about a plan (printable, nothing fetched): case, implants,
     /// views, distances and volumes before, as simulated and after, symmetry, and the
     /// comparison with the post-operative scan when given.
-    Report {
-        /// A model folder written by `mammaplan model`.
-        #[arg(long, value_name = "MODEL_DIR")]
-        model: PathBuf,
-        /// A simulation folder written by `mammaplan simulate` from that model.
-        #[arg(long, value_name = "SIM_DIR")]
-        simulation: PathBuf,
-        /// The post-operative scan (PLY, OBJ or STL).
-        #[arg(long, value_name = "SCAN", requires = "postop_landmarks")]
-        postop: Option<PathBuf>,
-        /// The post-operative scan's landmark file.
-        #[arg(long, value_name = "JSON", requires = "postop")]
-        postop_landmarks: Option<PathBuf>,
-        /// Which way is up in the post-operative scan's file, as `model --up`.
-        #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true, requires = "postop")]
-        postop_up: Option<plan::Up>,
-        /// The unit of the post-operative scan's coordinates, as `model --units`.
-        #[arg(long, value_name = "UNIT", requires = "postop")]
-        postop_units: Option<plan::LengthUnit>,
-        /// The report (HTML).
-        #[arg(long, value_name = "HTML")]
-        out: PathBuf,
-    },
+    Report(ReportArgs),
     /// The paper's Table I on this machine: implant set-up, multigrid cycles and the
     /// direct solver on the phantom's models.
     Bench {
@@ -388,31 +192,7 @@ enum Command {
     },
     /// The desktop planning window: landmarks placed on the scan, the breast model built,
     /// implants chosen and moved with the simulation shown live, measurements, cases.
-    Gui {
-        /// A scan to open (PLY, OBJ or STL).
-        #[arg(long, value_name = "SCAN", conflicts_with_all = ["phantom", "case"])]
-        scan: Option<PathBuf>,
-        /// Its landmark file (required landmarks may be missing: place them in the window).
-        #[arg(long, value_name = "JSON", requires = "scan")]
-        landmarks: Option<PathBuf>,
-        /// Which way is up in the scan's file, as `model --up`.
-        #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true, requires = "scan")]
-        up: Option<plan::Up>,
-        /// The unit of the scan file's coordinates, as `model --units`.
-        #[arg(long, value_name = "UNIT", requires = "scan")]
-        units: Option<plan::LengthUnit>,
-        /// Open the built-in phantom with its landmarks.
-        #[arg(long, conflicts_with = "case")]
-        phantom: bool,
-        /// A planning case saved by the window (its scan, landmarks, settings and
-        /// implants; the model is rebuilt).
-        #[arg(long, value_name = "FILE")]
-        case: Option<PathBuf>,
-        /// Run a scripted session in the window (one action per line: phantom, build,
-        /// implant ID, move up, wait, screenshot FILE, ...; see docs/manual.md).
-        #[arg(long, value_name = "FILE")]
-        script: Option<PathBuf>,
-    },
+    Gui(GuiArgs),
 }
 
 fn main() -> ExitCode {
@@ -443,43 +223,481 @@ fn parse_command_line() -> Cli {
     Cli::from_arg_matches(&matches).unwrap_or_else(|error| error.exit())
 }
 
+/// The arguments of `mammaplan simulate`.
+#[derive(clap::Args)]
+struct SimulateArgs {
+    /// A model folder written by `mammaplan model`.
+    #[arg(long, value_name = "MODEL_DIR")]
+    model: PathBuf,
+    /// Left implant: round:diameter=D,projection=P | anatomic:width=W,height=H,projection=P
+    /// | catalog:ID (mm).
+    #[arg(long, value_name = "SPEC", required_unless_present = "right")]
+    left: Option<String>,
+    /// Right implant, as --left.
+    #[arg(long, value_name = "SPEC")]
+    right: Option<String>,
+    /// Move the left implant from its default position (mm, anatomical frame: x to
+    /// the patient's left, y up, z anterior).
+    #[arg(long, value_name = "DX,DY,DZ", value_parser = vector_mm, requires = "left", allow_hyphen_values = true)]
+    move_left: Option<[f64; 3]>,
+    /// Move the right implant, as --move-left.
+    #[arg(long, value_name = "DX,DY,DZ", value_parser = vector_mm, requires = "right", allow_hyphen_values = true)]
+    move_right: Option<[f64; 3]>,
+    /// Turn the left implant about the chest wall's normal (degrees, counter-clockwise
+    /// seen from the front; for anatomic implants).
+    #[arg(long, value_name = "DEG", value_parser = angle_deg, requires = "left", allow_hyphen_values = true)]
+    rotate_left: Option<f64>,
+    /// Turn the right implant, as --rotate-left.
+    #[arg(long, value_name = "DEG", value_parser = angle_deg, requires = "right", allow_hyphen_values = true)]
+    rotate_right: Option<f64>,
+    /// Skip the gravity correction.
+    #[arg(long)]
+    no_gravity: bool,
+    /// Simulate homogeneous tissue up to the surface (the paper's model) instead of
+    /// a stiff skin layer over it.
+    #[arg(long)]
+    no_skin: bool,
+    /// Leave large volume loss to the corotated energy (the paper's model) instead
+    /// of resisting it beyond 10% (see docs/dev/volume-loss.md).
+    #[arg(long)]
+    no_compression_penalty: bool,
+    /// A CSV catalog for catalog:ID specs instead of the built-in one.
+    #[arg(long, value_name = "CSV")]
+    catalog: Option<PathBuf>,
+    /// Default implant position, which the moves start from: on-fold (the implant's
+    /// lower edge on the planned fold, straight down from behind the nipple), footprint-centre (centred on
+    /// the breast's base) or behind-nipple (straight behind the nipple); each is moved
+    /// along the chest wall until the implant fits in its pocket.
+    #[arg(long, value_name = "RULE", default_value = "on-fold")]
+    anchor: plan::simulate::AnchorRule,
+    /// Lower the left fold by this much (mm): the pocket reaches this far below the
+    /// native fold's lowest point (PSMFl). Default: as the ICE principle plans it for
+    /// the implant (half its height plus its projection, less the nipple-to-fold
+    /// distance; 0 to 30 mm).
+    #[arg(long, value_name = "MM", value_parser = non_negative)]
+    lower_fold_left: Option<f64>,
+    /// Lower the right fold by this much (mm), as --lower-fold-left.
+    #[arg(long, value_name = "MM", value_parser = non_negative)]
+    lower_fold_right: Option<f64>,
+    /// The simulation folder (created if needed).
+    #[arg(long, value_name = "SIM_DIR")]
+    out: PathBuf,
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `mammaplan simulate`.
+fn simulate_command(args: SimulateArgs, progress: &TerminalProgress) -> Result<()> {
+    let SimulateArgs {
+        model,
+        left,
+        right,
+        move_left,
+        move_right,
+        rotate_left,
+        rotate_right,
+        no_gravity,
+        no_skin,
+        no_compression_penalty,
+        catalog,
+        anchor,
+        lower_fold_left,
+        lower_fold_right,
+        out,
+        json,
+    } = args;
+    let request = |spec: Option<String>, move_mm: Option<[f64; 3]>, rotation: Option<f64>| {
+        spec.map(|spec| plan::simulate::ImplantRequest {
+            move_mm: move_mm.unwrap_or_default().into(),
+            rotation_deg: rotation.unwrap_or(0.0),
+            ..plan::simulate::ImplantRequest::new(spec)
+        })
+    };
+    let options = plan::simulate::SimulateOptions {
+        left: request(left, move_left, rotate_left),
+        right: request(right, move_right, rotate_right),
+        no_gravity,
+        catalog,
+        anchor,
+        fold_lowering_mm: plan::model::PerSide {
+            left: lower_fold_left,
+            right: lower_fold_right,
+        },
+        no_skin,
+        no_compression_penalty,
+    };
+    let report = plan::simulate::simulate(&model, &out, &options, progress)?;
+    progress.finish();
+    if json {
+        print_json(&report)
+    } else {
+        say(summary::simulation(&report))?;
+        Ok(())
+    }
+}
+
+/// The arguments of `mammaplan model`.
+#[derive(clap::Args)]
+struct ModelArgs {
+    #[arg(long, value_name = "SCAN")]
+    scan: PathBuf,
+    #[arg(long, value_name = "JSON")]
+    landmarks: PathBuf,
+    /// The model folder (created if needed).
+    #[arg(long, value_name = "MODEL_DIR")]
+    out: PathBuf,
+    /// Cut-curve control points to use instead of the defaults from the landmarks
+    /// (the format of MODEL_DIR/control_points.json).
+    #[arg(long, value_name = "JSON")]
+    control_points: Option<PathBuf>,
+    /// Where the upper control point lies on the on-surface line from Pc to Pn
+    /// (between 0 and 1); not with --control-points.
+    #[arg(long, value_name = "R", default_value_t = plan::model::DEFAULT_PC_RATIO, value_parser = open_unit_interval, conflicts_with = "control_points")]
+    pc_ratio: f64,
+    /// How far the filled base is shifted back to form the rear wall (mm, up to 60).
+    #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REAR_WALL_OFFSET_MM, value_parser = rear_wall_offset)]
+    rear_wall_offset_mm: f64,
+    /// About how many tetrahedra the finest uniform mesh level has (within about 20%;
+    /// default 60000).
+    #[arg(long, value_name = "N", value_parser = positive_integer)]
+    elements: Option<usize>,
+    /// The resolution by what it is for, instead of --elements: draft (15000
+    /// elements), standard (60000) or accurate (240000, for a report; see
+    /// docs/dev/discretisation.md).
+    #[arg(long, value_name = "QUALITY", conflicts_with = "elements")]
+    quality: Option<plan::model::Quality>,
+    /// Adds a finest level refined within this distance of both fill-ins, where the
+    /// implant sits (mm; e.g. 5). Costs several times the elements.
+    #[arg(long, value_name = "MM", value_parser = positive)]
+    refine_band_mm: Option<f64>,
+    /// Longest element edge in the refined band (mm).
+    #[arg(long, value_name = "MM", default_value_t = plan::model::DEFAULT_REFINE_EDGE_MM, value_parser = positive, requires = "refine_band_mm")]
+    refine_edge_mm: f64,
+    /// Which way is up in the scan's file: an axis (+y, -z, ...) or a vector x,y,z.
+    /// Without it the file's +y, or an estimate (with a warning) where the patient
+    /// does not stand upright in the file.
+    #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
+    up: Option<plan::Up>,
+    /// The unit of the scan files' coordinates: mm, cm, m or in. Without it
+    /// millimetres, and a scan whose size is no torso's in millimetres is refused.
+    #[arg(long, value_name = "UNIT")]
+    units: Option<plan::LengthUnit>,
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `mammaplan model`.
+fn model_command(args: ModelArgs, progress: &TerminalProgress) -> Result<()> {
+    let ModelArgs {
+        scan,
+        landmarks,
+        out,
+        control_points,
+        pc_ratio,
+        rear_wall_offset_mm,
+        elements,
+        quality,
+        refine_band_mm,
+        refine_edge_mm,
+        up,
+        units,
+        json,
+    } = args;
+    let elements = elements
+        .or(quality.map(plan::model::Quality::elements))
+        .unwrap_or(plan::model::DEFAULT_ELEMENTS);
+    let marked = plan::MarkedScan::load_in(&scan, units, &landmarks, up, progress)?;
+    let mut options = plan::model::ModelOptions {
+        control_points_file: control_points,
+        elements,
+        refinement: refine_band_mm.map(|band_mm| plan::model::Refinement {
+            band_mm,
+            max_edge_mm: refine_edge_mm,
+        }),
+        ..Default::default()
+    };
+    options.breast.pc_ratio = pc_ratio;
+    options.closed_surface.rear_wall_offset_mm = rear_wall_offset_mm;
+    let model = plan::model::build_model(&marked, &options, progress)?;
+    let report = plan::model::write_model(&out, &model, progress)?;
+    progress.finish();
+    if json {
+        print_json(&report)
+    } else {
+        say(summary::model(&report))?;
+        Ok(())
+    }
+}
+
+/// The arguments of `mammaplan gui`.
+#[derive(clap::Args)]
+struct GuiArgs {
+    /// A scan to open (PLY, OBJ or STL).
+    #[arg(long, value_name = "SCAN", conflicts_with_all = ["phantom", "case"])]
+    scan: Option<PathBuf>,
+    /// Its landmark file (required landmarks may be missing: place them in the window).
+    #[arg(long, value_name = "JSON", requires = "scan")]
+    landmarks: Option<PathBuf>,
+    /// Which way is up in the scan's file, as `model --up`.
+    #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true, requires = "scan")]
+    up: Option<plan::Up>,
+    /// The unit of the scan file's coordinates, as `model --units`.
+    #[arg(long, value_name = "UNIT", requires = "scan")]
+    units: Option<plan::LengthUnit>,
+    /// Open the built-in phantom with its landmarks.
+    #[arg(long, conflicts_with = "case")]
+    phantom: bool,
+    /// A planning case saved by the window (its scan, landmarks, settings and
+    /// implants; the model is rebuilt).
+    #[arg(long, value_name = "FILE")]
+    case: Option<PathBuf>,
+    /// Run a scripted session in the window (one action per line: phantom, build,
+    /// implant ID, move up, wait, screenshot FILE, ...; see docs/manual.md).
+    #[arg(long, value_name = "FILE")]
+    script: Option<PathBuf>,
+}
+
+/// Runs `mammaplan gui`.
+fn gui_command(args: GuiArgs, progress: &TerminalProgress) -> Result<()> {
+    let GuiArgs {
+        scan,
+        landmarks,
+        up,
+        units,
+        phantom,
+        case,
+        script,
+    } = args;
+    let script = script
+        .map(|path| gui::script::Script::read(&path))
+        .transpose()?;
+    let start = match (scan, case) {
+        (Some(scan), _) => {
+            let mut document = gui::Document::open_scan(&scan, units)?;
+            document.up = up;
+            if let Some(landmarks) = landmarks {
+                for warning in document.open_landmarks(&landmarks)? {
+                    progress.warn(&warning);
+                }
+            }
+            gui::Start::Document(Box::new(document))
+        }
+        (None, Some(case)) => {
+            // Read here too, so that a bad case is an error on the terminal.
+            plan::case::PlanningCase::read(&case)?;
+            gui::Start::Case(case)
+        }
+        (None, None) if phantom => gui::Start::Document(Box::new(gui::Document::phantom(true)?)),
+        (None, None) => gui::Start::Empty,
+    };
+    gui::run(start, script)
+}
+
+/// The arguments of `mammaplan compare`.
+#[derive(clap::Args)]
+struct CompareArgs {
+    #[arg(long, value_name = "SCAN")]
+    reference: PathBuf,
+    #[arg(long, value_name = "JSON")]
+    reference_landmarks: PathBuf,
+    #[arg(long, value_name = "SCAN")]
+    test: PathBuf,
+    #[arg(long, value_name = "JSON")]
+    test_landmarks: PathBuf,
+    /// Register the test scan onto the reference first (bony landmarks, then ICP away
+    /// from the breasts).
+    #[arg(long)]
+    register: bool,
+    /// Write the test scan (registered) with the deviation colour map (green 0 mm to
+    /// red 20 mm) and the vertex properties distance_mm, signed_distance_mm and
+    /// asymmetry_mm (.ply).
+    #[arg(long, value_name = "DEVIATION.ply")]
+    out: Option<PathBuf>,
+    /// Points farther than this from the other scan are outside the overlap (mm).
+    #[arg(long, value_name = "MM", default_value_t = plan::compare::DEFAULT_MAX_DISTANCE_MM, value_parser = positive)]
+    max_distance_mm: f64,
+    /// Cut the reference's breasts along these control points (as `model
+    /// --control-points`) instead of the defaults from its landmarks.
+    #[arg(long, value_name = "JSON")]
+    reference_control_points: Option<PathBuf>,
+    /// Cut the test's breasts along these control points; for a simulated scan, its
+    /// simulation folder's simulated_control_points.json (the model's carried with
+    /// the tissue).
+    #[arg(long, value_name = "JSON")]
+    test_control_points: Option<PathBuf>,
+    /// Which way is up in both scans' files: an axis (+y, -z, ...) or a vector
+    /// x,y,z. Without it the file's +y, or an estimate (with a warning) where the
+    /// patient does not stand upright in the file.
+    #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true)]
+    up: Option<plan::Up>,
+    /// The unit of the scan files' coordinates: mm, cm, m or in. Without it
+    /// millimetres, and a scan whose size is no torso's in millimetres is refused.
+    #[arg(long, value_name = "UNIT")]
+    units: Option<plan::LengthUnit>,
+    #[arg(long)]
+    json: bool,
+}
+
+/// Runs `mammaplan compare`.
+fn compare_command(args: CompareArgs, progress: &TerminalProgress) -> Result<()> {
+    let CompareArgs {
+        reference,
+        reference_landmarks,
+        test,
+        test_landmarks,
+        register,
+        out,
+        max_distance_mm,
+        reference_control_points,
+        test_control_points,
+        up,
+        units,
+        json,
+    } = args;
+    let reference =
+        plan::MarkedScan::load_in(&reference, units, &reference_landmarks, up, progress)?;
+    let test = plan::MarkedScan::load_in(&test, units, &test_landmarks, up, progress)?;
+    let options = plan::compare::CompareOptions {
+        register,
+        max_distance_mm,
+        out,
+        reference_control_points,
+        test_control_points,
+    };
+    let report = plan::compare::compare(&reference, &test, &options, progress)?;
+    progress.finish();
+    if json {
+        print_json(&report)
+    } else {
+        say(summary::comparison(&report))?;
+        Ok(())
+    }
+}
+
+/// The arguments of `mammaplan phantom`.
+#[derive(clap::Args)]
+struct PhantomArgs {
+    /// Output scan (.ply, .obj or .stl). An .obj wears the phantom's photograph: a
+    /// skin texture with areolas and a grid of marks (<name>.mtl and <name>.png beside
+    /// it).
+    #[arg(long, value_name = "SCAN")]
+    out: PathBuf,
+    /// Output landmark file (JSON), with the true breast volumes.
+    #[arg(long, value_name = "JSON")]
+    landmarks: PathBuf,
+    #[arg(long, default_value = "medium")]
+    cup: Cup,
+    /// Breast ptosis, 0 (none) to 1 (marked).
+    #[arg(long, default_value_t = PhantomParams::default().ptosis, value_parser = unit_interval)]
+    ptosis: f64,
+    /// Scanner noise along the normals, standard deviation in mm.
+    #[arg(long, default_value_t = 0.0, value_parser = non_negative)]
+    noise_mm: f64,
+    /// Natural left/right asymmetry, 0 (none) to 1 (noticeable).
+    #[arg(long, default_value_t = 0.0, value_parser = unit_interval)]
+    asymmetry: f64,
+    #[arg(long, default_value_t = PhantomParams::default().seed)]
+    seed: u64,
+    /// Leave out what a standing three-camera clinical scanner (cameras at -30, 0
+    /// and +30 degrees) does not see: the underside of full or hanging breasts, the
+    /// lateral fold, the sides; the largest connected piece is kept and hidden
+    /// landmarks move to the nearest seen vertex.
+    #[arg(long)]
+    occlusion: bool,
+}
+
+/// Runs `mammaplan phantom`.
+fn phantom_command(args: PhantomArgs, progress: &TerminalProgress) -> Result<()> {
+    let PhantomArgs {
+        out,
+        landmarks,
+        cup,
+        ptosis,
+        noise_mm,
+        asymmetry,
+        seed,
+        occlusion,
+    } = args;
+    let params = PhantomParams {
+        cup,
+        ptosis,
+        noise_mm,
+        asymmetry,
+        seed,
+        occlusion,
+    };
+    let phantom = plan::demo::write_phantom(&params, &out, &landmarks)?;
+    progress.finish();
+    say(format_args!(
+        "phantom: {} vertices, {} triangles -> {}\nlandmarks and true breast volumes (left {:.1} ml, right {:.1} ml) -> {}\n",
+        phantom.scan.vertex_count(),
+        phantom.scan.triangle_count(),
+        out.display(),
+        phantom.breast_volume_ml.left,
+        phantom.breast_volume_ml.right,
+        landmarks.display()
+    ))
+}
+
+/// The arguments of `mammaplan report`.
+#[derive(clap::Args)]
+struct ReportArgs {
+    /// A model folder written by `mammaplan model`.
+    #[arg(long, value_name = "MODEL_DIR")]
+    model: PathBuf,
+    /// A simulation folder written by `mammaplan simulate` from that model.
+    #[arg(long, value_name = "SIM_DIR")]
+    simulation: PathBuf,
+    /// The post-operative scan (PLY, OBJ or STL).
+    #[arg(long, value_name = "SCAN", requires = "postop_landmarks")]
+    postop: Option<PathBuf>,
+    /// The post-operative scan's landmark file.
+    #[arg(long, value_name = "JSON", requires = "postop")]
+    postop_landmarks: Option<PathBuf>,
+    /// Which way is up in the post-operative scan's file, as `model --up`.
+    #[arg(long, value_name = "AXIS", value_parser = up_axis, allow_hyphen_values = true, requires = "postop")]
+    postop_up: Option<plan::Up>,
+    /// The unit of the post-operative scan's coordinates, as `model --units`.
+    #[arg(long, value_name = "UNIT", requires = "postop")]
+    postop_units: Option<plan::LengthUnit>,
+    /// The report (HTML).
+    #[arg(long, value_name = "HTML")]
+    out: PathBuf,
+}
+
+/// Runs `mammaplan report`.
+fn report_command(args: ReportArgs, progress: &TerminalProgress) -> Result<()> {
+    let ReportArgs {
+        model,
+        simulation,
+        postop,
+        postop_landmarks,
+        postop_up,
+        postop_units,
+        out,
+    } = args;
+    let inputs = plan::report::ReportInputs {
+        model_dir: model,
+        simulation_dir: simulation,
+        postoperative: postop.zip(postop_landmarks).map(|(scan, landmarks)| {
+            plan::report::PostoperativeScan {
+                scan,
+                landmarks,
+                up: postop_up,
+                units: postop_units,
+            }
+        }),
+        created: std::time::SystemTime::now(),
+    };
+    let report = plan::report::write_report(&inputs, &out, progress)?;
+    progress.finish();
+    say(summary::report(&report))?;
+    Ok(())
+}
+
 fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
     match command {
-        Command::Gui {
-            scan,
-            landmarks,
-            up,
-            units,
-            phantom,
-            case,
-            script,
-        } => {
-            let script = script
-                .map(|path| gui::script::Script::read(&path))
-                .transpose()?;
-            let start = match (scan, case) {
-                (Some(scan), _) => {
-                    let mut document = gui::Document::open_scan(&scan, units)?;
-                    document.up = up;
-                    if let Some(landmarks) = landmarks {
-                        for warning in document.open_landmarks(&landmarks)? {
-                            progress.warn(&warning);
-                        }
-                    }
-                    gui::Start::Document(Box::new(document))
-                }
-                (None, Some(case)) => {
-                    // Read here too, so that a bad case is an error on the terminal.
-                    plan::case::PlanningCase::read(&case)?;
-                    gui::Start::Case(case)
-                }
-                (None, None) if phantom => {
-                    gui::Start::Document(Box::new(gui::Document::phantom(true)?))
-                }
-                (None, None) => gui::Start::Empty,
-            };
-            gui::run(start, script)
-        }
+        Command::Gui(args) => gui_command(args, progress),
         Command::Demo {
             out,
             textured,
@@ -494,36 +712,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 Ok(())
             }
         }
-        Command::Phantom {
-            out,
-            landmarks,
-            cup,
-            ptosis,
-            noise_mm,
-            asymmetry,
-            seed,
-            occlusion,
-        } => {
-            let params = PhantomParams {
-                cup,
-                ptosis,
-                noise_mm,
-                asymmetry,
-                seed,
-                occlusion,
-            };
-            let phantom = plan::demo::write_phantom(&params, &out, &landmarks)?;
-            progress.finish();
-            say(format_args!(
-                "phantom: {} vertices, {} triangles -> {}\nlandmarks and true breast volumes (left {:.1} ml, right {:.1} ml) -> {}\n",
-                phantom.scan.vertex_count(),
-                phantom.scan.triangle_count(),
-                out.display(),
-                phantom.breast_volume_ml.left,
-                phantom.breast_volume_ml.right,
-                landmarks.display()
-            ))
-        }
+        Command::Phantom(args) => phantom_command(args, progress),
         Command::Measure {
             scan,
             landmarks,
@@ -567,39 +756,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 Ok(())
             }
         }
-        Command::Compare {
-            reference,
-            reference_landmarks,
-            test,
-            test_landmarks,
-            register,
-            out,
-            max_distance_mm,
-            reference_control_points,
-            test_control_points,
-            up,
-            units,
-            json,
-        } => {
-            let reference =
-                plan::MarkedScan::load_in(&reference, units, &reference_landmarks, up, progress)?;
-            let test = plan::MarkedScan::load_in(&test, units, &test_landmarks, up, progress)?;
-            let options = plan::compare::CompareOptions {
-                register,
-                max_distance_mm,
-                out,
-                reference_control_points,
-                test_control_points,
-            };
-            let report = plan::compare::compare(&reference, &test, &options, progress)?;
-            progress.finish();
-            if json {
-                print_json(&report)
-            } else {
-                say(summary::comparison(&report))?;
-                Ok(())
-            }
-        }
+        Command::Compare(args) => compare_command(args, progress),
         Command::Catalog { command } => catalog(command),
         Command::Bench {
             elements,
@@ -621,81 +778,8 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 Ok(())
             }
         }
-        Command::Simulate {
-            model,
-            left,
-            right,
-            move_left,
-            move_right,
-            rotate_left,
-            rotate_right,
-            no_gravity,
-            no_skin,
-            no_compression_penalty,
-            catalog,
-            anchor,
-            lower_fold_left,
-            lower_fold_right,
-            out,
-            json,
-        } => {
-            let request =
-                |spec: Option<String>, move_mm: Option<[f64; 3]>, rotation: Option<f64>| {
-                    spec.map(|spec| plan::simulate::ImplantRequest {
-                        move_mm: move_mm.unwrap_or_default().into(),
-                        rotation_deg: rotation.unwrap_or(0.0),
-                        ..plan::simulate::ImplantRequest::new(spec)
-                    })
-                };
-            let options = plan::simulate::SimulateOptions {
-                left: request(left, move_left, rotate_left),
-                right: request(right, move_right, rotate_right),
-                no_gravity,
-                catalog,
-                anchor,
-                fold_lowering_mm: plan::model::PerSide {
-                    left: lower_fold_left,
-                    right: lower_fold_right,
-                },
-                no_skin,
-                no_compression_penalty,
-            };
-            let report = plan::simulate::simulate(&model, &out, &options, progress)?;
-            progress.finish();
-            if json {
-                print_json(&report)
-            } else {
-                say(summary::simulation(&report))?;
-                Ok(())
-            }
-        }
-        Command::Report {
-            model,
-            simulation,
-            postop,
-            postop_landmarks,
-            postop_up,
-            postop_units,
-            out,
-        } => {
-            let inputs = plan::report::ReportInputs {
-                model_dir: model,
-                simulation_dir: simulation,
-                postoperative: postop.zip(postop_landmarks).map(|(scan, landmarks)| {
-                    plan::report::PostoperativeScan {
-                        scan,
-                        landmarks,
-                        up: postop_up,
-                        units: postop_units,
-                    }
-                }),
-                created: std::time::SystemTime::now(),
-            };
-            let report = plan::report::write_report(&inputs, &out, progress)?;
-            progress.finish();
-            say(summary::report(&report))?;
-            Ok(())
-        }
+        Command::Simulate(args) => simulate_command(args, progress),
+        Command::Report(args) => report_command(args, progress),
         Command::Fem {
             command:
                 FemCommand::Solve {
@@ -721,46 +805,7 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
                 Ok(())
             }
         }
-        Command::Model {
-            scan,
-            landmarks,
-            out,
-            control_points,
-            pc_ratio,
-            rear_wall_offset_mm,
-            elements,
-            quality,
-            refine_band_mm,
-            refine_edge_mm,
-            up,
-            units,
-            json,
-        } => {
-            let elements = elements
-                .or(quality.map(plan::model::Quality::elements))
-                .unwrap_or(plan::model::DEFAULT_ELEMENTS);
-            let marked = plan::MarkedScan::load_in(&scan, units, &landmarks, up, progress)?;
-            let mut options = plan::model::ModelOptions {
-                control_points_file: control_points,
-                elements,
-                refinement: refine_band_mm.map(|band_mm| plan::model::Refinement {
-                    band_mm,
-                    max_edge_mm: refine_edge_mm,
-                }),
-                ..Default::default()
-            };
-            options.breast.pc_ratio = pc_ratio;
-            options.closed_surface.rear_wall_offset_mm = rear_wall_offset_mm;
-            let model = plan::model::build_model(&marked, &options, progress)?;
-            let report = plan::model::write_model(&out, &model, progress)?;
-            progress.finish();
-            if json {
-                print_json(&report)
-            } else {
-                say(summary::model(&report))?;
-                Ok(())
-            }
-        }
+        Command::Model(args) => model_command(args, progress),
     }
 }
 
