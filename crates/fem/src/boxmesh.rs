@@ -1,7 +1,7 @@
 //! Structured tetrahedral meshes of an axis-aligned box, for tests and benchmarks.
 
 use glam::DVec3;
-use tetra::TetMesh;
+use tetmesh::TetMesh;
 
 /// The six tetrahedra of the Kuhn (Freudenthal) subdivision of a cube, as corner indices
 /// `i + 2j + 4k` of the corner at offset `(i, j, k)`. Every tetrahedron contains the main

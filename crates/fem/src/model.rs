@@ -11,7 +11,7 @@ use crate::material::Material;
 use crate::polar::{POLAR_LANES, polar_rotation, polar_rotations, rotation_variant_svd};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
-use tetra::TetMesh;
+use tetmesh::TetMesh;
 
 /// Conversion of density (kg/m³) times acceleration (m/s²) to a force density (mN/mm³).
 pub const KG_M3_TIMES_M_S2_TO_MN_MM3: f64 = 1e-6;

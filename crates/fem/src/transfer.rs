@@ -6,7 +6,7 @@
 use crate::system::NOT_FREE;
 use glam::DVec3;
 use rayon::prelude::*;
-use tetra::{TetLocator, TetMesh};
+use tetmesh::{TetLocator, TetMesh};
 
 /// One row of the prolongation: four `(coarse vertex, weight)` pairs.
 pub type ProlongationRow = [(u32, f64); 4];

@@ -23,14 +23,10 @@
 pub mod error;
 pub mod hierarchy;
 mod lattice;
-pub mod locate;
-pub mod quality;
 pub mod refine;
 mod stencils;
 pub mod stuffing;
 pub mod surface;
-pub mod tetmesh;
-pub mod vtu;
 mod warp;
 mod winding;
 
@@ -39,9 +35,11 @@ pub use hierarchy::{
     Hierarchy, Level, build_hierarchy, build_hierarchy_down_to, build_hierarchy_with_elements,
     level_with_elements,
 };
-pub use locate::{Location, TetLocator};
-pub use quality::QualityReport;
 pub use refine::{RefinementRegion, stuff_refined};
 pub use stuffing::stuff;
 pub use surface::ClosedSurface;
-pub use tetmesh::{BoundarySurface, TetMesh};
+// the mesh data lives in its own crate; these paths stay for the mesher's users
+pub use ::tetmesh::{
+    BoundarySurface, Location, QualityReport, TetLocator, TetMesh, TetMeshError, locate, quality,
+    tetmesh, vtu,
+};

@@ -6,7 +6,7 @@
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 use tetra::vtu::{Field, FieldValues, read_fem_input, read_vtu, write_vtu};
-use tetra::{ClosedSurface, TetMesh, TetraError, stuff};
+use tetra::{ClosedSurface, TetMesh, TetMeshError, stuff};
 
 fn small_mesh() -> TetMesh {
     let surface = ClosedSurface::new(&mesh::shapes::icosphere(10.0, 2)).unwrap();
@@ -69,7 +69,7 @@ fn arrays_of_the_wrong_size_or_with_nan_are_not_written() {
     let short = vec![Field::scalars("x", vec![0.0; 3])];
     assert!(matches!(
         write_vtu(&path, &mesh, &short, &[]),
-        Err(TetraError::DataSize { found: 3, .. })
+        Err(TetMeshError::DataSize { found: 3, .. })
     ));
     let nan = vec![Field::scalars("x", vec![f64::NAN; mesh.tet_count()])];
     assert!(write_vtu(&path, &mesh, &[], &nan).is_err());
@@ -103,7 +103,7 @@ fn one_tet_file(point_data: &str, cell_type: &str) -> String {
     )
 }
 
-fn error_text(result: Result<impl std::fmt::Debug, TetraError>) -> String {
+fn error_text(result: Result<impl std::fmt::Debug, TetMeshError>) -> String {
     result.expect_err("expected an error").to_string()
 }
 
@@ -162,7 +162,7 @@ fn foreign_files_and_their_problems_are_reported_with_file_and_line() {
     );
     assert!(error_text(read_vtu(&broken)).contains("broken.vtu"));
     let absent = dir.path().join("absent.vtu");
-    assert!(matches!(read_vtu(&absent), Err(TetraError::Io { .. })));
+    assert!(matches!(read_vtu(&absent), Err(TetMeshError::Io { .. })));
 }
 
 // Binary, appended and compressed files, built byte by byte from the VTK file format

@@ -11,7 +11,7 @@ use crate::model::FemModel;
 use crate::system::{Constraints, NOT_FREE, ReducedSystem};
 use crate::transfer::Prolongation;
 use glam::{DMat3, DVec3};
-use tetra::TetMesh;
+use tetmesh::TetMesh;
 
 fn mesh_of(model: &FemModel) -> TetMesh {
     TetMesh {

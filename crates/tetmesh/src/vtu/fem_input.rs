@@ -3,7 +3,7 @@
 use super::{
     CONSTRAINED, DISPLACEMENT, Field, FieldValues, POISSON_RATIO, YOUNG_MODULUS, read_vtu,
 };
-use crate::error::TetraError;
+use crate::error::TetMeshError;
 use crate::tetmesh::TetMesh;
 use glam::DVec3;
 use std::path::Path;
@@ -27,9 +27,9 @@ pub struct FemInput {
 /// [`DISPLACEMENT`] (optional, 3 components), cell data [`YOUNG_MODULUS`] (optional,
 /// positive kPa) and [`POISSON_RATIO`] (optional, in (−1, 0.5)). Errors name the array
 /// and the entry.
-pub fn read_fem_input(path: &Path) -> Result<FemInput, TetraError> {
+pub fn read_fem_input(path: &Path) -> Result<FemInput, TetMeshError> {
     let data = read_vtu(path)?;
-    let error = |message: String| TetraError::Vtu {
+    let error = |message: String| TetMeshError::Vtu {
         path: path.to_path_buf(),
         line: None,
         message,
@@ -37,7 +37,7 @@ pub fn read_fem_input(path: &Path) -> Result<FemInput, TetraError> {
     let scalars = |field: Option<&Field>,
                    name: &str,
                    location: &str|
-     -> Result<Option<Vec<f64>>, TetraError> {
+     -> Result<Option<Vec<f64>>, TetMeshError> {
         match field.map(|f| &f.values) {
             None => Ok(None),
             Some(FieldValues::Scalars(v)) => Ok(Some(v.clone())),

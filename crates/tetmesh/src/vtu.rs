@@ -1,8 +1,9 @@
 //! VTK XML unstructured-grid files (`.vtu`) of tetrahedral meshes with point and cell
 //! data, as ParaView opens them.
 //!
-//! Written as ASCII (`format="ascii"`, numbers in shortest round-trip form, so a file
-//! read back gives the same bits) to a temporary file renamed into place. The reader
+//! Written with every array appended as raw binary in VTK's zlib blocks (Float64 values
+//! stored exactly, so a file read back gives the same bits) to a temporary file renamed
+//! into place. The reader
 //! takes what the writer produces and any other single-piece `.vtu` of tetrahedra (VTK
 //! cell type 10) as ParaView, VTK or meshio write them; data arrays of any numeric type
 //! (Int8 to Int64, UInt8 to UInt64, Float32, Float64) with one or three components, in

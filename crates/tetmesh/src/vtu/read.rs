@@ -3,7 +3,7 @@
 
 use super::parser::{ParseResult, RawArray, Section, parse_vtu};
 use super::{Field, FieldValues, VTK_TETRA, VtuData};
-use crate::error::TetraError;
+use crate::error::TetMeshError;
 use crate::tetmesh::TetMesh;
 use glam::DVec3;
 use std::borrow::Cow;
@@ -12,12 +12,12 @@ use std::path::Path;
 /// Reads a `.vtu` file of tetrahedra with its data arrays. Errors name the file, the
 /// line and what was expected. Tetrahedra keep the orientation they have in the file
 /// (see [`TetMesh::validate`]).
-pub fn read_vtu(path: &Path) -> Result<VtuData, TetraError> {
-    let bytes = std::fs::read(path).map_err(|source| TetraError::Io {
+pub fn read_vtu(path: &Path) -> Result<VtuData, TetMeshError> {
+    let bytes = std::fs::read(path).map_err(|source| TetMeshError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    let error = |line: Option<usize>, message: String| TetraError::Vtu {
+    let error = |line: Option<usize>, message: String| TetMeshError::Vtu {
         path: path.to_path_buf(),
         line,
         message,

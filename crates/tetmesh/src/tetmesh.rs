@@ -1,7 +1,7 @@
 //! The tetrahedral mesh type: positions and positively oriented tetrahedra, with volume,
 //! boundary extraction and validation.
 
-use crate::error::TetraError;
+use crate::error::TetMeshError;
 use crate::quality::{QualityReport, quality, signed_volume};
 use glam::DVec3;
 use mesh::TriMesh;
@@ -34,7 +34,7 @@ const OUTWARD_FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 
 impl TetMesh {
     /// A mesh from tetrahedra over point keys `0..key_count`: the used keys are
     /// numbered in key order and placed at `position(key)` (mm); unused keys are dropped.
-    pub(crate) fn compacted(
+    pub fn compacted(
         mut tets: Vec<[u32; 4]>,
         key_count: usize,
         position: impl Fn(u32) -> DVec3 + Sync,
@@ -128,7 +128,7 @@ impl TetMesh {
 
     /// Checks finite coordinates, indices in range, four distinct vertices and a
     /// positive volume for every tetrahedron; the first problem is returned.
-    pub fn validate(&self) -> Result<(), TetraError> {
+    pub fn validate(&self) -> Result<(), TetMeshError> {
         self.validate_indices()?;
         let problem = |t: usize| {
             let volume = signed_volume(self.tet_positions(t));
@@ -140,14 +140,14 @@ impl TetMesh {
 
     /// Checks finite coordinates, indices in range and four distinct vertices per
     /// tetrahedron (not the orientation); the first problem is returned.
-    pub fn validate_indices(&self) -> Result<(), TetraError> {
+    pub fn validate_indices(&self) -> Result<(), TetMeshError> {
         if let Some((vertex, p)) = self
             .positions
             .iter()
             .enumerate()
             .find(|(_, p)| !p.is_finite())
         {
-            return Err(TetraError::NonFiniteVertex {
+            return Err(TetMeshError::NonFiniteVertex {
                 vertex,
                 position: p.to_array(),
             });
@@ -172,12 +172,12 @@ impl TetMesh {
 fn first_problem(
     count: usize,
     problem: impl Fn(usize) -> Option<String> + Sync,
-) -> Result<(), TetraError> {
+) -> Result<(), TetMeshError> {
     match (0..count)
         .into_par_iter()
         .find_first(|&t| problem(t).is_some())
     {
-        Some(tet) => Err(TetraError::InvalidTetrahedron {
+        Some(tet) => Err(TetMeshError::InvalidTetrahedron {
             tet,
             problem: problem(tet).unwrap_or_default(),
         }),

@@ -4,7 +4,7 @@
 //! ASCII text's 40 MB.
 
 use super::{Field, VTK_TETRA};
-use crate::error::TetraError;
+use crate::error::TetMeshError;
 use crate::tetmesh::TetMesh;
 use std::fmt::Write as _;
 use std::io::Write;
@@ -18,14 +18,14 @@ pub fn write_vtu(
     mesh: &TetMesh,
     point_data: &[Field],
     cell_data: &[Field],
-) -> Result<(), TetraError> {
+) -> Result<(), TetMeshError> {
     for (location, fields, expected) in [
         ("point", point_data, mesh.vertex_count()),
         ("cell", cell_data, mesh.tet_count()),
     ] {
         for field in fields {
             if field.len() != expected {
-                return Err(TetraError::DataSize {
+                return Err(TetMeshError::DataSize {
                     location,
                     name: field.name.clone(),
                     found: field.len(),
@@ -33,7 +33,7 @@ pub fn write_vtu(
                 });
             }
             if let Some(index) = field.flat().position(|x| !x.is_finite()) {
-                return Err(TetraError::NonFiniteValue {
+                return Err(TetMeshError::NonFiniteValue {
                     name: field.name.clone(),
                     entry: index / field.components(),
                 });
@@ -43,8 +43,8 @@ pub fn write_vtu(
     mesh.validate_indices()?;
     let bytes = vtu_bytes(mesh, point_data, cell_data);
     mesh::io::write_atomically(path, |w| w.write_all(&bytes)).map_err(|e| match e {
-        mesh::MeshError::Io { path, source } => TetraError::Io { path, source },
-        other => TetraError::Vtu {
+        mesh::MeshError::Io { path, source } => TetMeshError::Io { path, source },
+        other => TetMeshError::Vtu {
             path: path.to_path_buf(),
             line: None,
             message: other.to_string(),
