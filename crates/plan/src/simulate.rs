@@ -739,6 +739,9 @@ pub fn write_simulation(
     };
     staged.write(&report_path, |path| crate::write_json(path, &report))?;
     staged.commit()?;
+    if simulated.scan.texture.is_none() {
+        crate::texture::remove_textured_obj(out_dir, "simulated_scan");
+    }
     Ok(report)
 }
 

@@ -95,6 +95,27 @@ pub fn decode(path: &Path) -> Result<render::Texture> {
     Ok(render::Texture::new(width, height, rgb)?)
 }
 
+/// Removes what [`stage_textured_obj`] wrote for `stem` in `folder` on an earlier run
+/// (`<stem>.obj`, `<stem>.mtl`, `<stem>_texture.*`): called once a folder's new,
+/// untextured content is in place, so no photograph of an earlier scan is left beside
+/// it. Entries that cannot be removed are left (the folder's listing in `result.json`
+/// says what belongs to it).
+pub fn remove_textured_obj(folder: &Path, stem: &str) {
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return;
+    };
+    let image_prefix = format!("{stem}_texture.");
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name == format!("{stem}.obj")
+            || name == format!("{stem}.mtl")
+            || name.starts_with(&image_prefix)
+        {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
 /// Stages `mesh` (with texture coordinates) as `<stem>.obj` in `folder` with `<stem>.mtl`
 /// naming a copy of `texture`'s image file beside them; the names of the files staged.
 pub fn stage_textured_obj(

@@ -156,6 +156,20 @@ fn a_simulated_scan_is_written_wearing_the_photograph_and_reopens_with_it() {
     let before = Scan::load(&dir.join("scan.obj"), &warnings).unwrap();
     assert_eq!(reopened.mesh.uv, before.mesh.uv);
     assert_ne!(reopened.mesh.positions, before.mesh.positions);
+    // simulated again into the same folder without the photograph (its image gone): no
+    // textured OBJ of the earlier run is left beside the new result
+    std::fs::remove_file(dir.join("scan.png")).unwrap();
+    let again = plan::simulate::simulate(&dir.join("model"), &dir.join("sim"), &options, &warnings)
+        .unwrap();
+    assert!(!again.files.iter().any(|f| f.ends_with(".obj")));
+    for name in [
+        "simulated_scan.obj",
+        "simulated_scan.mtl",
+        "simulated_scan_texture.png",
+    ] {
+        assert!(!dir.join("sim").join(name).exists(), "{name} left behind");
+    }
+    assert!(dir.join("sim/simulated_scan.ply").is_file());
     let _ = std::fs::remove_dir_all(&dir);
 }
 
