@@ -2,7 +2,6 @@ use super::polygon::orientation;
 use super::*;
 use mesh::shapes::{cylinder, grid, icosphere};
 use mesh::topology::{NO_TRIANGLE, Topology};
-use std::time::Instant;
 
 /// Radius (mm) of the cylinder standing in for a chest.
 const CHEST_RADIUS_MM: f64 = 150.0;
@@ -354,29 +353,20 @@ fn a_planar_hole_is_filled_flat() {
 }
 
 #[test]
-fn a_breast_sized_hole_fills_fast() {
+fn a_breast_sized_hole_is_filled_along_the_chest() {
     let (base, hole) = cut_hole(
         cylinder(CHEST_RADIUS_MM, 300.0, 512, 120),
         chest_centre(),
         |c| c.distance(chest_centre()) < 75.0,
     );
-    let mut fastest = f64::INFINITY;
-    for _ in 0..5 {
-        let start = Instant::now();
-        let fill = fill_hole(&base, &hole, &params()).unwrap();
-        fastest = fastest.min(start.elapsed().as_secs_f64());
-        assert!(fill.mesh.triangle_count() > 1000);
-    }
-    println!(
-        "150 mm hole, {} boundary vertices, {} mm spacing: {:.2} ms",
-        hole.len(),
-        SPACING_MM,
-        1e3 * fastest
-    );
-    // The budget, for optimised builds only.
-    if !cfg!(debug_assertions) {
-        assert!(fastest < 0.030, "{fastest} s");
-    }
+    let fill = fill_hole(&base, &hole, &params()).unwrap();
+    assert!(fill.mesh.triangle_count() > 1000);
+    // Its time is measured by `cargo bench -p plan` (the model build), not here.
+    check_fill(&base, &hole, &fill, radial);
+    let max_deviation = max_chest_deviation(&fill);
+    println!("150 mm hole: max deviation {max_deviation:.3} mm");
+    // The same bound as the 120 mm hole's: the plane's sagitta over 150 mm is 20 mm.
+    assert!(max_deviation < 0.5, "{max_deviation}");
 }
 
 #[test]
