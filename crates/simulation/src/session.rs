@@ -120,6 +120,35 @@ pub enum Stage {
     Gravity,
 }
 
+/// The stage being solved, with what only stage 2 has.
+enum StageState {
+    Implant,
+    Gravity(Box<GravityStage>),
+}
+
+impl StageState {
+    fn stage(&self) -> Stage {
+        match self {
+            StageState::Implant => Stage::Implant,
+            StageState::Gravity(_) => Stage::Gravity,
+        }
+    }
+}
+
+/// Stage 2: the linear correction of stage 1's displacement.
+struct GravityStage {
+    /// The session's hierarchy, with stage 2's constraints and tangent.
+    multigrid: StageMultigrid,
+    /// Stage 1's displacement (mm, per finest vertex), which stage 2 corrects.
+    u_implant: Vec<DVec3>,
+    /// The conjugate gradient iteration on the linear system `K Δu = r` at `u_implant`
+    /// (its right-hand side the added implant weight and what is left of stage 1's
+    /// residual), preconditioned by the stage's multigrid.
+    iteration: PcgIteration,
+    /// The norm of that right-hand side (mN), which the stage's residual is relative to.
+    rhs_norm_mn: f64,
+}
+
 /// An implant placed on one side.
 #[derive(Debug, Clone)]
 pub struct PlacedImplant {
@@ -233,12 +262,11 @@ struct SideData {
     default_uv: DVec2,
 }
 
-/// The session's multigrid hierarchy, the elements its finest model currently treats as
-/// implant (soft), and the stage whose constraints and tangent it holds.
+/// The session's multigrid hierarchy and the elements its finest model currently treats
+/// as implant (soft).
 struct StageMultigrid {
     multigrid: Multigrid,
     soft_elements: Vec<u32>,
-    stage: Stage,
 }
 
 /// Maps of the breast meshes, computed on first use.
@@ -285,8 +313,9 @@ pub struct Simulation {
     neighbour_ptr: Vec<usize>,
     neighbours: Vec<u32>,
     implants: [Option<PlacedImplant>; 2],
-    stage: Stage,
-    /// The hierarchy of both stages, once the first cycle built it.
+    stage: StageState,
+    /// Stage 1's hierarchy, once the first cycle built it (stage 2 holds it while it runs;
+    /// its constraints are stale while `dirty`).
     multigrid: Option<StageMultigrid>,
     /// Hierarchies built so far.
     multigrid_builds: usize,
@@ -294,12 +323,6 @@ pub struct Simulation {
     dirty: bool,
     u: Vec<DVec3>,
     f_ext: Vec<DVec3>,
-    u_before_gravity: Option<Vec<DVec3>>,
-    /// Stage 2's linear system `K Δu = r` at the stage-1 displacement (its right-hand
-    /// side the added implant weight and what is left of stage 1's residual) and its
-    /// conjugate gradient iteration, once the stage's first cycle assembled it, with the
-    /// norm of that right-hand side (mN), which the stage's residual is relative to.
-    gravity: Option<(PcgIteration, f64)>,
     last_relative_residual: f64,
     stage_cycles: usize,
     /// The constraints or loads changed since the last cycle (no line search then).
@@ -382,7 +405,7 @@ impl Simulation {
 
     /// The current stage.
     pub fn stage(&self) -> Stage {
-        self.stage
+        self.stage.stage()
     }
 
     /// Starts stage 1 afresh from the displacement `u` (mm, one per finest vertex, as
@@ -415,7 +438,10 @@ impl Simulation {
 
     /// The finest displacement at the end of stage 1, once the gravity correction began.
     pub fn displacement_before_gravity(&self) -> Option<&[DVec3]> {
-        self.u_before_gravity.as_deref()
+        match &self.stage {
+            StageState::Implant => None,
+            StageState::Gravity(gravity) => Some(&gravity.u_implant),
+        }
     }
 
     /// Cycles run in the current stage, and the relative residual before the last one.
@@ -438,7 +464,10 @@ impl Simulation {
     /// (e.g. [`Multigrid::pcg`] in checks and benchmarks). Changing its constraints or
     /// materials through it would desynchronise the session.
     pub fn multigrid_mut(&mut self) -> Option<&mut Multigrid> {
-        self.multigrid.as_mut().map(|stage| &mut stage.multigrid)
+        match &mut self.stage {
+            StageState::Implant => self.multigrid.as_mut().map(|kept| &mut kept.multigrid),
+            StageState::Gravity(gravity) => Some(&mut gravity.multigrid.multigrid),
+        }
     }
 
     /// Finest elements whose deformed volume is not positive.

@@ -263,33 +263,34 @@ impl Simulation {
         ControlPoints { left, right }
     }
 
-    fn mesh_maps(&mut self) -> &MeshMaps {
-        if self.mesh_maps.is_none() {
-            let locator = FieldLocator::new(&self.finest, self.spacing_mm)
-                .expect("checked when the session was built");
-            let f = self.options.falloff_mm;
-            let map = |m: &TriMesh| PointMap::new(&locator, &m.positions, f);
-            let maps = MeshMaps {
-                base: map(&self.base),
-                patches: [map(&self.sides[0].patch), map(&self.sides[1].patch)],
-                fills: [map(&self.sides[0].fill), map(&self.sides[1].fill)],
-            };
-            self.mesh_maps = Some(maps);
-        }
-        self.mesh_maps.as_ref().expect("just built")
-    }
-
     /// The breast volumes after the simulation (see [`BreastVolume`]). The first call
     /// locates the breast meshes in the finest level (a fraction of a second).
     pub fn breast_volumes(&mut self) -> [BreastVolume; 2] {
-        self.mesh_maps();
-        let maps = self.mesh_maps.as_ref().expect("built");
+        let landmarks = self.landmarks();
+        let Simulation {
+            mesh_maps,
+            finest,
+            spacing_mm,
+            options,
+            base,
+            sides,
+            ..
+        } = self;
+        let maps = mesh_maps.get_or_insert_with(|| {
+            let locator =
+                FieldLocator::new(finest, *spacing_mm).expect("checked when the session was built");
+            let map = |m: &TriMesh| PointMap::new(&locator, &m.positions, options.falloff_mm);
+            MeshMaps {
+                base: map(base),
+                patches: [map(&sides[0].patch), map(&sides[1].patch)],
+                fills: [map(&sides[0].fill), map(&sides[1].fill)],
+            }
+        });
         let u = &self.u;
         let moved = |mesh: &TriMesh, map: &PointMap| {
             TriMesh::new(map.moved(&mesh.positions, u), mesh.triangles.clone())
         };
         let base = moved(&self.base, &maps.base);
-        let landmarks = self.landmarks();
         let params = FillInParams {
             cylinder_axis: (self.options.fill_in.cylinder_axis).or(Some(self.frame.sternum())),
             ..self.options.fill_in

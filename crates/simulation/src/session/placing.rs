@@ -206,7 +206,8 @@ impl Simulation {
         self.beds[s] = bed;
         self.feet[s] = feet;
         self.pocket_bounds[s] = bounds;
-        self.implants[s] = Some(PlacedImplant {
+        self.constraints_changed();
+        Ok(self.implants[s].insert(PlacedImplant {
             shape,
             placement,
             anchor,
@@ -215,9 +216,7 @@ impl Simulation {
             template,
             fold_vertices,
             setup_ms: elapsed_ms(start),
-        });
-        self.constraints_changed();
-        Ok(self.implants[s].as_ref().expect("just set"))
+        }))
     }
 
     /// The skin vertices along the planned fold of `side` ([`PlacedImplant::fold_vertices`]):

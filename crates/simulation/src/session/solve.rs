@@ -6,10 +6,13 @@ use super::*;
 
 impl Simulation {
     pub(super) fn constraints_changed(&mut self) {
-        self.stage = Stage::Implant;
+        if let StageState::Gravity(gravity) =
+            std::mem::replace(&mut self.stage, StageState::Implant)
+        {
+            // back to stage 1's hierarchy, whose constraints `dirty` renews
+            self.multigrid = Some(gravity.multigrid);
+        }
         self.f_ext.clear();
-        self.u_before_gravity = None;
-        self.gravity = None;
         self.stage_cycles = 0;
         self.dirty = true;
         self.fresh = true;
@@ -189,28 +192,31 @@ impl Simulation {
         (self.coarse_fallbacks, self.coarse_operator)
     }
 
-    /// Brings the stage-1 multigrid up to date with the current constraints. Returns
-    /// whether it had to be built.
-    pub(super) fn ensure_multigrid(&mut self) -> Result<bool, SimulationError> {
-        if !self.dirty
-            && self
-                .multigrid
-                .as_ref()
-                .is_some_and(|m| m.stage == Stage::Implant)
-        {
-            return Ok(false);
+    /// Stage 1's hierarchy, taken out of the session, up to date with the current
+    /// constraints; and whether it had to be built. The caller puts it back.
+    pub(super) fn take_stage_one_multigrid(
+        &mut self,
+    ) -> Result<(StageMultigrid, bool), SimulationError> {
+        match self.multigrid.take() {
+            Some(kept) if !self.dirty => Ok((kept, false)),
+            taken => {
+                self.multigrid = taken;
+                let prepared = self.prepared_multigrid(Stage::Implant)?;
+                self.dirty = false;
+                Ok(prepared)
+            }
         }
-        let built = self.prepare_multigrid(Stage::Implant)?;
-        self.dirty = false;
-        Ok(built)
     }
 
-    /// Gives the session's hierarchy the constraints, tangent and implant materials of
-    /// `stage`, building it if there is none yet; returns whether it was built. A new
-    /// implant or position changes the constrained set: the kept hierarchy keeps its
-    /// patterns and only swaps the changeable constraints (fem's symmetric elimination
-    /// over a fixed pattern) and the tangent it assembles.
-    pub(super) fn prepare_multigrid(&mut self, stage: Stage) -> Result<bool, SimulationError> {
+    /// The session's hierarchy, taken out of it, with the constraints, tangent and
+    /// implant materials of `stage`, built if there is none yet; and whether it was
+    /// built. A new implant or position changes the constrained set: the kept hierarchy
+    /// keeps its patterns and only swaps the changeable constraints (fem's symmetric
+    /// elimination over a fixed pattern) and the tangent it assembles.
+    pub(super) fn prepared_multigrid(
+        &mut self,
+        stage: Stage,
+    ) -> Result<(StageMultigrid, bool), SimulationError> {
         let (constraints, tangent) = match stage {
             Stage::Implant => (self.constraints(true), self.options.multigrid.tangent),
             Stage::Gravity => (self.constraints(false), self.options.gravity_tangent),
@@ -219,36 +225,27 @@ impl Simulation {
             Some(mut kept) => {
                 kept.multigrid.set_constraints(&constraints)?;
                 kept.multigrid.set_tangent(tangent);
-                kept.stage = stage;
                 (kept, false)
             }
             None => {
                 let kept = StageMultigrid {
                     multigrid: self.build_multigrid(constraints, tangent)?,
                     soft_elements: Vec::new(),
-                    stage,
                 };
                 self.multigrid_builds += 1;
                 (kept, true)
             }
         };
         self.update_implant_materials(&mut kept)?;
-        self.multigrid = Some(kept);
-        Ok(built)
+        Ok((kept, built))
     }
 
-    /// The session's multigrid, once built.
+    /// The current stage's multigrid, once built.
     pub(super) fn stage_multigrid(&self) -> Option<&Multigrid> {
-        self.multigrid.as_ref().map(|stage| &stage.multigrid)
-    }
-
-    /// The load scale of the relative residual: the reaction forces at the held
-    /// vertices (from the latest assembly) plus the external loads (mN).
-    pub(super) fn load_scale(&self) -> f64 {
-        let mg = self.stage_multigrid().expect("assembled");
-        let reaction = mg.system().reaction_norm_squared();
-        let external: f64 = self.f_ext.iter().map(|x| x.length_squared()).sum();
-        (reaction + external).sqrt().max(1e-12)
+        match &self.stage {
+            StageState::Implant => self.multigrid.as_ref().map(|kept| &kept.multigrid),
+            StageState::Gravity(gravity) => Some(&gravity.multigrid.multigrid),
+        }
     }
 
     /// One interactive step: rotation update, reassembly and one V(2,1)-cycle of the
@@ -256,7 +253,8 @@ impl Simulation {
     /// multigrid the new constraints first if they changed, building it at the session's
     /// first cycle).
     pub fn cycle(&mut self) -> Result<CycleInfo, SimulationError> {
-        if self.stage == Stage::Implant && self.fresh && self.u.iter().all(|d| *d == DVec3::ZERO) {
+        if self.stage() == Stage::Implant && self.fresh && self.u.iter().all(|d| *d == DVec3::ZERO)
+        {
             self.warmup_left = self.options.linear_warmup_cycles;
         }
         if self.warmup_left > 0 {
@@ -293,12 +291,9 @@ impl Simulation {
     /// Rebuilds the multigrid for the current stage after a change of coarse operator.
     pub(super) fn rebuild_current_stage(&mut self) -> Result<(), SimulationError> {
         self.multigrid = None;
-        match self.stage {
-            Stage::Implant => self.dirty = true,
-            Stage::Gravity => {
-                self.prepare_multigrid(Stage::Gravity)?;
-                self.gravity = None;
-            }
+        match std::mem::replace(&mut self.stage, StageState::Implant) {
+            StageState::Implant => self.dirty = true,
+            StageState::Gravity(gravity) => self.enter_gravity_stage(gravity.u_implant)?,
         }
         Ok(())
     }
@@ -308,17 +303,31 @@ impl Simulation {
         formulation: Formulation,
     ) -> Result<CycleInfo, SimulationError> {
         let start = Instant::now();
-        if self.stage == Stage::Gravity {
-            return self.gravity_cycle(start);
+        if let StageState::Gravity(gravity) = &mut self.stage {
+            let (residual_mn, relative_residual) = gravity.cycle(&mut self.u);
+            self.last_energy = None;
+            self.last_step = 1.0;
+            self.fresh = false;
+            self.last_relative_residual = relative_residual;
+            self.stage_cycles += 1;
+            return Ok(CycleInfo {
+                stage: Stage::Gravity,
+                residual_mn,
+                relative_residual,
+                rebuilt: false,
+                step: 1.0,
+                linear: false,
+                time_ms: elapsed_ms(start),
+            });
         }
-        let rebuilt = self.ensure_multigrid()?;
+        let (kept, rebuilt) = self.take_stage_one_multigrid()?;
         let fresh = std::mem::take(&mut self.fresh) || rebuilt;
         let search = self.options.line_search
             && self.stage_one_search
             && !fresh
             && formulation == Formulation::Corotated;
         let u_old = search.then(|| self.u.clone());
-        let mg = &mut self.multigrid.as_mut().expect("ensured").multigrid;
+        let mg = &mut self.multigrid.insert(kept).multigrid;
         let report = mg.cycle(&mut self.u, &self.f_ext, formulation)?;
         if let Some(u_old) = u_old {
             // backtracking on the potential energy (the corotated forces are conservative)
@@ -346,75 +355,24 @@ impl Simulation {
             self.last_energy = None;
             self.last_step = 1.0;
         }
-
-        let relative = report.residual_before / self.load_scale();
-        if self.stage == Stage::Implant
-            && !fresh
-            && formulation == Formulation::Corotated
-            && relative > self.last_relative_residual
+        // relative to the reaction forces at the held vertices (from this cycle's
+        // assembly) plus the external loads
+        let reaction = mg.system().reaction_norm_squared();
+        let external: f64 = self.f_ext.iter().map(|x| x.length_squared()).sum();
+        let relative = report.residual_before / (reaction + external).sqrt().max(1e-12);
+        if !fresh && formulation == Formulation::Corotated && relative > self.last_relative_residual
         {
             self.stage_one_search = true;
         }
         self.last_relative_residual = relative;
         self.stage_cycles += 1;
         Ok(CycleInfo {
-            stage: self.stage,
+            stage: Stage::Implant,
             residual_mn: report.residual_before,
             relative_residual: relative,
             rebuilt,
             step: self.last_step,
             linear: formulation == Formulation::Linear,
-            time_ms: elapsed_ms(start),
-        })
-    }
-
-    /// One cycle of stage 2: one iteration of conjugate gradients preconditioned by a
-    /// symmetric V-cycle on the tangent system of the stage-1 state (assembled at the stage's first
-    /// cycle); the displacement is stage 1's plus the correction so far.
-    pub(super) fn gravity_cycle(&mut self, start: Instant) -> Result<CycleInfo, SimulationError> {
-        let u1 = self
-            .u_before_gravity
-            .as_deref()
-            .expect("stage 2 starts from stage 1's displacement");
-        let mg = &mut self
-            .multigrid
-            .as_mut()
-            .expect("prepared when the stage started")
-            .multigrid;
-        if self.gravity.is_none() {
-            mg.assemble(u1, &self.f_ext, Formulation::Corotated)?;
-            let rhs = mg.system().rhs.clone();
-            let rhs_norm = rhs.iter().map(|d| d.length_squared()).sum::<f64>().sqrt();
-            let zero = vec![DVec3::ZERO; rhs.len()];
-            self.gravity = Some((PcgIteration::new(mg, &rhs, zero), rhs_norm));
-        }
-        let (cg, rhs_norm) = self.gravity.as_mut().expect("assembled above");
-        let rhs_norm = *rhs_norm;
-        let residual = cg.residual_norm();
-        cg.step(mg);
-        self.u.copy_from_slice(u1);
-        let sys = mg.system();
-        for ((&v, d), &held) in sys.free.iter().zip(cg.solution()).zip(sys.eliminated()) {
-            if !held {
-                self.u[v as usize] += *d;
-            }
-        }
-        self.last_energy = None;
-        self.last_step = 1.0;
-        self.fresh = false;
-        // relative to the stage's own load: against stage 1's reaction forces (the
-        // wall's, the fold's) the added weight's residual started below the tolerance
-        // and the correction stopped after one conjugate gradient step
-        let relative = residual / rhs_norm.max(f64::MIN_POSITIVE);
-        self.last_relative_residual = relative;
-        self.stage_cycles += 1;
-        Ok(CycleInfo {
-            stage: self.stage,
-            residual_mn: residual,
-            relative_residual: relative,
-            rebuilt: false,
-            step: 1.0,
-            linear: false,
             time_ms: elapsed_ms(start),
         })
     }
@@ -438,7 +396,7 @@ impl Simulation {
             }
         }
         Ok(SolveReport {
-            stage: self.stage,
+            stage: self.stage(),
             cycles,
             relative_residual: relative,
             converged: relative < relative_tolerance,
@@ -453,11 +411,11 @@ impl Simulation {
     /// module documentation). Run
     /// [`Simulation::cycle`] or [`Simulation::solve`] afterwards.
     pub fn start_gravity_correction(&mut self) -> Result<(), SimulationError> {
-        if self.stage == Stage::Gravity || self.implants.iter().all(Option::is_none) {
+        if self.stage() == Stage::Gravity || self.implants.iter().all(Option::is_none) {
             return Ok(());
         }
-        self.ensure_multigrid()?;
-        let model = self.multigrid.as_ref().expect("ensured").multigrid.model();
+        let (kept, _) = self.take_stage_one_multigrid()?;
+        let model = self.multigrid.insert(kept).multigrid.model();
         let f_int = model.internal_forces(&self.u, Formulation::Corotated)?;
         let mut f_ext = vec![DVec3::ZERO; self.u.len()];
         let g = -self.frame.up()
@@ -483,20 +441,36 @@ impl Simulation {
                 }
             }
         }
-        self.prepare_multigrid(Stage::Gravity)?;
-        self.u_before_gravity = Some(self.u.clone());
-        self.gravity = None;
         self.f_ext = f_ext;
-        self.stage = Stage::Gravity;
+        self.enter_gravity_stage(self.u.clone())?;
         self.stage_cycles = 0;
         self.fresh = true;
+        Ok(())
+    }
+
+    /// Gives the hierarchy stage 2's constraints and tangent and assembles stage 2's
+    /// linear system at stage 1's displacement `u_implant` under the current loads.
+    fn enter_gravity_stage(&mut self, u_implant: Vec<DVec3>) -> Result<(), SimulationError> {
+        let (mut kept, _) = self.prepared_multigrid(Stage::Gravity)?;
+        let mg = &mut kept.multigrid;
+        mg.assemble(&u_implant, &self.f_ext, Formulation::Corotated)?;
+        let rhs = mg.system().rhs.clone();
+        let rhs_norm_mn = rhs.iter().map(|d| d.length_squared()).sum::<f64>().sqrt();
+        let zero = vec![DVec3::ZERO; rhs.len()];
+        let iteration = PcgIteration::new(mg, &rhs, zero);
+        self.stage = StageState::Gravity(Box::new(GravityStage {
+            multigrid: kept,
+            u_implant,
+            iteration,
+            rhs_norm_mn,
+        }));
         Ok(())
     }
 
     /// Solves stage 1 to convergence and, unless `no_gravity`, the gravity correction,
     /// with the options' cycle limit and tolerance.
     pub fn run(&mut self, no_gravity: bool) -> Result<RunReport, SimulationError> {
-        if self.stage == Stage::Gravity {
+        if self.stage() == Stage::Gravity {
             // start from the Dirichlet problem again
             self.constraints_changed();
         }
@@ -509,5 +483,32 @@ impl Simulation {
             Some(self.solve(max, tol)?)
         };
         Ok(RunReport { implant, gravity })
+    }
+}
+
+impl GravityStage {
+    /// One cycle of stage 2: one iteration of conjugate gradients preconditioned by a
+    /// symmetric V-cycle on the tangent system of the stage-1 state; `u` becomes stage
+    /// 1's displacement plus the correction so far. Returns the residual before the
+    /// iteration (mN) and its ratio to the stage's own load: against stage 1's reaction
+    /// forces (the wall's, the fold's) the added weight's residual started below the
+    /// tolerance and the correction stopped after one conjugate gradient step.
+    fn cycle(&mut self, u: &mut [DVec3]) -> (f64, f64) {
+        let mg = &mut self.multigrid.multigrid;
+        let residual = self.iteration.residual_norm();
+        self.iteration.step(mg);
+        u.copy_from_slice(&self.u_implant);
+        let sys = mg.system();
+        for ((&v, d), &held) in sys
+            .free
+            .iter()
+            .zip(self.iteration.solution())
+            .zip(sys.eliminated())
+        {
+            if !held {
+                u[v as usize] += *d;
+            }
+        }
+        (residual, residual / self.rhs_norm_mn.max(f64::MIN_POSITIVE))
     }
 }
