@@ -36,6 +36,7 @@
 //! images, so a [`Texture`] (RGB pixels) is passed in by the caller.
 
 mod camera;
+mod colour;
 mod image;
 mod overlay;
 mod raster;
@@ -45,8 +46,10 @@ mod shade;
 
 pub use camera::{Camera, ProjectedPoint, Projection, StandardView};
 pub use image::{Image, encode_png};
-pub use render::{MarkerPlacement, RenderOptions, Rendering, Shading, Visibility, render};
+pub use overlay::{MarkerPlacement, Visibility};
+pub use render::{RenderOptions, Rendering, render};
 pub use scene::{Colouring, Marker, MeshLayer, Polyline, SKIN_TONE, Scene, Texture};
+pub use shade::Shading;
 
 use mesh::MeshError;
 

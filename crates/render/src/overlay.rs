@@ -10,8 +10,8 @@
 
 use crate::camera::Camera;
 use crate::image::Image;
+use crate::raster::key_depth_mm;
 use crate::raster::{NO_TRIANGLE, SampleBuffer};
-use crate::render::{MarkerPlacement, Visibility, key_depth_mm};
 use crate::scene::{Polyline, Scene};
 use crate::shade::{PreparedLayer, locate};
 use glam::{DVec2, DVec3};
@@ -19,6 +19,27 @@ use tiny_skia::{
     ColorSpace, FillRule, LineCap, LineJoin, Paint, PathBuilder, PixmapMut, Stroke, StrokeDash,
     Transform,
 };
+
+/// Whether a marker can be seen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Visibility {
+    /// In the image and in front of every opaque surface (or on it): drawn as a disc.
+    Visible,
+    /// In the image but behind an opaque surface: drawn as a dashed ring.
+    Hidden,
+    /// Outside the image (or behind a perspective camera): not drawn.
+    OutsideImage,
+}
+
+/// Where a marker landed in the image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MarkerPlacement {
+    pub label: String,
+    /// Pixels from the image's top-left corner, y down (pixel `(i, j)` has its centre at
+    /// `(i + 0.5, j + 0.5)`); NaN for a point behind a perspective camera.
+    pub pixel: DVec2,
+    pub visibility: Visibility,
+}
 
 /// A point may lie this far behind the surface in front of it, or off the plane of the
 /// triangle drawn there, and still count as on it (mm): the chord between two curve

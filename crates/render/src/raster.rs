@@ -5,8 +5,10 @@
 //! evaluated from the same vertex order for both (the lower vertex index first), so the
 //! two values are exact negatives and no sample between them falls through a crack.
 //! Rows are split into bands; each band takes the triangles reaching into it and runs on
-//! its own core.
+//! its own core. [`screen_vertex`] projects a point onto the sample grid.
 
+use crate::camera::{Camera, Projection};
+use glam::DVec3;
 use rayon::prelude::*;
 
 /// The id of a sample no triangle covers.
@@ -274,6 +276,55 @@ fn min3(v: [f32; 3]) -> f32 {
 
 fn max3(v: [f32; 3]) -> f32 {
     v[0].max(v[1]).max(v[2])
+}
+
+/// A point on a sample grid of `width` × `height` for the rasteriser: x and y in samples,
+/// its [`depth_key`], NaN where it cannot be drawn.
+pub(crate) fn screen_vertex(
+    camera: &Camera,
+    point: DVec3,
+    width: f64,
+    height: f64,
+) -> ScreenVertex {
+    match camera.project(point, width, height) {
+        Some(projected) => {
+            let attribute_weight = match camera.projection {
+                Projection::Orthographic => 1.0,
+                Projection::Perspective { .. } => 1.0 / projected.depth_mm,
+            };
+            ScreenVertex {
+                x: projected.pixel.x as f32,
+                y: projected.pixel.y as f32,
+                key: depth_key(camera.projection, projected.depth_mm),
+                attribute_weight: attribute_weight as f32,
+            }
+        }
+        None => ScreenVertex {
+            x: f32::NAN,
+            y: f32::NAN,
+            key: f32::NAN,
+            attribute_weight: 0.0,
+        },
+    }
+}
+
+/// The depth key of a depth (mm, as [`crate::ProjectedPoint::depth_mm`]): the depth for
+/// an orthographic camera, minus its reciprocal for a perspective one (linear across the
+/// screen, larger farther).
+pub(crate) fn depth_key(projection: Projection, depth_mm: f64) -> f32 {
+    match projection {
+        Projection::Orthographic => depth_mm as f32,
+        Projection::Perspective { .. } => (-1.0 / depth_mm) as f32,
+    }
+}
+
+/// The depth (mm, as [`crate::ProjectedPoint::depth_mm`]) of a depth key of
+/// [`screen_vertex`].
+pub(crate) fn key_depth_mm(projection: Projection, key: f32) -> f64 {
+    match projection {
+        Projection::Orthographic => f64::from(key),
+        Projection::Perspective { .. } => -1.0 / f64::from(key),
+    }
 }
 
 #[cfg(test)]

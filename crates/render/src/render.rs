@@ -1,13 +1,15 @@
 //! [`render`]: a scene through a camera into an image.
 
 use crate::RenderError;
-use crate::camera::{Camera, Projection};
+use crate::camera::Camera;
+use crate::colour::{linear_to_srgb, srgb_colour_to_linear};
 use crate::image::Image;
 use crate::overlay;
-use crate::raster::{NO_TRIANGLE, SampleBuffer, ScreenVertex};
+use crate::overlay::MarkerPlacement;
+use crate::raster::{NO_TRIANGLE, SampleBuffer, depth_key, key_depth_mm};
 use crate::scene::Scene;
-use crate::shade::{PreparedLayer, linear_to_srgb, locate, srgb_colour_to_linear};
-use glam::{DVec2, DVec3, Vec3, Vec4};
+use crate::shade::{PreparedLayer, Shading, locate};
+use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
 /// A translucent layer shows also where it lies up to this far behind the opaque
@@ -19,15 +21,6 @@ const MAX_SUPERSAMPLING: u32 = 4;
 /// Largest number of samples (width × height × supersampling²): about 0.5 GB per depth
 /// buffer.
 const MAX_SAMPLES: u64 = 1 << 26;
-
-/// How a surface's colour is shown.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Shading {
-    /// Lit by a key and a fill light with a soft highlight: shows the shape.
-    Lit,
-    /// The colour as it is: exact colour-map values, no shape.
-    Unlit,
-}
 
 /// Picture settings.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,27 +43,6 @@ impl Default for RenderOptions {
             marker_radius_px: 5.0,
         }
     }
-}
-
-/// Whether a marker can be seen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Visibility {
-    /// In the image and in front of every opaque surface (or on it): drawn as a disc.
-    Visible,
-    /// In the image but behind an opaque surface: drawn as a dashed ring.
-    Hidden,
-    /// Outside the image (or behind a perspective camera): not drawn.
-    OutsideImage,
-}
-
-/// Where a marker landed in the image.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MarkerPlacement {
-    pub label: String,
-    /// Pixels from the image's top-left corner, y down (pixel `(i, j)` has its centre at
-    /// `(i + 0.5, j + 0.5)`); NaN for a point behind a perspective camera.
-    pub pixel: DVec2,
-    pub visibility: Visibility,
 }
 
 /// A rendered picture and where its markers are.
@@ -181,55 +153,6 @@ fn check_size(width: u32, height: u32, supersampling: u32) -> Result<(), RenderE
         });
     }
     Ok(())
-}
-
-/// A point on a sample grid of `width` × `height` for the rasteriser: x and y in samples,
-/// its [`depth_key`], NaN where it cannot be drawn.
-pub(crate) fn screen_vertex(
-    camera: &Camera,
-    point: DVec3,
-    width: f64,
-    height: f64,
-) -> ScreenVertex {
-    match camera.project(point, width, height) {
-        Some(projected) => {
-            let attribute_weight = match camera.projection {
-                Projection::Orthographic => 1.0,
-                Projection::Perspective { .. } => 1.0 / projected.depth_mm,
-            };
-            ScreenVertex {
-                x: projected.pixel.x as f32,
-                y: projected.pixel.y as f32,
-                key: depth_key(camera.projection, projected.depth_mm),
-                attribute_weight: attribute_weight as f32,
-            }
-        }
-        None => ScreenVertex {
-            x: f32::NAN,
-            y: f32::NAN,
-            key: f32::NAN,
-            attribute_weight: 0.0,
-        },
-    }
-}
-
-/// The depth key of a depth (mm, as [`crate::ProjectedPoint::depth_mm`]): the depth for
-/// an orthographic camera, minus its reciprocal for a perspective one (linear across the
-/// screen, larger farther).
-fn depth_key(projection: Projection, depth_mm: f64) -> f32 {
-    match projection {
-        Projection::Orthographic => depth_mm as f32,
-        Projection::Perspective { .. } => (-1.0 / depth_mm) as f32,
-    }
-}
-
-/// The depth (mm, as [`crate::ProjectedPoint::depth_mm`]) of a depth key of
-/// [`screen_vertex`].
-pub(crate) fn key_depth_mm(projection: Projection, key: f32) -> f64 {
-    match projection {
-        Projection::Orthographic => f64::from(key),
-        Projection::Perspective { .. } => -1.0 / f64::from(key),
-    }
 }
 
 /// Shades every pixel's samples and averages them. Each triangle seen in a pixel is

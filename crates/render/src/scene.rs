@@ -1,6 +1,7 @@
 //! What a picture shows: mesh layers with their colours, markers and curves.
 
 use crate::RenderError;
+use crate::colour::srgb_colour_to_linear;
 use glam::DVec3;
 use mesh::TriMesh;
 
@@ -40,8 +41,26 @@ impl Texture {
     /// The colour (sRGB) at texture coordinates `uv`, bilinear between pixel centres in
     /// linear light, clamped at the borders: what a picture paints there.
     pub fn colour_at(&self, uv: glam::DVec2) -> [u8; 3] {
-        crate::shade::sample_bilinear(self, uv.x as f32, uv.y as f32)
-            .map(crate::shade::linear_to_srgb)
+        self.sample_linear(uv.x as f32, uv.y as f32)
+            .map(crate::colour::linear_to_srgb)
+    }
+
+    /// The colour (linear) at texture coordinates `(u, v)`, bilinear between pixel
+    /// centres, clamped at the borders.
+    pub(crate) fn sample_linear(&self, u: f32, v: f32) -> [f32; 3] {
+        let (width, height) = (self.width(), self.height());
+        let x = (u * width as f32 - 0.5).clamp(0.0, (width - 1) as f32);
+        let y = ((1.0 - v) * height as f32 - 0.5).clamp(0.0, (height - 1) as f32);
+        let (x0, y0) = (x.floor() as u32, y.floor() as u32);
+        let (x1, y1) = ((x0 + 1).min(width - 1), (y0 + 1).min(height - 1));
+        let (fx, fy) = (x - x0 as f32, y - y0 as f32);
+        let texel = |x, y| srgb_colour_to_linear(self.pixel(x, y));
+        let [p00, p10, p01, p11] = [texel(x0, y0), texel(x1, y0), texel(x0, y1), texel(x1, y1)];
+        std::array::from_fn(|k| {
+            let top = p00[k] + fx * (p10[k] - p00[k]);
+            let bottom = p01[k] + fx * (p11[k] - p01[k]);
+            top + fy * (bottom - top)
+        })
     }
 
     /// The pixel in column `x`, row `y` (from the top).

@@ -3,8 +3,8 @@
 //! fill light with a soft highlight, in linear light.
 
 use crate::camera::Camera;
-use crate::raster::ScreenVertex;
-use crate::render::Shading;
+use crate::colour::srgb_colour_to_linear;
+use crate::raster::{ScreenVertex, screen_vertex};
 use crate::scene::{Colouring, MeshLayer, Texture};
 use glam::{DVec3, Vec3};
 use mesh::{TriMesh, UvLayer};
@@ -27,55 +27,6 @@ const SHININESS: i32 = 20;
 /// the surface's colour, so it reads as the inside.
 const BACK_FACE_GREY: [f32; 3] = [0.32, 0.34, 0.38];
 const BACK_FACE_MIX: f32 = 0.5;
-/// Entries of the linear-to-sRGB table: steps of 1/4095 in linear light are under one
-/// sRGB level everywhere (the curve is steepest at black, 12.92).
-const LINEAR_TO_SRGB_STEPS: usize = 4096;
-
-static SRGB_TO_LINEAR: LazyLock<[f32; 256]> = LazyLock::new(|| {
-    std::array::from_fn(|level| {
-        let c = level as f64 / 255.0;
-        let linear = if c <= 0.04045 {
-            c / 12.92
-        } else {
-            ((c + 0.055) / 1.055).powf(2.4)
-        };
-        linear as f32
-    })
-});
-
-static LINEAR_TO_SRGB: LazyLock<Vec<u8>> = LazyLock::new(|| {
-    (0..LINEAR_TO_SRGB_STEPS)
-        .map(|step| {
-            let linear = step as f64 / (LINEAR_TO_SRGB_STEPS - 1) as f64;
-            let c = if linear <= 0.0031308 {
-                12.92 * linear
-            } else {
-                1.055 * linear.powf(1.0 / 2.4) - 0.055
-            };
-            (255.0 * c).round().clamp(0.0, 255.0) as u8
-        })
-        .collect()
-});
-
-/// An sRGB level (0-255) in linear light (0-1).
-#[inline]
-pub(crate) fn srgb_to_linear(level: u8) -> f32 {
-    SRGB_TO_LINEAR[level as usize]
-}
-
-/// An sRGB colour in linear light.
-pub(crate) fn srgb_colour_to_linear(colour: [u8; 3]) -> [f32; 3] {
-    colour.map(srgb_to_linear)
-}
-
-/// Linear light (clamped to 0-1) as an sRGB level.
-#[inline]
-pub(crate) fn linear_to_srgb(linear: f32) -> u8 {
-    // Non-negative, so adding one half and truncating rounds.
-    let step = linear.clamp(0.0, 1.0) * (LINEAR_TO_SRGB_STEPS - 1) as f32 + 0.5;
-    LINEAR_TO_SRGB[step as usize]
-}
-
 /// Where a prepared layer's colour comes from, in linear light.
 enum Albedo<'a> {
     PerVertex(Vec<[f32; 3]>),
@@ -112,7 +63,7 @@ impl<'a> PreparedLayer<'a> {
         let vertices = mesh
             .positions
             .par_iter()
-            .map(|&p| crate::render::screen_vertex(camera, p, width, height))
+            .map(|&p| screen_vertex(camera, p, width, height))
             .collect();
         let normals = mesh
             .vertex_normals()
@@ -212,7 +163,7 @@ impl<'a> PreparedLayer<'a> {
             Albedo::Texture { uv, texture } => {
                 let [a, b, c] = uv.triangles[t].map(|i| uv.coords[i as usize].as_vec2());
                 let coords = weights[0] * a + weights[1] * b + weights[2] * c;
-                sample_bilinear(texture, coords.x, coords.y)
+                texture.sample_linear(coords.x, coords.y)
             }
         }
     }
@@ -257,32 +208,11 @@ fn light(albedo: [f32; 3], normal: Vec3) -> [f32; 3] {
     albedo.map(|c| c * diffuse + highlight)
 }
 
-/// The texture's colour (linear) at texture coordinates `(u, v)`, bilinear between pixel
-/// centres, clamped at the borders.
-pub(crate) fn sample_bilinear(texture: &Texture, u: f32, v: f32) -> [f32; 3] {
-    let (width, height) = (texture.width(), texture.height());
-    let x = (u * width as f32 - 0.5).clamp(0.0, (width - 1) as f32);
-    let y = ((1.0 - v) * height as f32 - 0.5).clamp(0.0, (height - 1) as f32);
-    let (x0, y0) = (x.floor() as u32, y.floor() as u32);
-    let (x1, y1) = ((x0 + 1).min(width - 1), (y0 + 1).min(height - 1));
-    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
-    let texel = |x, y| srgb_colour_to_linear(texture.pixel(x, y));
-    let [p00, p10, p01, p11] = [texel(x0, y0), texel(x1, y0), texel(x0, y1), texel(x1, y1)];
-    std::array::from_fn(|k| {
-        let top = p00[k] + fx * (p10[k] - p00[k]);
-        let bottom = p01[k] + fx * (p11[k] - p01[k]);
-        top + fy * (bottom - top)
-    })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn srgb_round_trips_every_level() {
-        for level in 0..=255u8 {
-            assert_eq!(linear_to_srgb(srgb_to_linear(level)), level);
-        }
-    }
+/// How a surface's colour is shown.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shading {
+    /// Lit by a key and a fill light with a soft highlight: shows the shape.
+    Lit,
+    /// The colour as it is: exact colour-map values, no shape.
+    Unlit,
 }
