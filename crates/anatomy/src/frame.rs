@@ -3,7 +3,7 @@
 //! at Pj. Up comes from the scan ([`Up`]); the sternum (Px towards Pj), which leans back
 //! 20-30° in a standing woman, is kept as an anatomical direction, never as up.
 
-use crate::landmarks::{LandmarkName, Landmarks};
+use crate::landmarks::{LandmarkName, Landmarks, PartialLandmarks};
 use glam::{DMat3, DQuat, DVec3};
 
 /// The sternum's usual lean back from the vertical in a standing woman (degrees), used
@@ -337,6 +337,23 @@ impl AnatomicalFrame {
     /// Frame coordinates to file coordinates.
     pub fn to_file(&self, local: DVec3) -> DVec3 {
         self.origin + self.axes * local
+    }
+}
+
+impl PartialLandmarks {
+    /// The standing frame once Pj, Px, Pcl and Pcr are placed, with up `given` or
+    /// resolved as [`Up::resolve`] does.
+    pub fn frame(&self, given: Option<Up>) -> Option<Result<AnatomicalFrame, FrameError>> {
+        use LandmarkName::{Pcl, Pcr, Pj, Px};
+        let bony = [Pj, Px, Pcl, Pcr];
+        if bony.iter().any(|&n| self.get(n).is_none()) {
+            return None;
+        }
+        let landmarks = Landmarks::new(|n| self.get(n).unwrap_or_default());
+        Some(
+            Up::resolve(given, &landmarks)
+                .and_then(|up| AnatomicalFrame::from_landmarks(&landmarks, up)),
+        )
     }
 }
 

@@ -1,7 +1,6 @@
 //! Anatomical landmarks (paper Fig. 2) and the landmark file format of the GUIDE:
 //! `{"units":"mm","landmarks":{"Pj":[x,y,z],...},"extra":{"name":[x,y,z]}}`.
 
-use crate::frame::{AnatomicalFrame, FrameError, Up};
 use glam::DVec3;
 use mesh::LengthUnit;
 use serde_json::{Value, json};
@@ -363,21 +362,6 @@ impl PartialLandmarks {
         let mut landmarks = Landmarks::new(|n| self.get(n).unwrap_or_default());
         landmarks.extra = self.extra.clone();
         Ok(landmarks)
-    }
-
-    /// The standing frame once Pj, Px, Pcl and Pcr are placed, with up `given` or
-    /// resolved as [`Up::resolve`] does.
-    pub fn frame(&self, given: Option<Up>) -> Option<Result<AnatomicalFrame, FrameError>> {
-        use LandmarkName::{Pcl, Pcr, Pj, Px};
-        let bony = [Pj, Px, Pcl, Pcr];
-        if bony.iter().any(|&n| self.get(n).is_none()) {
-            return None;
-        }
-        let landmarks = Landmarks::new(|n| self.get(n).unwrap_or_default());
-        Some(
-            Up::resolve(given, &landmarks)
-                .and_then(|up| AnatomicalFrame::from_landmarks(&landmarks, up)),
-        )
     }
 
     /// Reads a landmark file that may lack some required landmarks.
