@@ -12,6 +12,7 @@ pub mod demo;
 pub mod fem_solve;
 pub mod measure;
 pub mod model;
+mod per_side;
 mod record_check;
 pub mod register;
 pub mod report;

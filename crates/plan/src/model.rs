@@ -24,6 +24,7 @@
 //! once the model is built, so a failed build writes nothing.
 
 use crate::measure::HoleSummary;
+pub use crate::per_side::PerSide;
 use crate::{MarkedScan, Progress, check_cancelled};
 use anatomy::breast::{BreastModel, QuadrantVolumes, Side};
 use anatomy::closed_surface::{ClosedSurface, ClosedSurfaceOptions, build_closed_surface};
@@ -33,6 +34,9 @@ use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// The file name of the carried control points in a simulation folder.
+pub const SIMULATED_CONTROL_POINTS: &str = "simulated_control_points.json";
 
 pub use anatomy::breast::DEFAULT_PC_RATIO;
 pub use anatomy::closed_surface::{DEFAULT_REAR_WALL_OFFSET_MM, MAX_REAR_WALL_OFFSET_MM};
@@ -256,39 +260,6 @@ pub struct RefinementReport {
     pub longest_edge_in_band_mm: f64,
 }
 
-/// Left and right values.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-pub struct PerSide<T> {
-    pub left: T,
-    pub right: T,
-}
-
-impl<T> PerSide<T> {
-    /// The values `f(Side::Left)` and `f(Side::Right)`.
-    pub fn from_fn(mut f: impl FnMut(Side) -> T) -> PerSide<T> {
-        PerSide {
-            left: f(Side::Left),
-            right: f(Side::Right),
-        }
-    }
-
-    /// The value of one side.
-    pub fn get(&self, side: Side) -> &T {
-        match side {
-            Side::Left => &self.left,
-            Side::Right => &self.right,
-        }
-    }
-
-    /// The value of one side, mutably.
-    pub fn get_mut(&mut self, side: Side) -> &mut T {
-        match side {
-            Side::Left => &mut self.left,
-            Side::Right => &mut self.right,
-        }
-    }
-}
-
 /// The clip planes of the closed surface, as coordinates in the anatomical frame (mm):
 /// `x` towards the patient's left, `y` up.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -499,7 +470,7 @@ pub fn build_breasts(
         // A simulated scan's fold landmarks ride forward on the implant, so the default
         // curves below them can fold; its folder holds the model's curves carried along.
         let carried = (scan.path.parent())
-            .map(|dir| dir.join(crate::simulate::SIMULATED_CONTROL_POINTS))
+            .map(|dir| dir.join(SIMULATED_CONTROL_POINTS))
             .filter(|path| options.control_points.is_none() && path.is_file());
         let hint = carried.map_or(String::new(), |path| {
             format!(

@@ -2,7 +2,7 @@
 //! ranges any real result lies in, so that an edited or damaged file is refused with the
 //! field's name instead of shown as a plan.
 
-use crate::model::PerSide;
+use crate::per_side::PerSide;
 use anatomy::breast::{QuadrantVolumes, Side};
 use std::ops::RangeInclusive;
 

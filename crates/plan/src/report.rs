@@ -19,12 +19,12 @@
 
 use crate::compare::{CompareOptions, compare};
 use crate::measure::measure;
-use crate::model::{PerSide, build_breasts, read_folder_json, read_model_record, write_model};
-use crate::record_check::{FieldCheck, LENGTH_MM, SHIFT_MM, VOLUME_ML};
-use crate::simulate::{
-    AnchorRule, MaterialsReport, SIMULATED_CONTROL_POINTS, Session, SimulationState,
-    write_simulation,
+use crate::model::{
+    PerSide, SIMULATED_CONTROL_POINTS, build_breasts, read_folder_json, read_model_record,
+    write_model,
 };
+use crate::record_check::{FieldCheck, LENGTH_MM, SHIFT_MM, VOLUME_ML};
+use crate::simulate::{AnchorRule, MaterialsReport, Session, SimulationState, write_simulation};
 use crate::views::{RenderedView, ViewContent, standard_views};
 use crate::{Distance, MarkedScan, Progress};
 use anatomy::breast::{BreastModel, QuadrantVolumes, Side};

@@ -20,7 +20,9 @@
 //! - `result.json`: the figures ([`SimulateReport`]), written last.
 
 use crate::measure::measure;
-use crate::model::{ModelOptions, PatientModel, PerSide, build_model, load_model};
+use crate::model::{
+    ModelOptions, PatientModel, PerSide, SIMULATED_CONTROL_POINTS, build_model, load_model,
+};
 use crate::{Distance, MarkedScan, Progress, check_cancelled};
 use anatomy::Landmarks;
 use anatomy::breast::{ControlPoints, QuadrantVolumes, Side};
@@ -154,9 +156,6 @@ pub struct SimulatedMeasurements {
     /// The clinical distances on the scan before and on the simulated scan.
     pub distances: Vec<DistanceChange>,
 }
-
-/// The file name of the carried control points in a simulation folder.
-pub const SIMULATED_CONTROL_POINTS: &str = "simulated_control_points.json";
 
 /// The breasts after a simulation (see [`Session::breast_volumes`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
