@@ -30,8 +30,9 @@ use plan::catalog::Catalog;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+pub use crate::display_mode::DisplayMode;
 pub use dialogs::FileChoice;
-pub use planning::{DisplayMode, ModelFigures, ModelSettings};
+pub use planning::{ModelFigures, ModelSettings};
 pub use postoperative::{DeviationReference, PostOperative};
 use viewport::Drag;
 pub use viewport::{ControlPointTool, Overlay};

@@ -14,6 +14,7 @@ pub mod camera;
 pub mod carried;
 pub mod control_points;
 pub mod deviation;
+mod display_mode;
 pub mod document;
 mod hints;
 pub mod implant_plan;

@@ -34,8 +34,8 @@
 //! Errors in the file name its line; an action that fails (a build error, say) ends the
 //! program with a message on stderr and exit status 1.
 
-use crate::app::DisplayMode;
 use crate::camera::StandardView;
+use crate::display_mode::DisplayMode;
 use crate::implant_plan::MoveDirection;
 use anyhow::{Context, Result, bail};
 use plan::catalog::ShapeKind;

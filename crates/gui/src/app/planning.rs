@@ -5,6 +5,7 @@
 use super::ControlPointTool;
 use super::{ERROR_COLOR, GuiApp, PLACED_COLOR, Status};
 use crate::carried::{SurfaceAnchor, anchors};
+use crate::display_mode::DisplayMode;
 use crate::document::Document;
 use crate::implant_plan::ImplantPlan;
 use crate::live_simulation::{
@@ -28,42 +29,6 @@ const BUILD_STAGES: [&str; 3] = ["model", "tetrahedra", "simulation"];
 /// The element counts the slider offers.
 const ELEMENTS_RANGE: std::ops::RangeInclusive<usize> = 2_000..=200_000;
 const RUNNING_COLOR: Color32 = Color32::from_rgb(240, 190, 60);
-
-/// What the viewport shows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum DisplayMode {
-    /// The scan as loaded (landmarks and cut curves on it).
-    PreOperative,
-    /// The predicted post-operative scan.
-    Simulated,
-    /// The scan as loaded with the prediction over it, translucent.
-    Overlay,
-    /// The prediction coloured by its distance from the scan as loaded (paper Fig. 3).
-    Deviation,
-    /// The registered post-operative scan, coloured by its distance from the scan as
-    /// loaded or from the prediction.
-    PostOperative,
-}
-
-impl DisplayMode {
-    const ALL: [DisplayMode; 5] = [
-        DisplayMode::PreOperative,
-        DisplayMode::Simulated,
-        DisplayMode::Overlay,
-        DisplayMode::Deviation,
-        DisplayMode::PostOperative,
-    ];
-
-    fn label(self) -> &'static str {
-        match self {
-            DisplayMode::PreOperative => "Pre-operative",
-            DisplayMode::Simulated => "Simulated",
-            DisplayMode::Overlay => "Overlay",
-            DisplayMode::Deviation => "Deviation",
-            DisplayMode::PostOperative => "Post-operative",
-        }
-    }
-}
 
 /// How the model is built and the tissue simulated (saved in planning cases).
 #[derive(Debug, Clone, PartialEq)]
