@@ -83,7 +83,7 @@ fn an_asymmetric_torso_gives_its_true_volume_ratio_and_nipple_offset() {
         symmetry.nipple_position_difference_mm
     );
     assert!((true_ratio - 1.0).abs() > 0.05, "the phantom is asymmetric");
-    // Each breast volume is within about 2% of the truth (docs/manual.md), with errors of the
+    // Each breast volume is within about 2% of the truth (docs/user/model.md), with errors of the
     // same sign on both sides.
     assert!((ratio / true_ratio - 1.0).abs() < 0.02);
     // ICP away from the breasts finds the exact plane to a fraction of a millimetre.

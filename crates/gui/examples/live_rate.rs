@@ -3,7 +3,7 @@
 //! `R-MOD-120` placed on both sides and solved, then the projection is dragged from 33.5
 //! to 45 mm for a while, a new value 60 times a second (as a window sends them), and the
 //! frames coming back are counted. The window's own frame rate comes from
-//! `mammaplan gui --script` with its `stats` action (see docs/manual.md).
+//! `mammaplan gui --script` with its `stats` action (see docs/user/gui.md).
 //!
 //! `cargo run --release -p gui --example live_rate -- [ELEMENTS] [SECONDS]`
 //! (defaults: 60000 elements, 20 s).

@@ -442,6 +442,44 @@ pub fn install(render_state: &egui_wgpu::RenderState) -> bool {
         label: Some("mammaplan scene shader"),
         source: wgpu::ShaderSource::Wgsl(SHADER.into()),
     });
+    let (uniform_layout, uniforms) = layer_uniforms(device);
+    let scene_layout = pipeline_layout(device, "mammaplan scene layout", &uniform_layout);
+    let [opaque_pipeline, translucent_pipeline] = [LayerStyle::Opaque, LayerStyle::Translucent]
+        .map(|style| {
+            scene_pipeline(
+                device,
+                &scene_module,
+                &scene_layout,
+                style,
+                cull_mode,
+                samples,
+            )
+        });
+    let (blit_pipeline, blit_layout, sampler) = blit_pipeline(device, render_state.target_format);
+
+    render_state
+        .renderer
+        .write()
+        .callback_resources
+        .insert(ViewportResources {
+            opaque_pipeline,
+            translucent_pipeline,
+            blit_pipeline,
+            blit_layout,
+            sampler,
+            uniforms,
+            samples,
+            meshes: [None, None],
+            target: None,
+            drawn: None,
+        });
+    software
+}
+
+/// The uniforms layout, and a buffer and bind group of it for each layer.
+fn layer_uniforms(
+    device: &wgpu::Device,
+) -> (wgpu::BindGroupLayout, Vec<(wgpu::Buffer, wgpu::BindGroup)>) {
     let uniform_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("mammaplan uniforms layout"),
         entries: &[wgpu::BindGroupLayoutEntry {
@@ -473,19 +511,30 @@ pub fn install(render_state: &egui_wgpu::RenderState) -> bool {
             (buffer, group)
         })
         .collect();
-    let scene_layout = pipeline_layout(device, "mammaplan scene layout", &uniform_layout);
-    let scene_pipeline = |style: LayerStyle| {
-        let translucent = style == LayerStyle::Translucent;
-        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+    (uniform_layout, uniforms)
+}
+
+/// The pipeline that draws a layer of `style` into the offscreen target.
+fn scene_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::PipelineLayout,
+    style: LayerStyle,
+    cull_mode: Option<wgpu::Face>,
+    samples: u32,
+) -> wgpu::RenderPipeline {
+    let translucent = style == LayerStyle::Translucent;
+    let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3];
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("mammaplan scene"),
-        layout: Some(&scene_layout),
+        layout: Some(layout),
         vertex: wgpu::VertexState {
-            module: &scene_module,
+            module,
             entry_point: Some("vs_main"),
             buffers: &[Some(wgpu::VertexBufferLayout {
                 array_stride: std::mem::size_of::<Vertex>() as u64,
                 step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3],
+                attributes: &attributes,
             })],
             compilation_options: wgpu::PipelineCompilationOptions::default(),
         },
@@ -526,7 +575,7 @@ pub fn install(render_state: &egui_wgpu::RenderState) -> bool {
             alpha_to_coverage_enabled: false,
         },
         fragment: Some(wgpu::FragmentState {
-            module: &scene_module,
+            module,
             entry_point: Some("fs_main"),
             targets: &[Some(wgpu::ColorTargetState {
                 format: COLOR_FORMAT,
@@ -537,11 +586,15 @@ pub fn install(render_state: &egui_wgpu::RenderState) -> bool {
         }),
         multiview_mask: None,
         cache: None,
-        })
-    };
-    let opaque_pipeline = scene_pipeline(LayerStyle::Opaque);
-    let translucent_pipeline = scene_pipeline(LayerStyle::Translucent);
+    })
+}
 
+/// The pipeline that copies the offscreen target into egui's pass in `target_format`,
+/// its bind group layout and its sampler.
+fn blit_pipeline(
+    device: &wgpu::Device,
+    target_format: wgpu::TextureFormat,
+) -> (wgpu::RenderPipeline, wgpu::BindGroupLayout, wgpu::Sampler) {
     let blit_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("mammaplan blit shader"),
         source: wgpu::ShaderSource::Wgsl(BLIT_SHADER.into()),
@@ -583,13 +636,13 @@ pub fn install(render_state: &egui_wgpu::RenderState) -> bool {
         multisample: wgpu::MultisampleState::default(),
         fragment: Some(wgpu::FragmentState {
             module: &blit_module,
-            entry_point: Some(if render_state.target_format.is_srgb() {
+            entry_point: Some(if target_format.is_srgb() {
                 "fs_blit_linear"
             } else {
                 "fs_blit_gamma"
             }),
             targets: &[Some(wgpu::ColorTargetState {
-                format: render_state.target_format,
+                format: target_format,
                 blend: None,
                 write_mask: wgpu::ColorWrites::ALL,
             })],
@@ -604,24 +657,7 @@ pub fn install(render_state: &egui_wgpu::RenderState) -> bool {
         min_filter: wgpu::FilterMode::Linear,
         ..wgpu::SamplerDescriptor::default()
     });
-
-    render_state
-        .renderer
-        .write()
-        .callback_resources
-        .insert(ViewportResources {
-            opaque_pipeline,
-            translucent_pipeline,
-            blit_pipeline,
-            blit_layout,
-            sampler,
-            uniforms,
-            samples,
-            meshes: [None, None],
-            target: None,
-            drawn: None,
-        });
-    software
+    (blit_pipeline, blit_layout, sampler)
 }
 
 /// A pipeline layout with one bind group.

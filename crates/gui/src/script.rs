@@ -174,15 +174,7 @@ fn parse_action(code: &str) -> Result<Action> {
             _ => bail!("expected `custom round W P` or `custom anatomic W H P`"),
         },
         "move" => {
-            let direction = match words.get(1) {
-                Some(&"left") => MoveDirection::Left,
-                Some(&"right") => MoveDirection::Right,
-                Some(&"up") => MoveDirection::Up,
-                Some(&"down") => MoveDirection::Down,
-                Some(&"front") => MoveDirection::Front,
-                Some(&"back") => MoveDirection::Back,
-                _ => bail!("expected left, right, up, down, front or back"),
-            };
+            let direction = parse_direction(words.get(1).copied())?;
             let times = match words.len() {
                 2 => 1,
                 3 => {
@@ -221,30 +213,11 @@ fn parse_action(code: &str) -> Result<Action> {
         }
         "display" => {
             count(2)?;
-            Action::Display(match words[1] {
-                "pre-operative" => DisplayMode::PreOperative,
-                "simulated" => DisplayMode::Simulated,
-                "overlay" => DisplayMode::Overlay,
-                "deviation" => DisplayMode::Deviation,
-                "post-operative" => DisplayMode::PostOperative,
-                other => bail!(
-                    "unknown display mode `{other}`: pre-operative, simulated, overlay, \
-                     deviation or post-operative"
-                ),
-            })
+            Action::Display(parse_display(words[1])?)
         }
         "view" => {
             count(2)?;
-            Action::View(match words[1] {
-                "front" => StandardView::Front,
-                "left-oblique" => StandardView::LeftOblique,
-                "left" => StandardView::Left,
-                "right-oblique" => StandardView::RightOblique,
-                "right" => StandardView::Right,
-                other => bail!(
-                    "unknown view `{other}`: front, left-oblique, left, right-oblique or right"
-                ),
-            })
+            Action::View(parse_view(words[1])?)
         }
         "up" => {
             count(2)?;
@@ -260,6 +233,46 @@ fn parse_action(code: &str) -> Result<Action> {
         "save-case" => Action::SaveCase(path()?),
         "quit" => Action::Quit,
         other => bail!("unknown action `{other}`"),
+    })
+}
+
+/// The direction word of `move`.
+fn parse_direction(word: Option<&str>) -> Result<MoveDirection> {
+    Ok(match word {
+        Some("left") => MoveDirection::Left,
+        Some("right") => MoveDirection::Right,
+        Some("up") => MoveDirection::Up,
+        Some("down") => MoveDirection::Down,
+        Some("front") => MoveDirection::Front,
+        Some("back") => MoveDirection::Back,
+        _ => bail!("expected left, right, up, down, front or back"),
+    })
+}
+
+/// The mode word of `display`.
+fn parse_display(word: &str) -> Result<DisplayMode> {
+    Ok(match word {
+        "pre-operative" => DisplayMode::PreOperative,
+        "simulated" => DisplayMode::Simulated,
+        "overlay" => DisplayMode::Overlay,
+        "deviation" => DisplayMode::Deviation,
+        "post-operative" => DisplayMode::PostOperative,
+        other => bail!(
+            "unknown display mode `{other}`: pre-operative, simulated, overlay, \
+             deviation or post-operative"
+        ),
+    })
+}
+
+/// The view word of `view`.
+fn parse_view(word: &str) -> Result<StandardView> {
+    Ok(match word {
+        "front" => StandardView::Front,
+        "left-oblique" => StandardView::LeftOblique,
+        "left" => StandardView::Left,
+        "right-oblique" => StandardView::RightOblique,
+        "right" => StandardView::Right,
+        other => bail!("unknown view `{other}`: front, left-oblique, left, right-oblique or right"),
     })
 }
 

@@ -125,8 +125,8 @@ fn a_post_operative_scan_is_registered_and_coloured_by_its_deviation() {
 
     // Known answer: the transform that moved the pre-operative frame to the post scan's
     // file, inverted, brings the post scan back. The registration recovers it to a small
-    // fraction of a millimetre over the whole scan (0.03 mm, docs/manual.md); 0.5 mm is a tenth
-    // of the scan's triangle size.
+    // fraction of a millimetre over the whole scan (0.03 mm, docs/user/compare.md); 0.5 mm
+    // is a tenth of the scan's triangle size.
     let known: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(scans.join("pair1_transform.json")).unwrap())
             .unwrap();

@@ -452,7 +452,7 @@ struct GuiArgs {
     #[arg(long, value_name = "FILE")]
     case: Option<PathBuf>,
     /// Run a scripted session in the window (one action per line: phantom, build,
-    /// implant ID, move up, wait, screenshot FILE, ...; see docs/manual.md).
+    /// implant ID, move up, wait, screenshot FILE, ...; see docs/user/gui.md).
     #[arg(long, value_name = "FILE")]
     script: Option<PathBuf>,
 }

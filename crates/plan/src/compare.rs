@@ -27,8 +27,8 @@ use assess::{
     DeviationStatistics, DistanceSurface, SurfaceComparison, Symmetry, SymmetryInput,
     ZoneStatistics, analyse_symmetry, deviation_color, transfer_sides,
 };
-use mesh::SurfaceIndex;
 use mesh::io::{PlyEncoding, VertexScalar, write_ply_with_scalars};
+use mesh::{SurfaceIndex, TriMesh};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -249,27 +249,7 @@ pub fn compare(
     options: &CompareOptions,
     progress: &dyn Progress,
 ) -> Result<CompareReport> {
-    if let Some(out) = &options.out {
-        let is_ply = out
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
-        if !is_ply {
-            bail!(
-                "{}: the deviation mesh is written as PLY (its distances are vertex properties): give a .ply file",
-                out.display()
-            );
-        }
-    }
-    // A control-point file the user named must be readable: checked before the work.
-    for path in [
-        &options.reference_control_points,
-        &options.test_control_points,
-    ]
-    .into_iter()
-    .flatten()
-    {
-        ControlPoints::read(path)?;
-    }
+    check_files(options)?;
     progress.stage("compare", 8);
     let (transform, registration) = if options.register {
         let (transform, report) = register(reference, test, true)?;
@@ -306,31 +286,13 @@ pub fn compare(
     };
     progress.step();
 
-    let reference_surface = DistanceSurface::new(
-        &reference.scan.mesh,
-        &reference.scan.index,
-        &reference.scan.topology,
-    );
-    let test_surface = DistanceSurface::new(&registered, &registered_index, &test.scan.topology);
-    let (sides, source) = breast_regions(
-        (&reference_surface, breasts.reference.as_ref()),
-        (&test_surface, breasts.test.as_ref()),
+    let (comparison, source) = compare_surfaces(
+        reference,
+        test,
+        (&registered, &registered_index),
+        &breasts,
         options.max_distance_mm,
-    );
-    let comparison = SurfaceComparison::new(
-        &reference_surface,
-        sides.reference,
-        &test_surface,
-        sides.test,
-        options.max_distance_mm,
-    )
-    .with_context(|| {
-        format!(
-            "comparing {} with {}",
-            test.scan.path.display(),
-            reference.scan.path.display()
-        )
-    })?;
+    )?;
     let statistics = comparison.zone_statistics();
     progress.step();
 
@@ -344,32 +306,23 @@ pub fn compare(
         .map(|(r, t)| DistanceComparison::new(r, t))
         .collect();
 
-    let mut symmetry = |marked: &MarkedScan, model: Option<&BreastModel>, role: &str| {
-        let model = model?;
-        let analysis = analyse_symmetry(
-            &SymmetryInput {
-                mesh: &marked.scan.mesh,
-                index: &marked.scan.index,
-                topology: &marked.scan.topology,
-                landmarks: &marked.landmarks,
-                frame: &marked.frame,
-                breasts: model,
-            },
-            options.max_distance_mm,
-        );
-        progress.step();
-        analysis
-            .map_err(|error| {
-                warn(format!(
-                    "the {role} scan {}: no symmetry analysis: {error}",
-                    marked.scan.path.display()
-                ))
-            })
-            .ok()
-    };
     let symmetries = Paired {
-        reference: symmetry(reference, breasts.reference.as_ref(), "reference"),
-        test: symmetry(test, breasts.test.as_ref(), "test"),
+        reference: symmetry_analysis(
+            reference,
+            breasts.reference.as_ref(),
+            "reference",
+            options.max_distance_mm,
+            &mut warn,
+            progress,
+        ),
+        test: symmetry_analysis(
+            test,
+            breasts.test.as_ref(),
+            "test",
+            options.max_distance_mm,
+            &mut warn,
+            progress,
+        ),
     };
 
     if let Some(out) = &options.out {
@@ -423,6 +376,103 @@ pub fn compare(
         warnings,
         out: options.out.clone(),
     })
+}
+
+/// The test scan, `registered` onto the reference, against the reference scan, within
+/// `max_distance_mm`, over the breast regions of their `breasts` models; and where each
+/// scan's breast regions come from.
+fn compare_surfaces(
+    reference: &MarkedScan,
+    test: &MarkedScan,
+    (registered, registered_index): (&TriMesh, &SurfaceIndex),
+    breasts: &Paired<Option<BreastModel>>,
+    max_distance_mm: f64,
+) -> Result<(SurfaceComparison, Paired<RegionSource>)> {
+    let reference_surface = DistanceSurface::new(
+        &reference.scan.mesh,
+        &reference.scan.index,
+        &reference.scan.topology,
+    );
+    let test_surface = DistanceSurface::new(registered, registered_index, &test.scan.topology);
+    let (sides, source) = breast_regions(
+        (&reference_surface, breasts.reference.as_ref()),
+        (&test_surface, breasts.test.as_ref()),
+        max_distance_mm,
+    );
+    let comparison = SurfaceComparison::new(
+        &reference_surface,
+        sides.reference,
+        &test_surface,
+        sides.test,
+        max_distance_mm,
+    )
+    .with_context(|| {
+        format!(
+            "comparing {} with {}",
+            test.scan.path.display(),
+            reference.scan.path.display()
+        )
+    })?;
+    Ok((comparison, source))
+}
+
+/// Fails unless the deviation mesh is to be a PLY file and each control-point file the
+/// user named is readable: checked before the work.
+fn check_files(options: &CompareOptions) -> Result<()> {
+    if let Some(out) = &options.out {
+        let is_ply = out
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+        if !is_ply {
+            bail!(
+                "{}: the deviation mesh is written as PLY (its distances are vertex properties): give a .ply file",
+                out.display()
+            );
+        }
+    }
+    for path in [
+        &options.reference_control_points,
+        &options.test_control_points,
+    ]
+    .into_iter()
+    .flatten()
+    {
+        ControlPoints::read(path)?;
+    }
+    Ok(())
+}
+
+/// The symmetry analysis of a scan with its breast `model`, or `None` with a warning
+/// saying why it failed (or without one when the scan has no model).
+fn symmetry_analysis(
+    marked: &MarkedScan,
+    model: Option<&BreastModel>,
+    role: &str,
+    max_distance_mm: f64,
+    warn: &mut impl FnMut(String),
+    progress: &dyn Progress,
+) -> Option<Symmetry> {
+    let model = model?;
+    let analysis = analyse_symmetry(
+        &SymmetryInput {
+            mesh: &marked.scan.mesh,
+            index: &marked.scan.index,
+            topology: &marked.scan.topology,
+            landmarks: &marked.landmarks,
+            frame: &marked.frame,
+            breasts: model,
+        },
+        max_distance_mm,
+    );
+    progress.step();
+    analysis
+        .map_err(|error| {
+            warn(format!(
+                "the {role} scan {}: no symmetry analysis: {error}",
+                marked.scan.path.display()
+            ))
+        })
+        .ok()
 }
 
 /// The breast model of a scan, or `None` with a warning saying why it failed: the
@@ -511,7 +561,7 @@ fn breast_regions(
 /// scalars (see the module documentation), atomically.
 fn write_deviation_mesh(
     path: &Path,
-    mut mesh: mesh::TriMesh,
+    mut mesh: TriMesh,
     comparison: &SurfaceComparison,
     symmetry: Option<&SurfaceComparison>,
 ) -> Result<()> {

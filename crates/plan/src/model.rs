@@ -96,7 +96,7 @@ pub const MIN_COARSEST_NODES: usize = 24;
 /// Local refinement of the finest tetrahedral level in a band around both fill-ins, the
 /// surfaces the implant sits on (paper V-A: "the region which may be covered by an
 /// implant"). Off by default: with 4 mm edges a band round two fill-ins of about
-/// 160 cm² each costs several hundred thousand elements (see docs/manual.md), six times
+/// 160 cm² each costs several hundred thousand elements (see docs/user/model.md), six times
 /// the default budget of the interactive solver.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Refinement {

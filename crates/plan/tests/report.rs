@@ -211,7 +211,7 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         (post.left.breast_ml, postop.breast_volume_ml.left),
         (post.right.breast_ml, postop.breast_volume_ml.right),
     ] {
-        // The breast model's bound on the phantom (docs/manual.md: within 2.3%), with margin.
+        // The breast model's bound on the phantom (docs/user/model.md: within 2.3%), with margin.
         assert!(
             (measured / truth - 1.0).abs() < 0.05,
             "{measured} ml against {truth} ml"

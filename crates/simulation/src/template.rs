@@ -482,8 +482,53 @@ pub fn build_template(
         layer_mm,
         on_wall,
     } = *rules;
-    let classes: Vec<Class> = feet
-        .feet
+    let classes = classify(feet, anchor, thickness);
+    let mut state = vec![0u8; classes.len()];
+    let mut template = ImplantTemplate::default();
+    let (fill_in_corners, added_mm3) = mark_fill_in(
+        mesh,
+        candidates,
+        &classes,
+        hold_bed,
+        &mut state,
+        &mut template,
+    );
+    // the rest of the tissue layer up to `layer_mm` over the footprint moves with it
+    for (k, class) in classes.iter().enumerate() {
+        if let Class::Front(z, _, h) = *class
+            && z > 0.0
+            && h <= layer_mm
+            && state[k] == 0
+        {
+            state[k] = DISPLACED;
+        }
+    }
+    release_folded(mesh, candidates, &classes, on_wall, &mut state);
+    for (k, &st) in state.iter().enumerate() {
+        let v = candidates.vertices[k];
+        match (st, classes[k]) {
+            (DISPLACED, Class::Front(z, n, _)) => template.implant_vertices.push((v, n * z)),
+            (FIXED, _) => template.fixed_vertices.push(v),
+            _ => {}
+        }
+    }
+    if template.implant_vertices.is_empty() {
+        return Err(SimulationError::EmptyTemplate { side: feet.side });
+    }
+    template.template_volume_ml = added_mm3 / 1000.0;
+    template.covered_volume_ml = covered_volume_ml(&fill_in_corners, feet, anchor, thickness);
+    Ok(template)
+}
+
+/// A template state of a candidate vertex: displaced with the implant.
+const DISPLACED: u8 = 1;
+/// A template state of a candidate vertex: fixed (0: free).
+const FIXED: u8 = 2;
+
+/// Where each candidate vertex lies: over the bed or not, in front of it or behind, with
+/// the implant's mollified `thickness` there.
+fn classify(feet: &BedFeet, anchor: &Anchor, thickness: &SmoothedThickness) -> Vec<Class> {
+    feet.feet
         .iter()
         .map(|foot| match foot {
             None => Class::Off,
@@ -496,11 +541,22 @@ pub fn build_template(
                 }
             }
         })
-        .collect();
-    const DISPLACED: u8 = 1;
-    const FIXED: u8 = 2;
-    let mut state = vec![0u8; classes.len()];
-    let mut template = ImplantTemplate::default();
+        .collect()
+}
+
+/// Marks the corners of the fill-in elements (crossing the bed) in `state`, displaced in
+/// front of the bed over the footprint, fixed behind it (with `hold_bed` outside the
+/// footprint too), and counts them and the implant elements into `template`. Returns the
+/// fill-in elements' corners and the volume the template adds to the implant elements
+/// (mm³).
+fn mark_fill_in(
+    mesh: &TetMesh,
+    candidates: &SideCandidates,
+    classes: &[Class],
+    hold_bed: bool,
+    state: &mut [u8],
+    template: &mut ImplantTemplate,
+) -> (Vec<[u32; 4]>, f64) {
     let mut fill_in_corners = Vec::new();
     let mut added_mm3 = 0.0;
     for &(t, corners) in &candidates.tets {
@@ -537,27 +593,26 @@ pub fn build_template(
         }
         if interior == 4 {
             template.implant_elements.push(t);
-            let p = mesh.tets[t as usize].map(|v| mesh.positions[v as usize]);
             let d = corners.map(|k| match classes[k as usize] {
                 Class::Front(z, n, _) => n * z,
                 _ => DVec3::ZERO,
             });
-            let rest = tetra::quality::signed_volume(p);
-            let moved =
-                tetra::quality::signed_volume([p[0] + d[0], p[1] + d[1], p[2] + d[2], p[3] + d[3]]);
+            let (rest, moved) = displaced_volumes(mesh, t, d);
             added_mm3 += moved - rest;
         }
     }
-    // the rest of the tissue layer up to `layer_mm` over the footprint moves with it
-    for (k, class) in classes.iter().enumerate() {
-        if let Class::Front(z, _, h) = *class
-            && z > 0.0
-            && h <= layer_mm
-            && state[k] == 0
-        {
-            state[k] = DISPLACED;
-        }
-    }
+    (fill_in_corners, added_mm3)
+}
+
+/// Releases, in up to [`UNFOLD_PASSES`] passes, a template corner of each fully held
+/// element that the template folds (see [`build_template`]).
+fn release_folded(
+    mesh: &TetMesh,
+    candidates: &SideCandidates,
+    classes: &[Class],
+    on_wall: &[bool],
+    state: &mut [u8],
+) {
     // An element whose four corners are all held (by the template or on the wall)
     // cannot change what the template does to it; where that folds it over (a tilted
     // face pushed past its fourth corner), release one of its template corners: the
@@ -586,11 +641,8 @@ pub fn build_template(
             {
                 continue;
             }
-            let p = mesh.tets[t as usize].map(|v| mesh.positions[v as usize]);
-            let d = corners.map(|k| displacement(&state, k as usize));
-            let rest = tetra::quality::signed_volume(p);
-            let moved =
-                tetra::quality::signed_volume([p[0] + d[0], p[1] + d[1], p[2] + d[2], p[3] + d[3]]);
+            let d = corners.map(|k| displacement(state, k as usize));
+            let (rest, moved) = displaced_volumes(mesh, t, d);
             if moved > UNFOLD_VOLUME_RATIO * rest {
                 continue;
             }
@@ -614,19 +666,25 @@ pub fn build_template(
             state[k as usize] = 0;
         }
     }
-    for (k, &st) in state.iter().enumerate() {
-        let v = candidates.vertices[k];
-        match (st, classes[k]) {
-            (DISPLACED, Class::Front(z, n, _)) => template.implant_vertices.push((v, n * z)),
-            (FIXED, _) => template.fixed_vertices.push(v),
-            _ => {}
-        }
-    }
-    if template.implant_vertices.is_empty() {
-        return Err(SimulationError::EmptyTemplate { side: feet.side });
-    }
-    template.template_volume_ml = added_mm3 / 1000.0;
-    template.covered_volume_ml = fill_in_corners
+}
+
+/// The rest and displaced signed volumes of finest element `t` with corner displacements
+/// `d` (mm³).
+fn displaced_volumes(mesh: &TetMesh, t: u32, d: [DVec3; 4]) -> (f64, f64) {
+    let p = mesh.tets[t as usize].map(|v| mesh.positions[v as usize]);
+    let rest = tetra::quality::signed_volume(p);
+    let moved = tetra::quality::signed_volume([p[0] + d[0], p[1] + d[1], p[2] + d[2], p[3] + d[3]]);
+    (rest, moved)
+}
+
+/// The implant's volume over the bed sections of the fill-in elements (ml).
+fn covered_volume_ml(
+    fill_in_corners: &[[u32; 4]],
+    feet: &BedFeet,
+    anchor: &Anchor,
+    thickness: &SmoothedThickness,
+) -> f64 {
+    fill_in_corners
         .iter()
         .filter_map(|corners: &[u32; 4]| {
             let feet = corners.map(|k| feet.feet[k as usize]);
@@ -637,6 +695,5 @@ pub fn build_template(
             ))
         })
         .sum::<f64>()
-        / 1000.0;
-    Ok(template)
+        / 1000.0
 }

@@ -376,14 +376,7 @@ pub fn build_breast_model(
     options: &BreastOptions,
 ) -> Result<BreastModel, BreastError> {
     let frame = &frame.sternal();
-    if !(options.sample_spacing_mm > 0.0 && options.sample_spacing_mm.is_finite()) {
-        return Err(BreastError::InvalidSampleSpacing(options.sample_spacing_mm));
-    }
-    if !(0.0..=1.0).contains(&options.max_reconstructed_share) {
-        return Err(BreastError::InvalidReconstructedShare(
-            options.max_reconstructed_share,
-        ));
-    }
+    check_options(options)?;
     let hole_params = FillInParams {
         cylinder_axis: Some(frame.up()),
         ..FillInParams::default()
@@ -516,6 +509,19 @@ pub fn build_breast_model(
         base,
         filled_base,
     })
+}
+
+/// Fails on a sample spacing or a reconstructed share no model can be built with.
+fn check_options(options: &BreastOptions) -> Result<(), BreastError> {
+    if !(options.sample_spacing_mm > 0.0 && options.sample_spacing_mm.is_finite()) {
+        return Err(BreastError::InvalidSampleSpacing(options.sample_spacing_mm));
+    }
+    if !(0.0..=1.0).contains(&options.max_reconstructed_share) {
+        return Err(BreastError::InvalidReconstructedShare(
+            options.max_reconstructed_share,
+        ));
+    }
+    Ok(())
 }
 
 /// The cut curve of one breast through `control_points` (mm, at most

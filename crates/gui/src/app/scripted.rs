@@ -145,17 +145,7 @@ impl GuiApp {
                 self.settings.elements = *elements;
                 Step::Done
             }
-            Action::Build => {
-                if first && self.build.is_none() {
-                    self.start_build();
-                }
-                match (&self.build, self.error()) {
-                    (_, Some(error)) => Step::Failed(error.to_string()),
-                    (Some(_), None) => Step::Pending,
-                    (None, None) if self.model.is_some() => Step::Done,
-                    (None, None) => Step::Failed("the model was not built".into()),
-                }
-            }
+            Action::Build => self.build_step(first),
             Action::Implant(id) => {
                 if self.catalog.get(id).is_none() {
                     return Step::Failed(format!("no catalog entry {id}"));
@@ -192,60 +182,9 @@ impl GuiApp {
                 from_mm,
                 to_mm,
                 seconds,
-            } => {
-                let design = self.implants.edited();
-                if design.source == Source::Catalog
-                    && let Some(entry) = self.catalog.get(&design.catalog_id)
-                {
-                    design.set_dimensions(entry.shape());
-                }
-                design.source = Source::Custom;
-                let t = (started.elapsed().as_secs_f64() / seconds).min(1.0);
-                design.projection_mm = from_mm + (to_mm - from_mm) * t;
-                ctx.request_repaint();
-                if t >= 1.0 { Step::Done } else { Step::Pending }
-            }
-            Action::Wait => match &self.live {
-                // A case being opened builds its model first.
-                None if self.build.is_some() => Step::Pending,
-                None => Step::Failed("no model built".into()),
-                Some(_) if self.implant_error.is_some() => {
-                    Step::Failed(self.implant_error.clone().unwrap_or_default())
-                }
-                // Settled, and the settled frame prepared (its deviation map).
-                Some(live)
-                    if live.is_settled()
-                        && !live.is_preparing_settled()
-                        && live.settled.as_ref().map(|s| s.frame)
-                            == live.frame.as_ref().map(|f| f.number) =>
-                {
-                    match &live.failure {
-                        Some(failure) => Step::Failed(failure.clone()),
-                        None => Step::Done,
-                    }
-                }
-                Some(_) => Step::Pending,
-            },
-            Action::Register { scan, landmarks } => {
-                if first {
-                    self.postoperative.scan_text = scan.display().to_string();
-                    self.postoperative.landmarks_text = landmarks.display().to_string();
-                    self.start_registration();
-                }
-                let postoperative = &self.postoperative;
-                match self.error() {
-                    Some(error) => Step::Failed(error.to_string()),
-                    None if postoperative.is_registering() || postoperative.is_comparing() => {
-                        Step::Pending
-                    }
-                    None if postoperative.deviation().is_some() => Step::Done,
-                    None if let Some(failure) = postoperative.deviation_failure() => {
-                        Step::Failed(failure.to_string())
-                    }
-                    None if postoperative.registered.is_some() => Step::Pending,
-                    None => Step::Failed("the scan was not registered".into()),
-                }
-            }
+            } => self.drag_projection_step(*from_mm, *to_mm, *seconds, started, ctx),
+            Action::Wait => self.wait_step(),
+            Action::Register { scan, landmarks } => self.register_step(first, scan, landmarks),
             Action::Display(mode) => {
                 self.display = *mode;
                 Step::Done
@@ -265,29 +204,7 @@ impl GuiApp {
                 ));
                 Step::Done
             }
-            Action::Screenshot(path) => match &run.screenshot {
-                None if first => {
-                    let outcome = Arc::new(Mutex::new(None));
-                    let slot = Arc::clone(&outcome);
-                    let path = path.clone();
-                    let waker = ctx.clone();
-                    ctx.request_screenshot(move |image| {
-                        let saved = save_png(&path, &image);
-                        if let Ok(mut slot) = slot.lock() {
-                            *slot = Some(saved);
-                        }
-                        waker.request_repaint();
-                    });
-                    run.screenshot = Some(outcome);
-                    Step::Pending
-                }
-                None => Step::Failed("the screenshot was lost".into()),
-                Some(outcome) => match outcome.lock().ok().and_then(|mut o| o.take()) {
-                    None => Step::Pending,
-                    Some(Ok(())) => Step::Done,
-                    Some(Err(message)) => Step::Failed(message),
-                },
-            },
+            Action::Screenshot(path) => screenshot_step(run, first, path, ctx),
             Action::SaveCase(path) => match self.case().and_then(|case| case.write(path)) {
                 Ok(()) => Step::Done,
                 Err(error) => Step::Failed(format!("{error:#}")),
@@ -299,12 +216,121 @@ impl GuiApp {
         }
     }
 
+    /// Builds the model (started on the `first` call) and waits for it.
+    fn build_step(&mut self, first: bool) -> Step {
+        if first && self.build.is_none() {
+            self.start_build();
+        }
+        match (&self.build, self.error()) {
+            (_, Some(error)) => Step::Failed(error.to_string()),
+            (Some(_), None) => Step::Pending,
+            (None, None) if self.model.is_some() => Step::Done,
+            (None, None) => Step::Failed("the model was not built".into()),
+        }
+    }
+
+    /// Moves the edited implant's projection from `from_mm` to `to_mm` over `seconds` since
+    /// `started`, as a drag of its slider would.
+    fn drag_projection_step(
+        &mut self,
+        from_mm: f64,
+        to_mm: f64,
+        seconds: f64,
+        started: Instant,
+        ctx: &egui::Context,
+    ) -> Step {
+        let design = self.implants.edited();
+        if design.source == Source::Catalog
+            && let Some(entry) = self.catalog.get(&design.catalog_id)
+        {
+            design.set_dimensions(entry.shape());
+        }
+        design.source = Source::Custom;
+        let t = (started.elapsed().as_secs_f64() / seconds).min(1.0);
+        design.projection_mm = from_mm + (to_mm - from_mm) * t;
+        ctx.request_repaint();
+        if t >= 1.0 { Step::Done } else { Step::Pending }
+    }
+
+    /// Waits for the live simulation to settle and its settled frame to be prepared.
+    fn wait_step(&self) -> Step {
+        match &self.live {
+            // A case being opened builds its model first.
+            None if self.build.is_some() => Step::Pending,
+            None => Step::Failed("no model built".into()),
+            Some(_) if self.implant_error.is_some() => {
+                Step::Failed(self.implant_error.clone().unwrap_or_default())
+            }
+            // Settled, and the settled frame prepared (its deviation map).
+            Some(live)
+                if live.is_settled()
+                    && !live.is_preparing_settled()
+                    && live.settled.as_ref().map(|s| s.frame)
+                        == live.frame.as_ref().map(|f| f.number) =>
+            {
+                match &live.failure {
+                    Some(failure) => Step::Failed(failure.clone()),
+                    None => Step::Done,
+                }
+            }
+            Some(_) => Step::Pending,
+        }
+    }
+
+    /// Registers the post-operative `scan` with its `landmarks` (started on the `first`
+    /// call) and waits for the deviation map.
+    fn register_step(&mut self, first: bool, scan: &Path, landmarks: &Path) -> Step {
+        if first {
+            self.postoperative.scan_text = scan.display().to_string();
+            self.postoperative.landmarks_text = landmarks.display().to_string();
+            self.start_registration();
+        }
+        let postoperative = &self.postoperative;
+        match self.error() {
+            Some(error) => Step::Failed(error.to_string()),
+            None if postoperative.is_registering() || postoperative.is_comparing() => Step::Pending,
+            None if postoperative.deviation().is_some() => Step::Done,
+            None if let Some(failure) = postoperative.deviation_failure() => {
+                Step::Failed(failure.to_string())
+            }
+            None if postoperative.registered.is_some() => Step::Pending,
+            None => Step::Failed("the scan was not registered".into()),
+        }
+    }
+
     /// Done, or failed with the status line's error.
     fn step_outcome(&self) -> Step {
         match self.error() {
             Some(error) => Step::Failed(error.to_string()),
             None => Step::Done,
         }
+    }
+}
+
+/// Asks egui for a screenshot (on the `first` call) and waits for it to be saved at `path`.
+fn screenshot_step(run: &mut ScriptRun, first: bool, path: &Path, ctx: &egui::Context) -> Step {
+    match &run.screenshot {
+        None if first => {
+            let outcome = Arc::new(Mutex::new(None));
+            let slot = Arc::clone(&outcome);
+            let path = path.to_path_buf();
+            let waker = ctx.clone();
+            ctx.request_screenshot(move |image| {
+                let saved = save_png(&path, &image);
+                if let Ok(mut slot) = slot.lock() {
+                    *slot = Some(saved);
+                }
+                waker.request_repaint();
+            });
+            run.screenshot = Some(outcome);
+            Step::Pending
+        }
+        None => Step::Failed("the screenshot was lost".into()),
+        Some(outcome) => match outcome.lock().ok().and_then(|mut o| o.take()) {
+            None => Step::Pending,
+            Some(Ok(())) => Step::Done,
+            Some(Err(message)) => Step::Failed(message),
+        },
     }
 }
 

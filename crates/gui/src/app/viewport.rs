@@ -90,8 +90,6 @@ impl GuiApp {
         let (rect, response) = ui.allocate_exact_size(ui.available_size(), Sense::click_and_drag());
         self.viewport_rect = Some(rect);
         let size = DVec2::new(f64::from(rect.width()), f64::from(rect.height()));
-        let local =
-            |pos: Pos2| DVec2::new(f64::from(pos.x - rect.min.x), f64::from(pos.y - rect.min.y));
         let painter = ui.painter_at(rect);
         if self.document.is_none() {
             painter.rect_filled(rect, 0.0, render::background());
@@ -114,8 +112,63 @@ impl GuiApp {
             crate::document::visible_on(&occluder.index, eye, point, OCCLUSION_TOLERANCE_MM)
         };
 
-        // Input: drags orbit, pan (right or middle button, or Shift) or move a marker;
-        // a click places a point (or inserts or removes a control point); the wheel zooms.
+        let landmarks_changed =
+            self.viewport_input(ui, &response, rect, &overlay, &camera, &visible);
+
+        // Drawing: the shaded scans (GPU), then the curves, outlines and markers on top.
+        if self.gpu {
+            painter.add(egui_wgpu::Callback::new_paint_callback(
+                rect,
+                ViewportCallback {
+                    camera: self.camera,
+                    layers,
+                    size_points: size,
+                },
+            ));
+        } else {
+            painter.rect_filled(rect, 0.0, render::background());
+        }
+        let selected = self.document.as_ref().and_then(|d| d.selected.clone());
+        draw_overlay(
+            &painter,
+            rect,
+            &overlay,
+            &camera,
+            selected.as_deref(),
+            &visible,
+        );
+        if let Some(title) = legend {
+            deviation_legend(&painter, rect, title);
+        }
+        if !self.gpu {
+            painter.text(
+                rect.center_top() + egui::vec2(0.0, 12.0),
+                egui::Align2::CENTER_TOP,
+                "no GPU renderer: markers only",
+                egui::FontId::proportional(13.0),
+                Color32::GRAY,
+            );
+        }
+        if landmarks_changed {
+            self.landmarks_changed();
+        }
+    }
+
+    /// The mouse over the viewport `rect`: drags orbit, pan (right or middle button, or
+    /// Shift) or move a marker; a click places a point (or inserts or removes a control
+    /// point); the wheel zooms. Returns whether the landmarks changed.
+    fn viewport_input(
+        &mut self,
+        ui: &egui::Ui,
+        response: &egui::Response,
+        rect: Rect,
+        overlay: &Overlay,
+        camera: &Camera,
+        visible: &impl Fn(DVec3) -> bool,
+    ) -> bool {
+        let size = DVec2::new(f64::from(rect.width()), f64::from(rect.height()));
+        let local =
+            |pos: Pos2| DVec2::new(f64::from(pos.x - rect.min.x), f64::from(pos.y - rect.min.y));
         let mut landmarks_changed = false;
         if response.drag_started() {
             let shift = ui.input(|i| i.modifiers.shift);
@@ -123,7 +176,7 @@ impl GuiApp {
             self.drag = if response.dragged_by(PointerButton::Primary) && !shift {
                 let grabbed = origin
                     .filter(|_| overlay.editable)
-                    .and_then(|origin| grab_at(&overlay, &camera, local(origin), size, &visible));
+                    .and_then(|origin| grab_at(overlay, camera, local(origin), size, visible));
                 Some(match grabbed {
                     Some(Grab::Landmark(name)) => Drag::Point(name),
                     Some(Grab::ControlPoint(side, index)) => Drag::ControlPoint(side, index),
@@ -169,7 +222,7 @@ impl GuiApp {
             && overlay.editable
             && let Some(pointer) = response.interact_pointer_pos()
         {
-            landmarks_changed |= self.click(&overlay, local(pointer), size, &visible);
+            landmarks_changed |= self.click(overlay, local(pointer), size, visible);
         }
         if response.hovered() {
             let scroll = ui.input(|i| i.smooth_scroll_delta.y);
@@ -178,117 +231,7 @@ impl GuiApp {
                     .zoom((-f64::from(scroll) * ZOOM_PER_SCROLL).exp());
             }
         }
-
-        // Drawing: the shaded scans (GPU), then the curves, outlines and markers on top.
-        if self.gpu {
-            painter.add(egui_wgpu::Callback::new_paint_callback(
-                rect,
-                ViewportCallback {
-                    camera: self.camera,
-                    layers,
-                    size_points: size,
-                },
-            ));
-        } else {
-            painter.rect_filled(rect, 0.0, render::background());
-        }
-        let on_screen = |point: DVec3| {
-            let pixel = camera.project(point, size)?;
-            Some(rect.min + egui::vec2(pixel.x as f32, pixel.y as f32))
-        };
-        let closed_line = |points: &[DVec3], stroke: Stroke| {
-            // Segments whose ends are both in sight are drawn.
-            let shown: Vec<Option<Pos2>> = points
-                .iter()
-                .map(|&p| visible(p).then(|| on_screen(p)).flatten())
-                .collect();
-            for k in 0..shown.len() {
-                if let (Some(a), Some(b)) = (shown[k], shown[(k + 1) % shown.len()]) {
-                    painter.line_segment([a, b], stroke);
-                }
-            }
-        };
-        for curve in &overlay.curves {
-            closed_line(curve, Stroke::new(CURVE_WIDTH, CURVE_COLOR));
-        }
-        for outline in &overlay.outlines {
-            closed_line(outline, Stroke::new(CURVE_WIDTH, OUTLINE_COLOR));
-        }
-        for pocket in &overlay.pockets {
-            closed_line(pocket, Stroke::new(CURVE_WIDTH, POCKET_COLOR));
-        }
-        for &(_, _, point) in &overlay.control_points {
-            let Some(at) = on_screen(point) else {
-                continue;
-            };
-            let square = Rect::from_center_size(at, egui::Vec2::splat(2.0 * MARKER_RADIUS - 1.0));
-            if visible(point) {
-                painter.rect_filled(square, 0.0, CONTROL_POINT_COLOR);
-                painter.rect_stroke(
-                    square,
-                    0.0,
-                    Stroke::new(1.0, Color32::BLACK),
-                    egui::StrokeKind::Outside,
-                );
-            } else {
-                painter.rect_stroke(
-                    square,
-                    0.0,
-                    Stroke::new(1.0, CONTROL_POINT_COLOR.gamma_multiply(0.6)),
-                    egui::StrokeKind::Outside,
-                );
-            }
-        }
-        let selected = self.document.as_ref().and_then(|d| d.selected.clone());
-        for (name, point) in &overlay.landmarks {
-            let Some(at) = on_screen(*point) else {
-                continue;
-            };
-            let in_sight = visible(*point);
-            let color = if overlay.editable && selected.as_deref() == Some(name.as_str()) {
-                SELECTED_COLOR
-            } else if LandmarkName::parse(name).is_some() {
-                PLACED_COLOR
-            } else {
-                EXTRA_COLOR
-            };
-            if in_sight {
-                painter.circle_filled(at, MARKER_RADIUS, color);
-                painter.circle_stroke(at, MARKER_RADIUS, Stroke::new(1.0, Color32::BLACK));
-            } else {
-                painter.circle_stroke(
-                    at,
-                    MARKER_RADIUS,
-                    Stroke::new(1.0, color.gamma_multiply(0.6)),
-                );
-            }
-            painter.text(
-                at + egui::vec2(MARKER_RADIUS + 2.0, -MARKER_RADIUS - 2.0),
-                egui::Align2::LEFT_BOTTOM,
-                name,
-                egui::FontId::proportional(13.0),
-                if in_sight {
-                    Color32::WHITE
-                } else {
-                    Color32::GRAY
-                },
-            );
-        }
-        if let Some(title) = legend {
-            deviation_legend(&painter, rect, title);
-        }
-        if !self.gpu {
-            painter.text(
-                rect.center_top() + egui::vec2(0.0, 12.0),
-                egui::Align2::CENTER_TOP,
-                "no GPU renderer: markers only",
-                egui::FontId::proportional(13.0),
-                Color32::GRAY,
-            );
-        }
-        if landmarks_changed {
-            self.landmarks_changed();
-        }
+        landmarks_changed
     }
 
     /// A click on the editable surface at `pixel` (in the viewport): inserts or
@@ -558,6 +501,101 @@ impl GuiApp {
 /// Named points as owned pairs.
 fn owned<'a>(points: impl Iterator<Item = (&'a str, DVec3)>) -> Vec<(String, DVec3)> {
     points.map(|(name, p)| (name.to_string(), p)).collect()
+}
+
+/// Draws the cut curves, implant and pocket outlines, control points and landmarks of
+/// `overlay` over the viewport `rect`: in sight bright, hidden dimmed; `selected` names the
+/// selected landmark.
+fn draw_overlay(
+    painter: &egui::Painter,
+    rect: Rect,
+    overlay: &Overlay,
+    camera: &Camera,
+    selected: Option<&str>,
+    visible: &impl Fn(DVec3) -> bool,
+) {
+    let size = DVec2::new(f64::from(rect.width()), f64::from(rect.height()));
+    let on_screen = |point: DVec3| {
+        let pixel = camera.project(point, size)?;
+        Some(rect.min + egui::vec2(pixel.x as f32, pixel.y as f32))
+    };
+    let closed_line = |points: &[DVec3], stroke: Stroke| {
+        // Segments whose ends are both in sight are drawn.
+        let shown: Vec<Option<Pos2>> = points
+            .iter()
+            .map(|&p| visible(p).then(|| on_screen(p)).flatten())
+            .collect();
+        for k in 0..shown.len() {
+            if let (Some(a), Some(b)) = (shown[k], shown[(k + 1) % shown.len()]) {
+                painter.line_segment([a, b], stroke);
+            }
+        }
+    };
+    for curve in &overlay.curves {
+        closed_line(curve, Stroke::new(CURVE_WIDTH, CURVE_COLOR));
+    }
+    for outline in &overlay.outlines {
+        closed_line(outline, Stroke::new(CURVE_WIDTH, OUTLINE_COLOR));
+    }
+    for pocket in &overlay.pockets {
+        closed_line(pocket, Stroke::new(CURVE_WIDTH, POCKET_COLOR));
+    }
+    for &(_, _, point) in &overlay.control_points {
+        let Some(at) = on_screen(point) else {
+            continue;
+        };
+        let square = Rect::from_center_size(at, egui::Vec2::splat(2.0 * MARKER_RADIUS - 1.0));
+        if visible(point) {
+            painter.rect_filled(square, 0.0, CONTROL_POINT_COLOR);
+            painter.rect_stroke(
+                square,
+                0.0,
+                Stroke::new(1.0, Color32::BLACK),
+                egui::StrokeKind::Outside,
+            );
+        } else {
+            painter.rect_stroke(
+                square,
+                0.0,
+                Stroke::new(1.0, CONTROL_POINT_COLOR.gamma_multiply(0.6)),
+                egui::StrokeKind::Outside,
+            );
+        }
+    }
+    for (name, point) in &overlay.landmarks {
+        let Some(at) = on_screen(*point) else {
+            continue;
+        };
+        let in_sight = visible(*point);
+        let color = if overlay.editable && selected == Some(name.as_str()) {
+            SELECTED_COLOR
+        } else if LandmarkName::parse(name).is_some() {
+            PLACED_COLOR
+        } else {
+            EXTRA_COLOR
+        };
+        if in_sight {
+            painter.circle_filled(at, MARKER_RADIUS, color);
+            painter.circle_stroke(at, MARKER_RADIUS, Stroke::new(1.0, Color32::BLACK));
+        } else {
+            painter.circle_stroke(
+                at,
+                MARKER_RADIUS,
+                Stroke::new(1.0, color.gamma_multiply(0.6)),
+            );
+        }
+        painter.text(
+            at + egui::vec2(MARKER_RADIUS + 2.0, -MARKER_RADIUS - 2.0),
+            egui::Align2::LEFT_BOTTOM,
+            name,
+            egui::FontId::proportional(13.0),
+            if in_sight {
+                Color32::WHITE
+            } else {
+                Color32::GRAY
+            },
+        );
+    }
 }
 
 /// The visible marker (landmark or control point) within [`GRAB_RADIUS`] of `pixel`,

@@ -102,3 +102,20 @@ pub fn model(scan: &Path, landmarks: &Path, out: &Path, extra: &[&str]) -> Outpu
     args.extend(extra);
     mammaplan(&args)
 }
+
+/// The files `model` writes into its folder.
+pub const MODEL_FILES: [&str; 13] = [
+    "closed_surface.ply",
+    "breast_left.ply",
+    "breast_right.ply",
+    "fill_left.ply",
+    "fill_right.ply",
+    "filled_base.ply",
+    "tets_level0.vtu",
+    "tets_level1.vtu",
+    "tets_level2.vtu",
+    "cut_curve_left.obj",
+    "cut_curve_right.obj",
+    "control_points.json",
+    "model.json",
+];

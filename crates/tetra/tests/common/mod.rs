@@ -1,6 +1,9 @@
-//! Closed test surfaces with known volumes, shared by the tests and the benchmark.
+//! Closed test surfaces with known volumes, shared by the tests and the benchmark; in
+//! `vtu`, what the VTU tests share.
 // Each test crate uses some of these shapes only.
 #![allow(dead_code)]
+
+pub mod vtu;
 
 use glam::DVec3;
 use mesh::TriMesh;
