@@ -1,10 +1,11 @@
 //! `mammaplan`: the command-line front end. A thin layer over the `plan` crate: parse
 //! arguments, call one function, print a summary or JSON. No algorithms here.
 
+mod command_line;
 mod progress;
 
 use anyhow::{Context, Result};
-use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
+use clap::{Parser, Subcommand};
 use plan::{Cup, PhantomParams, Progress};
 use progress::TerminalProgress;
 use std::path::PathBuf;
@@ -196,7 +197,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = parse_command_line();
+    let cli = command_line::parse_command_line();
     let progress = TerminalProgress::new(cli.quiet);
     match run(cli.command, &progress) {
         Ok(()) => ExitCode::SUCCESS,
@@ -208,19 +209,6 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
-}
-
-/// The command line, with negative numbers read as values wherever an option takes one
-/// (`--elements -5` is then refused by the option's own check, which names it, rather
-/// than read as an unknown flag).
-fn parse_command_line() -> Cli {
-    fn negative_numbers(command: clap::Command) -> clap::Command {
-        command
-            .mut_args(|arg| arg.allow_negative_numbers(true))
-            .mut_subcommands(negative_numbers)
-    }
-    let matches = negative_numbers(Cli::command()).get_matches();
-    Cli::from_arg_matches(&matches).unwrap_or_else(|error| error.exit())
 }
 
 /// The arguments of `mammaplan simulate`.
