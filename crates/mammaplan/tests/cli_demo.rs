@@ -49,9 +49,33 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     let dir = tempfile::tempdir().unwrap();
     let output = mammaplan(&["demo", "--out", dir.path().to_str().unwrap(), "--json"]);
     assert!(output.status.success(), "{}", stderr(&output));
+    let json: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    check_demo_folder(dir.path(), &json);
+    check_bad_implants(dir.path());
+    check_behind_nipple(dir.path());
+    check_reports(dir.path());
+    check_edited_results(dir.path());
+    // last: it corrupts the model
+    check_corrupted_level(dir.path());
+}
+
+/// Where the failing simulations of the demo's model would write (never created).
+const BAD_SIMULATION: &str = "bad_simulation";
+
+/// `simulate` on `model_dir` with the left implant `spec`, further arguments, into `out`.
+fn simulate_into(model_dir: &Path, spec: &str, extra: &[&str], out: &Path) -> std::process::Output {
+    let mut args = vec!["simulate", "--model", model_dir.to_str().unwrap()];
+    args.extend(["--left", spec, "--out", out.to_str().unwrap()]);
+    args.extend(extra);
+    mammaplan(&args)
+}
+
+/// The demo's folder: exactly its entries, the phantom's volumes against the truth, the
+/// implants' volume gained, symmetric.
+fn check_demo_folder(dir: &Path, json: &serde_json::Value) {
     // Exactly the entries the demo replaces all or nothing (plan::demo::DEMO_ENTRIES): a
     // file written beside them would survive a failed demo.
-    let mut written: Vec<String> = std::fs::read_dir(dir.path())
+    let mut written: Vec<String> = std::fs::read_dir(dir)
         .unwrap()
         .map(|entry| entry.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
@@ -71,14 +95,13 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
             "simulation"
         ]
     );
-    let json: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     for side in ["left", "right"] {
         let error = json["breast_volume_error_percent"][side].as_f64().unwrap();
         // The issue's bound on the phantom's breast volumes.
         assert!(error.abs() < 5.0, "{side}: {error}%");
     }
     for file in MODEL_FILES {
-        assert!(dir.path().join("model").join(file).is_file(), "{file}");
+        assert!(dir.join("model").join(file).is_file(), "{file}");
     }
     for file in [
         "simulated_scan.ply",
@@ -87,7 +110,7 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
         "fe_result.vtu",
         "result.json",
     ] {
-        assert!(dir.path().join("simulation").join(file).is_file(), "{file}");
+        assert!(dir.join("simulation").join(file).is_file(), "{file}");
     }
     let simulation = &json["simulation"];
     let after = &simulation["breast_volume_ml"];
@@ -111,18 +134,13 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     );
     // Symmetric phantom, same implants: within 1% (issue 6).
     assert!((left - right).abs() <= 0.01 * left, "{left} / {right}");
+}
 
-    // Bad implants on the demo's model: clear errors, no simulation folder.
-    let model = dir.path().join("model");
-    let out = dir.path().join("bad_simulation");
-    // `simulate` on `model_dir` with the left implant `spec` and further arguments.
-    let simulate_with = |model_dir: &Path, spec: &str, extra: &[&str]| {
-        let mut args = vec!["simulate", "--model", model_dir.to_str().unwrap()];
-        args.extend(["--left", spec, "--out", out.to_str().unwrap()]);
-        args.extend(extra);
-        mammaplan(&args)
-    };
-    let simulate = |spec: &str| simulate_with(&model, spec, &[]);
+/// Bad implants on the demo's model: clear errors, no simulation folder.
+fn check_bad_implants(dir: &Path) {
+    let model = dir.join("model");
+    let out = dir.join(BAD_SIMULATION);
+    let simulate = |spec: &str| simulate_into(&model, spec, &[], &out);
     assert_clean_failure(&simulate("catalog:NO-SUCH-ID"), "NO-SUCH-ID");
     assert_clean_failure(&simulate("round:diameter=0,projection=30"), "diameter");
     assert_clean_failure(
@@ -131,20 +149,24 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     );
     assert_clean_failure(&simulate("oval:width=100"), "oval");
     assert_clean_failure(
-        &simulate_with(&model, "catalog:R-MOD-120", &["--rotate-left", "400"]),
+        &simulate_into(&model, "catalog:R-MOD-120", &["--rotate-left", "400"], &out),
         "angle",
     );
     assert_clean_failure(
-        &simulate_with(&model, "catalog:R-MOD-120", &["--anchor", "armpit"]),
+        &simulate_into(&model, "catalog:R-MOD-120", &["--anchor", "armpit"], &out),
         "unknown anchor \"armpit\"",
     );
     assert!(!out.exists());
     assert_clean_failure(
-        &simulate_with(&dir.path().join("nowhere"), "catalog:R-MOD-120", &[]),
+        &simulate_into(&dir.join("nowhere"), "catalog:R-MOD-120", &[], &out),
         "model.json",
     );
-    // The other default position, recorded in result.json with the demo's.
-    let behind_nipple = dir.path().join("behind_nipple");
+}
+
+/// The other default position, recorded in result.json with the demo's.
+fn check_behind_nipple(dir: &Path) {
+    let model = dir.join("model");
+    let behind_nipple = dir.join("behind_nipple");
     let output = mammaplan(&[
         "simulate",
         "--model",
@@ -161,27 +183,29 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     assert!(output.status.success(), "{}", stderr(&output));
     let json: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
     assert_eq!(json["anchor"], "behind-nipple");
-    let demo_result: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(dir.path().join("simulation/result.json")).unwrap(),
-    )
-    .unwrap();
+    let demo_result: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("simulation/result.json")).unwrap())
+            .unwrap();
     assert_eq!(demo_result["anchor"], "on-fold");
+}
 
-    // The demo's report, and one with the follow-up scan as the post-operative scan.
-    let demo_report = std::fs::read_to_string(dir.path().join("report.html")).unwrap();
+/// The demo's report, and one with the follow-up scan as the post-operative scan.
+fn check_reports(dir: &Path) {
+    let model = dir.join("model");
+    let demo_report = std::fs::read_to_string(dir.join("report.html")).unwrap();
     assert!(demo_report.contains("catalog:R-MOD-120"));
     assert!(!demo_report.contains("Post-op"));
-    let report_path = dir.path().join("with_postop.html");
+    let report_path = dir.join("with_postop.html");
     let report = mammaplan(&[
         "report",
         "--model",
         model.to_str().unwrap(),
         "--simulation",
-        dir.path().join("simulation").to_str().unwrap(),
+        dir.join("simulation").to_str().unwrap(),
         "--postop",
-        dir.path().join("followup_scan.ply").to_str().unwrap(),
+        dir.join("followup_scan.ply").to_str().unwrap(),
         "--postop-landmarks",
-        dir.path().join("followup_landmarks.json").to_str().unwrap(),
+        dir.join("followup_landmarks.json").to_str().unwrap(),
         "--out",
         report_path.to_str().unwrap(),
     ]);
@@ -190,12 +214,16 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
     let page = std::fs::read_to_string(&report_path).unwrap();
     assert!(page.contains("Post-op − simulated"));
     assert!(page.contains("followup_scan.ply"));
+}
 
-    // Edited result files: refused, naming the file and the field.
+/// Edited result files: refused, naming the file and the field.
+fn check_edited_results(dir: &Path) {
+    let model = dir.join("model");
+    let out = dir.join(BAD_SIMULATION);
     let edited = |folder: &str, file: &str, edit: &dyn Fn(&mut serde_json::Value)| {
-        let copy = dir.path().join(format!("edited_{folder}"));
+        let copy = dir.join(format!("edited_{folder}"));
         std::fs::create_dir_all(&copy).unwrap();
-        for entry in std::fs::read_dir(dir.path().join(folder)).unwrap() {
+        for entry in std::fs::read_dir(dir.join(folder)).unwrap() {
             let entry = entry.unwrap();
             std::fs::copy(entry.path(), copy.join(entry.file_name())).unwrap();
         }
@@ -216,7 +244,7 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
         ),
         (
             &edited_model,
-            &dir.path().join("simulation"),
+            &dir.join("simulation"),
             "model.json: breast_volume_ml.right is 1000000000 ml",
         ),
     ] {
@@ -227,25 +255,29 @@ fn demo_builds_the_model_and_compares_it_with_the_truth() {
             "--simulation",
             simulation_dir.to_str().unwrap(),
             "--out",
-            dir.path().join("edited.html").to_str().unwrap(),
+            dir.join("edited.html").to_str().unwrap(),
         ]);
         assert_clean_failure(&output, expected);
-        assert!(!dir.path().join("edited.html").exists());
+        assert!(!dir.join("edited.html").exists());
     }
     assert_clean_failure(
-        &simulate_with(&edited_model, "catalog:R-MOD-120", &[]),
+        &simulate_into(&edited_model, "catalog:R-MOD-120", &[], &out),
         "model.json: breast_volume_ml.right is 1000000000 ml",
     );
     assert!(!out.exists());
+}
 
-    // One bit of a tetrahedral level changed: refused before any work, naming the file.
+/// One bit of a tetrahedral level changed: refused before any work, naming the file.
+fn check_corrupted_level(dir: &Path) {
+    let model = dir.join("model");
+    let out = dir.join(BAD_SIMULATION);
     let level = model.join("tets_level1.vtu");
     let mut bytes = std::fs::read(&level).unwrap();
     let middle = bytes.len() / 2;
     bytes[middle] ^= 1;
     std::fs::write(&level, bytes).unwrap();
     assert_clean_failure(
-        &simulate("catalog:R-MOD-120"),
+        &simulate_into(&model, "catalog:R-MOD-120", &[], &out),
         "tets_level1.vtu does not match the checksum model.json recorded",
     );
     assert!(!out.exists());

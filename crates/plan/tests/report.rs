@@ -8,7 +8,9 @@ use plan::model::{ModelOptions, build_model, write_model};
 use plan::report::{PostoperativeScan, ReportInputs, report_content, write_report};
 use plan::simulate::{ImplantRequest, SimulateOptions, simulate};
 use plan::{MarkedScan, Silent};
+use report::ReportContent;
 use serde_json::Value;
+use std::path::Path;
 use std::time::{Duration, UNIX_EPOCH};
 
 /// Tetrahedra of the small model: enough for a stable simulation, fast to build.
@@ -18,10 +20,11 @@ fn read_json(path: &std::path::Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-#[test]
-fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
-    let dir = tempfile::tempdir().unwrap();
-    let path = |name: &str| dir.path().join(name);
+/// The folders a report reads, in `dir`: the phantom's model, a simulation with one
+/// implant, and an asymmetric phantom standing in for the post-operative scan (whose
+/// truth is returned).
+fn write_case(dir: &Path) -> (ReportInputs, phantom::Phantom) {
+    let path = |name: &str| dir.join(name);
     plan::demo::write_phantom(
         &PhantomParams::default(),
         &path("scan.ply"),
@@ -47,7 +50,7 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
             left: Some(left),
             // centred on the native breast's base at the native fold: the carried cut
             // curve then still bounds the breast, so the simulated scan cut again along
-            // it measures the simulation's volume (checked below); an implant reaching
+            // it measures the simulation's volume (check_volumes); an implant reaching
             // below the fold would be cut through
             anchor: plan::simulate::AnchorRule::FootprintCentre,
             fold_lowering_mm: plan::model::PerSide {
@@ -83,11 +86,28 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         }),
         created: UNIX_EPOCH + Duration::from_secs(1_795_339_260),
     };
+    (inputs, postop)
+}
+
+#[test]
+fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name);
+    let (inputs, postop) = write_case(dir.path());
     let content = report_content(&inputs, &Silent).unwrap();
     let result = read_json(&path("simulation/result.json"));
     let model_json = read_json(&path("model/model.json"));
+    check_case(&content, &result, &model_json);
+    check_implants(&content, &result);
+    check_distances(&content, &result);
+    check_volumes(&content, &result, &model_json, &postop, dir.path());
+    check_symmetry(&content, &postop);
+    check_views_and_comparison(&content);
+    check_page(&inputs, &result, dir.path());
+}
 
-    // Case: file names only, the finest level of model.json, the materials of result.json.
+/// The case: file names only, the finest level of model.json, the materials of result.json.
+fn check_case(content: &ReportContent, result: &Value, model_json: &Value) {
     assert_eq!(content.case.created, "2026-11-22 09:21 UTC");
     let names: Vec<&str> = content.case.files.iter().map(|f| f.name.as_str()).collect();
     assert_eq!(
@@ -109,8 +129,10 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         content.case.model.tissue.young_kpa,
         result["materials"]["tissue"]["young_kpa"].as_f64().unwrap()
     );
+}
 
-    // Implants as result.json has them: the left one, none on the right.
+/// The implants as result.json has them: the left one, none on the right.
+fn check_implants(content: &ReportContent, result: &Value) {
     let implant = content.implants.left.as_ref().unwrap();
     let left = &result["implants"]["left"];
     assert_eq!(implant.spec, "anatomic:width=115,height=110,projection=38");
@@ -130,8 +152,10 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
     assert!(implant.catalog.is_none());
     assert!(implant.shape.starts_with("anatomic, "), "{}", implant.shape);
     assert!(content.implants.right.is_none());
+}
 
-    // The distance table: simulated values are result.json's, row for row.
+/// The distance table: simulated values are result.json's, row for row.
+fn check_distances(content: &ReportContent, result: &Value) {
     let distances = result["distances"].as_array().unwrap();
     assert_eq!(content.measurements.len(), distances.len());
     for (row, distance) in content.measurements.iter().zip(distances) {
@@ -139,8 +163,17 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         assert_eq!(row.simulated_mm, distance["surface_mm"].as_f64());
         assert!(row.preoperative_mm.is_some() && row.postoperative_mm.is_some());
     }
+}
 
-    // Volumes: model.json before, result.json as simulated, the phantom's truth after.
+/// Volumes: model.json before, result.json as simulated, the phantom's truth after.
+fn check_volumes(
+    content: &ReportContent,
+    result: &Value,
+    model_json: &Value,
+    postop: &phantom::Phantom,
+    dir: &Path,
+) {
+    let path = |name: &str| dir.join(name);
     let volumes = &content.volumes;
     assert_eq!(
         volumes.preoperative.left.breast_ml,
@@ -220,8 +253,10 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         let sum: f64 = quadrants.values_ml().iter().sum();
         assert!((sum - post.left.breast_ml).abs() < 1e-6 * post.left.breast_ml);
     }
+}
 
-    // Symmetry: the symmetric phantom before; the asymmetric one after, against its truth.
+/// Symmetry: the symmetric phantom before; the asymmetric one after, against its truth.
+fn check_symmetry(content: &ReportContent, postop: &phantom::Phantom) {
     assert_eq!(content.symmetry.len(), 3);
     let before = &content.symmetry[0];
     assert!((before.volume_ratio_left_to_right - 1.0).abs() < 1e-6);
@@ -244,9 +279,12 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
         "{}",
         after.nipple_height_difference_mm
     );
+}
 
-    // The views: five of each scan (pre-operative, simulated, post-operative) and the
-    // change from the pre-operative surface from the front and the obliques.
+/// The views: five of each scan (pre-operative, simulated, post-operative) and the change
+/// from the pre-operative surface from the front and the obliques; the comparison with the
+/// post-operative scan, which differs from the simulation.
+fn check_views_and_comparison(content: &ReportContent) {
     assert_eq!(content.views.len(), 18);
     assert!(content.views.iter().all(|v| !v.labels.is_empty()));
     assert_eq!(
@@ -264,8 +302,13 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
     assert!(whole.rms_mm > 0.0 && whole.rms_mm.is_finite(), "{whole:?}");
     assert!(whole.mean_mm <= whole.rms_mm && whole.rms_mm <= whole.hausdorff_mm);
     assert!(content.notes.is_empty(), "{:?}", content.notes);
+}
 
-    // The page as written: the implant volume and the simulated distances as printed.
+/// The page as written: the implant volume and the simulated distances as printed.
+fn check_page(inputs: &ReportInputs, result: &Value, dir: &Path) {
+    let path = |name: &str| dir.join(name);
+    let left = &result["implants"]["left"];
+    let distances = result["distances"].as_array().unwrap();
     let summary = write_report(&inputs, &path("report.html"), &Silent).unwrap();
     let page = std::fs::read_to_string(path("report.html")).unwrap();
     assert_eq!(summary.bytes, page.len());
