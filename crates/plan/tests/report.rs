@@ -309,7 +309,7 @@ fn check_page(inputs: &ReportInputs, result: &Value, dir: &Path) {
     let path = |name: &str| dir.join(name);
     let left = &result["implants"]["left"];
     let distances = result["distances"].as_array().unwrap();
-    let summary = write_report(&inputs, &path("report.html"), &Silent).unwrap();
+    let summary = write_report(inputs, &path("report.html"), &Silent).unwrap();
     let page = std::fs::read_to_string(path("report.html")).unwrap();
     assert_eq!(summary.bytes, page.len());
     assert!(page.contains(&format!(
