@@ -3,10 +3,12 @@
 //! gap, a path on the raw mesh would have to go around it.
 //!
 //! Every boundary loop except the scan's outer border (the longest loop) is closed with
-//! the paper's fill-in ([`crate::fill_in`]), which continues the surrounding curvature.
+//! the paper's fill-in ([`crate::fill_in`]), which continues the surrounding curvature;
+//! a loop that no plane or cylinder sees as a simple polygon, with the 3D fill
+//! ([`mesh::hole_patch`]).
 
-use crate::fill_in::{FillInParams, fill_hole, stitch};
-use mesh::{Topology, TriMesh};
+use crate::fill_in::{FillIn, FillInParams, fill_hole, stitch};
+use mesh::{HolePatch, Topology, TriMesh, patch_hole};
 
 /// One closed hole.
 #[derive(Debug, Clone, PartialEq)]
@@ -69,7 +71,14 @@ pub fn close_scan_holes(scan: &TriMesh, topology: &Topology, params: &FillInPara
             .to_array();
         // Holes are filled one at a time into the growing mesh; earlier vertices keep
         // their indices, so the loop stays valid.
-        match fill_hole(&mesh, &boundary, params) {
+        // Where no plane or cylinder sees the loop as a simple polygon (a crescent
+        // wrapping round a hanging breast's lower and lateral pole), the 3D fill.
+        let filled = fill_hole(&mesh, &boundary, params).or_else(|projected| {
+            patch_hole(&mesh, topology, &boundary)
+                .map(|patch| patch_as_fill_in(&mesh, &boundary, patch))
+                .map_err(|error| format!("{projected}; in 3D: {error}"))
+        });
+        match filled {
             Ok(fill) => {
                 mesh = stitch(&mesh, &fill);
                 closed.push(ClosedHole {
@@ -80,7 +89,7 @@ pub fn close_scan_holes(scan: &TriMesh, topology: &Topology, params: &FillInPara
             Err(error) => left_open.push(OpenHole {
                 perimeter_mm,
                 centre,
-                reason: error.to_string(),
+                reason: error,
             }),
         }
     }
@@ -88,6 +97,19 @@ pub fn close_scan_holes(scan: &TriMesh, topology: &Topology, params: &FillInPara
         mesh,
         closed,
         left_open,
+    }
+}
+
+/// A 3D patch in the fill-in's form: the loop's vertices first, then its interior.
+fn patch_as_fill_in(mesh: &TriMesh, boundary: &[u32], patch: HolePatch) -> FillIn {
+    let positions = boundary
+        .iter()
+        .map(|&v| mesh.positions[v as usize])
+        .chain(patch.interior)
+        .collect();
+    FillIn {
+        mesh: TriMesh::new(positions, patch.triangles),
+        boundary_to_base: boundary.to_vec(),
     }
 }
 
