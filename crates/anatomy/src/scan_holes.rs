@@ -3,12 +3,15 @@
 //! gap, a path on the raw mesh would have to go around it.
 //!
 //! Every boundary loop except the scan's outer border (the longest loop) is closed with
-//! the paper's fill-in ([`crate::fill_in`]), which continues the surrounding curvature;
-//! a loop that no plane or cylinder sees as a simple polygon, with the 3D fill
-//! ([`mesh::hole_patch`]).
+//! a surface continuing the skin around it: the 3D fill ([`mesh::hole_patch`]), which
+//! needs no projection and so also closes the crescent a standing scan leaves round a
+//! hanging breast's lower and lateral pole, or where that one crosses the scan near the
+//! hole (a jagged rim), the paper's fill-in over a plane or cylinder ([`crate::fill_in`]).
+//! Where both cross the scan, the 3D fill is kept (the closed surface's untangling, or
+//! its error, deals with the crossings).
 
 use crate::fill_in::{FillIn, FillInParams, fill_hole, stitch};
-use mesh::{HolePatch, Topology, TriMesh, patch_hole};
+use mesh::{DVec3, HolePatch, Topology, TriMesh, patch_hole, self_intersections};
 
 /// One closed hole.
 #[derive(Debug, Clone, PartialEq)]
@@ -71,13 +74,7 @@ pub fn close_scan_holes(scan: &TriMesh, topology: &Topology, params: &FillInPara
             .to_array();
         // Holes are filled one at a time into the growing mesh; earlier vertices keep
         // their indices, so the loop stays valid.
-        // Where no plane or cylinder sees the loop as a simple polygon (a crescent
-        // wrapping round a hanging breast's lower and lateral pole), the 3D fill.
-        let filled = fill_hole(&mesh, &boundary, params).or_else(|projected| {
-            patch_hole(&mesh, topology, &boundary)
-                .map(|patch| patch_as_fill_in(&mesh, &boundary, patch))
-                .map_err(|error| format!("{projected}; in 3D: {error}"))
-        });
+        let filled = fill_one(&mesh, topology, &boundary, params);
         match filled {
             Ok(fill) => {
                 mesh = stitch(&mesh, &fill);
@@ -98,6 +95,75 @@ pub fn close_scan_holes(scan: &TriMesh, topology: &Topology, params: &FillInPara
         closed,
         left_open,
     }
+}
+
+/// Closes one hole: the first of the 3D fill and the projected fill-in that crosses no
+/// triangle of `mesh` near the hole, else the first that was built (the closed surface's
+/// untangling smooths a rim's noise folds out of the 3D fill more often than out of the
+/// projected one); the reasons of both where neither could be built.
+fn fill_one(
+    mesh: &TriMesh,
+    topology: &Topology,
+    boundary: &[u32],
+    params: &FillInParams,
+) -> Result<FillIn, String> {
+    let in_3d = || {
+        patch_hole(mesh, topology, boundary)
+            .map(|patch| patch_as_fill_in(mesh, boundary, patch))
+            .map_err(|error| format!("in 3D: {error}"))
+    };
+    let projected = || fill_hole(mesh, boundary, params).map_err(|error| error.to_string());
+    let mut reasons = Vec::new();
+    let mut crossing: Option<FillIn> = None;
+    for attempt in [&in_3d as &dyn Fn() -> Result<FillIn, String>, &projected] {
+        match attempt() {
+            Ok(fill) if crosses_near(mesh, &fill) => {
+                crossing.get_or_insert(fill);
+            }
+            Ok(fill) => return Ok(fill),
+            Err(reason) => reasons.push(reason),
+        }
+    }
+    crossing.ok_or(reasons.join("; "))
+}
+
+/// Margin (mm) round a fill's bounding box within which the surface's triangles are
+/// checked against it.
+const CROSSING_MARGIN_MM: f64 = 5.0;
+
+/// Whether the fill crosses itself or a triangle of `mesh` near it.
+fn crosses_near(mesh: &TriMesh, fill: &FillIn) -> bool {
+    let stitched = stitch(mesh, fill);
+    let fill_triangles = mesh.triangle_count()..stitched.triangle_count();
+    let (low, high) = fill.mesh.positions.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(low, high), &p| (low.min(p), high.max(p)),
+    );
+    let (low, high) = (
+        low - DVec3::splat(CROSSING_MARGIN_MM),
+        high + DVec3::splat(CROSSING_MARGIN_MM),
+    );
+    let near = |t: &[u32; 3]| {
+        t.iter().any(|&v| {
+            let p = stitched.positions[v as usize];
+            p.cmpge(low).all() && p.cmple(high).all()
+        })
+    };
+    // The fill's triangles first, so a pair involving one has its first index below
+    // their count.
+    let selected: Vec<[u32; 3]> = stitched.triangles[fill_triangles.clone()]
+        .iter()
+        .chain(
+            stitched.triangles[..fill_triangles.start]
+                .iter()
+                .filter(|t| near(t)),
+        )
+        .copied()
+        .collect();
+    let local = TriMesh::from_used_vertices(&stitched.positions, &selected);
+    self_intersections(&local)
+        .into_iter()
+        .any(|(a, _)| a < fill_triangles.len())
 }
 
 /// A 3D patch in the fill-in's form: the loop's vertices first, then its interior.
