@@ -22,6 +22,8 @@
 //! the walk reached the edge); such back-tracking points are dropped. The result is
 //! checked: the curve must be closed and must not cross or touch itself.
 
+mod close;
+
 use crate::topology::{NO_TRIANGLE, Topology};
 use crate::trimesh::TriMesh;
 use glam::{DVec2, DVec3};
@@ -321,6 +323,16 @@ impl SurfaceCurve {
         }
         let first_position = walker.points[0].position;
         walker.walk_to(first_position, 0)?;
+        // The walk may stop short of the first point behind a ridge of scanner noise
+        // (where it stops, the nearest surface point seen from its triangle).
+        let stopped = walker.location;
+        if segment_place(mesh, topology, &stopped, &first).is_none()
+            && let Some(vertices) = close::edge_path(mesh, topology, &stopped, &first)
+        {
+            for v in vertices {
+                walker.push(CurveLocation::OnVertex(v));
+            }
+        }
         let curve = SurfaceCurve {
             points: without_edge_spikes(mesh, topology, walker.points),
         };
