@@ -3,9 +3,9 @@
 //! topology, spatial index and frame, through `plan::model::build_model` (cut curves,
 //! cutting, fill-ins, breast and quadrant volumes, closed surface with its watertightness
 //! and self-intersection checks, and the 3-level tetrahedral hierarchy), and the same for
-//! a large hanging cup scanned with occlusion. Writing the files is not included. Then (issue 4: a 60,000-element level under 1 s, the hierarchy
-//! under 2 s) the hierarchy alone from the model's closed surface, including the
-//! surface's checks and index.
+//! a large hanging cup scanned with occlusion. Writing the files is not included. Then
+//! (issue 4: a 60,000-element level under 1 s, the hierarchy under 2 s) the hierarchy
+//! alone from the model's closed surface, including the surface's checks and index.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use phantom::{Cup, PhantomParams};
