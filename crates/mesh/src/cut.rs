@@ -136,6 +136,7 @@ pub fn cut_along_curves(
             first,
             second,
             position,
+            ..
         } => CutError::CurvesTouch {
             first,
             second,

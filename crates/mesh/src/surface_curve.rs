@@ -23,6 +23,7 @@
 //! checked: the curve must be closed and must not cross or touch itself.
 
 mod close;
+mod loops;
 
 use crate::topology::{NO_TRIANGLE, Topology};
 use crate::trimesh::TriMesh;
@@ -270,8 +271,10 @@ impl SurfaceCurve {
     /// lie off the surface. Do not repeat the first sample at the end. The mesh must pass
     /// [`TriMesh::validate`].
     ///
-    /// Errors if the curve leaves the mesh at its border or a hole, runs into a degenerate
-    /// triangle, or crosses or touches itself.
+    /// A loop of the walk shorter than a tenth of the curve (where it doubles back past a
+    /// sample on a steep flank) is cut out where it touches the rest. Errors if the curve
+    /// leaves the mesh at its border or a hole, runs into a degenerate triangle, or still
+    /// crosses or touches itself.
     pub fn project(
         mesh: &TriMesh,
         topology: &Topology,
@@ -333,8 +336,9 @@ impl SurfaceCurve {
                 walker.push(CurveLocation::OnVertex(v));
             }
         }
+        let points = without_edge_spikes(mesh, topology, walker.points);
         let curve = SurfaceCurve {
-            points: without_edge_spikes(mesh, topology, walker.points),
+            points: loops::without_small_loops(mesh, topology, points),
         };
         curve.check(mesh, topology)?;
         Ok(curve)
@@ -468,10 +472,31 @@ pub(crate) enum CurvesDefect {
         curve: usize,
         error: CurveError,
     },
+    /// Curves `first` and `second` (the same for a curve touching itself) meet at `at`:
+    /// segment or point `first_index` of the first and `second_index` of the second
+    /// ([`Touching`]).
     Touch {
         first: usize,
         second: usize,
         position: [f64; 3],
+        touching: Touching,
+    },
+}
+
+/// Where two curves (or one curve twice) meet.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Touching {
+    /// Point `first_index` and point `second_index` are the same vertex.
+    Vertex {
+        first_index: usize,
+        second_index: usize,
+    },
+    /// Segment `first_index` (from that point to the next) and segment `second_index`
+    /// cross or touch at `at`.
+    Segments {
+        first_index: usize,
+        second_index: usize,
+        at: CurveLocation,
     },
 }
 
@@ -523,7 +548,7 @@ pub(crate) fn check_curves(
     curves: &[SurfaceCurve],
 ) -> Result<(), CurvesDefect> {
     let mut placed: Vec<PlacedSegment> = Vec::new();
-    let mut vertices: Vec<(u32, usize)> = Vec::new();
+    let mut vertices: Vec<(u32, usize, usize)> = Vec::new();
     for (curve, points) in curves.iter().map(|c| &c.points).enumerate() {
         let defect = |error| CurvesDefect::Curve { curve, error };
         let n = points.len();
@@ -560,15 +585,23 @@ pub(crate) fn check_curves(
                 });
             }
             if let CurveLocation::OnVertex(v) = point.location {
-                vertices.push((v, curve));
+                vertices.push((v, curve, index));
             }
         }
     }
     // A vertex visited twice: the segments around it may lie in different triangles.
     vertices.sort_unstable();
     if let Some(pair) = vertices.windows(2).find(|w| w[0].0 == w[1].0) {
-        let position = mesh.positions[pair[0].0 as usize].to_array();
-        return Err(touch(pair[0].1, pair[1].1, position));
+        let ((v, first, first_index), (_, second, second_index)) = (pair[0], pair[1]);
+        return Err(CurvesDefect::Touch {
+            first,
+            second,
+            position: mesh.positions[v as usize].to_array(),
+            touching: Touching::Vertex {
+                first_index,
+                second_index,
+            },
+        });
     }
     placed.sort_by_key(|s| s.triangle);
     for segments in placed.chunk_by(|s, r| s.triangle == r.triangle) {
@@ -577,12 +610,22 @@ pub(crate) fn check_curves(
                 let n = curves[s.curve].points.len();
                 let consecutive = s.curve == r.curve
                     && (s.index.abs_diff(r.index) == 1 || s.index.abs_diff(r.index) == n - 1);
-                if !consecutive && segments_touch(s, r) {
-                    let location = CurveLocation::InTriangle {
-                        triangle: s.triangle,
-                        barycentric: [1.0 - s.from.x - s.from.y, s.from.x, s.from.y],
-                    };
-                    return Err(touch(s.curve, r.curve, location.position(mesh).to_array()));
+                if !consecutive && let Some(at) = segments_touch(s, r) {
+                    let at = CurveLocation::from_barycentric(
+                        mesh,
+                        s.triangle,
+                        [1.0 - at.x - at.y, at.x, at.y],
+                    );
+                    return Err(CurvesDefect::Touch {
+                        first: s.curve,
+                        second: r.curve,
+                        position: at.position(mesh).to_array(),
+                        touching: Touching::Segments {
+                            first_index: s.index,
+                            second_index: r.index,
+                            at,
+                        },
+                    });
                 }
             }
         }
@@ -590,38 +633,29 @@ pub(crate) fn check_curves(
     Ok(())
 }
 
-fn touch(first: usize, second: usize, position: [f64; 3]) -> CurvesDefect {
-    if first == second {
-        CurvesDefect::Curve {
-            curve: first,
-            error: CurveError::SelfCrossing { position },
-        }
-    } else {
-        CurvesDefect::Touch {
-            first,
-            second,
-            position,
-        }
-    }
-}
-
-/// Whether two segments cross, or come within [`TOUCH_TOLERANCE`] of each other.
-fn segments_touch(s: &PlacedSegment, r: &PlacedSegment) -> bool {
+/// Where two segments cross, or come within [`TOUCH_TOLERANCE`] of each other (in their
+/// triangle's barycentric plane); `None` if they do neither.
+fn segments_touch(s: &PlacedSegment, r: &PlacedSegment) -> Option<DVec2> {
     let orient = |a: DVec2, b: DVec2, c: DVec2| (b - a).perp_dot(c - a);
-    let crosses = orient(r.from, r.to, s.from) * orient(r.from, r.to, s.to) < 0.0
-        && orient(s.from, s.to, r.from) * orient(s.from, s.to, r.to) < 0.0;
-    crosses
-        || [
-            point_segment_distance(s.from, r.from, r.to),
-            point_segment_distance(s.to, r.from, r.to),
-            point_segment_distance(r.from, s.from, s.to),
-            point_segment_distance(r.to, s.from, s.to),
-        ]
-        .into_iter()
-        .any(|d| d <= TOUCH_TOLERANCE)
+    let (r_from_s, r_to_s) = (orient(r.from, r.to, s.from), orient(r.from, r.to, s.to));
+    let crosses =
+        r_from_s * r_to_s < 0.0 && orient(s.from, s.to, r.from) * orient(s.from, s.to, r.to) < 0.0;
+    if crosses {
+        let along_s = r_from_s / (r_from_s - r_to_s);
+        return Some(s.from + along_s * (s.to - s.from));
+    }
+    [
+        (s.from, closest_on_segment(s.from, r.from, r.to)),
+        (s.to, closest_on_segment(s.to, r.from, r.to)),
+        (r.from, closest_on_segment(r.from, s.from, s.to)),
+        (r.to, closest_on_segment(r.to, s.from, s.to)),
+    ]
+    .into_iter()
+    .find(|(p, q)| p.distance(*q) <= TOUCH_TOLERANCE)
+    .map(|(p, _)| p)
 }
 
-fn point_segment_distance(p: DVec2, a: DVec2, b: DVec2) -> f64 {
+fn closest_on_segment(p: DVec2, a: DVec2, b: DVec2) -> DVec2 {
     let ab = b - a;
     let length_squared = ab.length_squared();
     let s = if length_squared > 0.0 {
@@ -629,7 +663,7 @@ fn point_segment_distance(p: DVec2, a: DVec2, b: DVec2) -> f64 {
     } else {
         0.0
     };
-    p.distance(a + s * ab)
+    a + s * ab
 }
 
 /// The closed curve `points` without back-tracking along edges. Where the walk follows a

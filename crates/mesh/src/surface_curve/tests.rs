@@ -310,3 +310,39 @@ fn bad_input_is_an_error() {
         Err(CurveError::TopologyMismatch { .. })
     ));
 }
+
+#[test]
+fn a_small_curl_is_cut_out_where_it_crosses_the_curve() {
+    let mesh = grid(60, 60, 1.0);
+    let topology = Topology::new(&mesh);
+    // A 50 mm square whose top side curls round a 3 x 3 mm loop before going on: the
+    // side (17.3, 58.4) -> (17.3, 52.4) crosses the top at (17.3, 55.4). The loop is 12 mm
+    // of the 212 mm, under a tenth: it is cut out at the crossing.
+    let corners = [
+        [55.4, 5.4],
+        [55.4, 55.4],
+        [14.3, 55.4],
+        [14.3, 58.4],
+        [17.3, 58.4],
+        [17.3, 52.4],
+        [5.4, 52.4],
+        [5.4, 5.4],
+    ];
+    let samples: Vec<DVec3> = (0..corners.len())
+        .flat_map(|i| {
+            let (a, b) = (corners[i], corners[(i + 1) % corners.len()]);
+            let (a, b) = (DVec3::new(a[0], a[1], 0.0), DVec3::new(b[0], b[1], 0.0));
+            let steps = (a.distance(b) / 0.5).round() as usize;
+            (0..steps).map(move |k| a.lerp(b, k as f64 / steps as f64))
+        })
+        .collect();
+    let curve = project(&mesh, &topology, &samples).unwrap();
+    assert_consistent(&mesh, &topology, &curve);
+    // The square's 200 mm once round, the loop gone (a flat grid: exact to rounding).
+    assert!(
+        (curve.length_mm() - 200.0).abs() < 1e-9,
+        "{}",
+        curve.length_mm()
+    );
+    assert!(curve.points.iter().all(|p| p.position.y < 55.4 + 1e-9));
+}
