@@ -33,9 +33,12 @@ use crate::trimesh::TriMesh;
 use glam::DVec3;
 use std::collections::HashSet;
 
-/// Largest loop the dynamic programme takes: its time grows with the cube of the loop's
-/// vertices (about 0.2 s at this size on one core) and its tables with the square.
-pub const MAX_LOOP_VERTICES: usize = 1200;
+/// Largest loop taken: the triangulation's time grows with the cube of the loop's
+/// vertices (about 0.5 s for 554 on these two cores, `cargo bench -p mesh --bench
+/// hole_patch`) and its tables with the square; a breast's crescent has 150-480 at
+/// scanner spacing. A triangulation in two levels (every other vertex first) was tried
+/// for longer loops and left fills crossing the scan (`docs/dev/model-on-every-body.md`).
+pub const MAX_LOOP_VERTICES: usize = 800;
 
 /// Bounds (mm) on the patch's target edge length, the loop's mean edge length: finer
 /// adds vertices and time for nothing a surface measurement sees, coarser loses the

@@ -60,11 +60,17 @@ fn a_hole_in_a_plane_is_patched_flat_and_exactly_covered() {
 
 #[test]
 fn a_band_round_a_sphere_is_patched_close_to_the_sphere() {
-    // A crescent 14 mm wide wrapping 250 degrees round a 100 mm sphere: no plane sees its
-    // loop as a simple polygon, as with the hole a standing scan leaves round a hanging
-    // breast's lower and lateral pole.
-    let radius = 100.0;
-    let sphere = icosphere(radius, 5);
+    // A rim of 276 vertices.
+    band_round_a_sphere(100.0, 5, 0.15);
+}
+
+/// A band 8° of latitude wide wrapping 250° round a sphere of `radius`, patched within
+/// `tolerance_mm` of the sphere, closed, consistently oriented, without self-crossing.
+fn band_round_a_sphere(radius: f64, subdivisions: u32, tolerance_mm: f64) {
+    // A crescent wrapping 250 degrees: no plane sees its loop as a simple polygon, as
+    // with the hole a standing scan leaves round a hanging breast's lower and lateral
+    // pole.
+    let sphere = icosphere(radius, subdivisions);
     let in_band = |c: DVec3| {
         let latitude = (c.z / c.length()).asin().to_degrees();
         let longitude = c.y.atan2(c.x).to_degrees().rem_euclid(360.0);
@@ -72,15 +78,16 @@ fn a_band_round_a_sphere_is_patched_close_to_the_sphere() {
     };
     let (mesh, interior) = patched(sphere, in_band);
     assert!(interior > 50, "{interior}");
-    // The sphere's sag over the band's width w is w^2 / 8r = 0.25 mm, which a patch of
-    // straight chords across the band would miss by; one that continues the tangent
-    // planes on both rims stays within 60% of it (0.09 mm measured).
+    // The sphere's sag over the band's width w is w^2 / 8r (0.25 mm on the 100 mm
+    // sphere), which a patch of straight chords across the band would miss by; one that
+    // continues the tangent planes on both rims stays within 60% of it (0.09 mm measured
+    // there).
     let worst = mesh
         .positions
         .iter()
         .map(|p| (p.length() - radius).abs())
         .fold(0.0, f64::max);
-    assert!(worst < 0.15, "{worst}");
+    assert!(worst < tolerance_mm, "{worst}");
     let topology = Topology::new(&mesh);
     assert!(topology.boundary_loops(&mesh).is_empty());
     assert_eq!(topology.inconsistent_edge_count, 0);
@@ -98,6 +105,11 @@ fn bad_loops_are_refused_with_their_reason() {
     assert_eq!(
         patch_hole(&surface, &topology, &[0, 1, 99]),
         Err(HolePatchError::InvalidVertex(99))
+    );
+    let long: Vec<u32> = (0..=MAX_LOOP_VERTICES as u32).collect();
+    assert_eq!(
+        patch_hole(&surface, &topology, &long),
+        Err(HolePatchError::TooManyVertices(MAX_LOOP_VERTICES + 1))
     );
     // An interior edge of the grid is not a hole's edge.
     let centre = 2 * 5 + 2;
