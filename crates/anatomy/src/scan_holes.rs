@@ -3,12 +3,13 @@
 //! gap, a path on the raw mesh would have to go around it.
 //!
 //! Every boundary loop except the scan's outer border (the longest loop) is closed with
-//! a surface continuing the skin around it: the 3D fill ([`mesh::hole_patch`]), which
-//! needs no projection and so also closes the crescent a standing scan leaves round a
-//! hanging breast's lower and lateral pole, or where that one crosses the scan near the
-//! hole (a jagged rim), the paper's fill-in over a plane or cylinder ([`crate::fill_in`]).
-//! Where both cross the scan, the 3D fill is kept (the closed surface's untangling, or
-//! its error, deals with the crossings).
+//! a surface continuing the skin around it: the paper's fill-in over the body's cylinder
+//! or a plane ([`crate::fill_in`]; its tangents come from quadrics fitted to the rim, so
+//! it is the steadier on a noisy rim), or where that one refuses the loop or crosses the
+//! scan near the hole (a jagged rim), the 3D fill ([`mesh::hole_patch`]), which needs no
+//! projection and so also closes the crescent a standing scan leaves round a hanging
+//! breast's lower and lateral pole. Where both cross the scan, the 3D fill is kept (the
+//! closed surface's untangling, or its error, deals with the crossings).
 
 use crate::fill_in::{FillIn, FillInParams, fill_hole, stitch};
 use mesh::{DVec3, HolePatch, Topology, TriMesh, patch_hole, self_intersections};
@@ -97,9 +98,9 @@ pub fn close_scan_holes(scan: &TriMesh, topology: &Topology, params: &FillInPara
     }
 }
 
-/// Closes one hole: the first of the 3D fill and the projected fill-in that crosses no
-/// triangle of `mesh` near the hole, else the first that was built (the closed surface's
-/// untangling smooths a rim's noise folds out of the 3D fill more often than out of the
+/// Closes one hole: the first of the projected fill-in and the 3D fill that crosses no
+/// triangle of `mesh` near the hole, else the 3D fill if it was built (the closed
+/// surface's untangling smooths a rim's noise folds out of it more often than out of the
 /// projected one); the reasons of both where neither could be built.
 fn fill_one(
     mesh: &TriMesh,
@@ -115,11 +116,9 @@ fn fill_one(
     let projected = || fill_hole(mesh, boundary, params).map_err(|error| error.to_string());
     let mut reasons = Vec::new();
     let mut crossing: Option<FillIn> = None;
-    for attempt in [&in_3d as &dyn Fn() -> Result<FillIn, String>, &projected] {
+    for attempt in [&projected as &dyn Fn() -> Result<FillIn, String>, &in_3d] {
         match attempt() {
-            Ok(fill) if crosses_near(mesh, &fill) => {
-                crossing.get_or_insert(fill);
-            }
+            Ok(fill) if crosses_near(mesh, &fill) => crossing = Some(fill),
             Ok(fill) => return Ok(fill),
             Err(reason) => reasons.push(reason),
         }
