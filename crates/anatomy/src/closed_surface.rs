@@ -43,8 +43,9 @@
 //!    lower pole, cut by a lateral plane). The band adds no vertices.
 //!    The scan is turned to face anteriorly first if it faces the other way.
 //! 5. Checks: watertight and 2-manifold ([`mesh::manifold_report`]), no self-intersections
-//!    ([`mesh::self_intersections`]; sub-millimetre folds of the scan's own noise are
-//!    smoothed out first, [`mesh::untangle`], with a warning), and a positive volume
+//!    ([`mesh::self_intersections`]; sub-millimetre folds of the scan's own noise, and
+//!    of the wall where a breast's fill-in meets a filled scan hole, are smoothed out
+//!    first, [`mesh::untangle`], with a warning), and a positive volume
 //!    (else the wall lies in front of the scan).
 //! 6. If clipping or stitching fails, [`build_closed_surface`] retries with the lateral
 //!    planes further in, a few times, then with the upright box of earlier versions
@@ -477,13 +478,21 @@ pub fn build_closed_surface_in_box(
     if !report.is_watertight_manifold() {
         return Err(ClosedSurfaceError::NotWatertight(report));
     }
-    // Scanner noise may fold a few tiny triangles of the scan through each other; only
-    // the scan's inner vertices move, by at most [`MAX_UNTANGLE_MM`], so the band and
-    // the wall stay as built and a real crossing of wall and scan stays an error.
-    let mut scan_border = vec![false; offset as usize];
+    // Scanner noise may fold a few tiny triangles of the scan through each other, and
+    // the wall (the filled base moved back) carries any small fold of the base, where a
+    // breast's fill-in meets a filled scan hole beside the cut curve. The inner vertices
+    // of the scan and of the wall move, by at most [`MAX_UNTANGLE_MM`]; the borders on
+    // the clip planes and the band stay as built, and a real crossing of wall and scan
+    // stays an error.
+    let mut on_border = vec![false; positions.len()];
     for side in &front_sides {
         for &v in &side.chain {
-            scan_border[v as usize] = true;
+            on_border[v as usize] = true;
+        }
+    }
+    for side in &back_sides {
+        for &v in &side.chain {
+            on_border[(v + offset) as usize] = true;
         }
     }
     let mut warnings = Vec::new();
@@ -494,17 +503,14 @@ pub fn build_closed_surface_in_box(
         ));
     }
     let scan_only = |t: usize| front_range.contains(&t);
-    let crossings = match untangle(
-        &mut mesh,
-        |v| v < offset && !scan_border[v as usize],
-        MAX_UNTANGLE_MM,
-    ) {
+    let crossings = match untangle(&mut mesh, |v| !on_border[v as usize], MAX_UNTANGLE_MM) {
         Ok(None) => Vec::new(),
         Ok(Some(done)) => {
             warnings.push(format!(
-                "the scan folds through itself in {} places near ({:.0}, {:.0}, {:.0}) mm \
-                 (scanner noise); smoothed there, moving {} vertices by at most {:.2} mm \
-                 (at most {MAX_UNTANGLE_MM} mm allowed)",
+                "the scan or the wall behind it folds through itself in {} places near \
+                 ({:.0}, {:.0}, {:.0}) mm (scanner noise, or a fill-in meeting a filled hole); \
+                 smoothed there, moving {} vertices by at most {:.2} mm (at most \
+                 {MAX_UNTANGLE_MM} mm allowed)",
                 done.pairs_found,
                 done.near.x,
                 done.near.y,
