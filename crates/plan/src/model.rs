@@ -458,6 +458,11 @@ pub fn build_breasts(
         points.check_sides(&marked.frame, path)?;
         options.control_points = Some(points);
     }
+    if options.control_points.is_none() {
+        for doubt in ControlPoints::landmark_doubts(&marked.frame, &marked.landmarks) {
+            progress.warn(&format!("{}: {doubt}", marked.landmarks_path.display()));
+        }
+    }
     let breasts = build_breast_model(
         &scan.mesh,
         &scan.topology,

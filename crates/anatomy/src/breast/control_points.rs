@@ -45,6 +45,13 @@ pub const DEFAULT_CONTROL_POINT_ROLES: [&str; 6] = [
     "the medial point",
 ];
 
+/// Least drop of the fold's medial end PSMFm below the nipple, as a fraction of the fold's
+/// lowest point's (PSMF's) drop, before [`ControlPoints::landmark_doubts`] names it: on
+/// the breasts of the fifteen shared scans it is 0.44-0.74, except s01's left, -0.01 (its
+/// PSMFml at the nipple's height turns that body's left/right order of volume against
+/// the body model's; docs/dev/model-on-every-body.md).
+const MIN_MEDIAL_FOLD_DROP: f64 = 0.25;
+
 /// Cut-curve control points of both breasts (mm, file frame), in order around each.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControlPoints {
@@ -59,6 +66,35 @@ impl ControlPoints {
             Side::Left => &self.left,
             Side::Right => &self.right,
         }
+    }
+
+    /// Landmarks the default control points rest on that look misplaced, one sentence
+    /// each for the user: a fold's medial end PSMFm that lies less than
+    /// [`MIN_MEDIAL_FOLD_DROP`] of PSMF's drop below the nipple (along the frame's up).
+    /// The curve's lower inner border runs below PSMFm, so a PSMFm marked near the
+    /// nipple's height cuts off the breast's lower inner quadrant.
+    pub fn landmark_doubts(frame: &AnatomicalFrame, landmarks: &Landmarks) -> Vec<String> {
+        let up = frame.up();
+        Side::BOTH
+            .into_iter()
+            .filter_map(|side| {
+                let names = side.landmark_names();
+                let drop = |name| (landmarks.get(names.nipple) - landmarks.get(name)).dot(up);
+                let (medial_mm, lowest_mm) = (drop(names.fold_medial), drop(names.fold_lowest));
+                (lowest_mm > 0.0 && medial_mm < MIN_MEDIAL_FOLD_DROP * lowest_mm).then(|| {
+                    format!(
+                        "{side} breast: the fold's medial end {} lies {:.0} mm {} the nipple, \
+                         while the fold's lowest point {} lies {lowest_mm:.0} mm below it; the \
+                         cut curve's lower inner border runs below {0}, so the lower inner \
+                         quadrant may be cut off: check where {0} is marked",
+                        names.fold_medial.as_str(),
+                        medial_mm.abs(),
+                        if medial_mm >= 0.0 { "below" } else { "above" },
+                        names.fold_lowest.as_str(),
+                    )
+                })
+            })
+            .collect()
     }
 
     /// Default control points per side, in order around the breast: PSMFm, PSMF, PSMFl,
@@ -396,6 +432,35 @@ mod tests {
         assert!(
             (left.x - 130.0).abs() < 1e-9 && left.z.abs() < 1e-9,
             "{left}"
+        );
+    }
+
+    /// A PSMFml marked at the nipple's height is named, a usual PSMFmr (30 mm below the
+    /// nipple, PSMF 60 mm below) is not.
+    #[test]
+    fn a_medial_fold_end_at_the_nipples_height_is_doubted() {
+        use crate::landmarks::LandmarkName::*;
+        let frame = AnatomicalFrame {
+            origin: DVec3::ZERO,
+            axes: DMat3::IDENTITY,
+            sternal_axes: DMat3::IDENTITY,
+            up_source: UpSource::FileVertical,
+        };
+        let landmarks = Landmarks::new(|name| match name {
+            Pnl => DVec3::new(90.0, 0.0, 100.0),
+            Pnr => DVec3::new(-90.0, 0.0, 100.0),
+            PSMFl => DVec3::new(90.0, -60.0, 60.0),
+            PSMFr => DVec3::new(-90.0, -60.0, 60.0),
+            PSMFml => DVec3::new(35.0, 1.0, 70.0),
+            PSMFmr => DVec3::new(-35.0, -30.0, 70.0),
+            _ => DVec3::ZERO,
+        });
+        let doubts = ControlPoints::landmark_doubts(&frame, &landmarks);
+        assert_eq!(doubts.len(), 1, "{doubts:?}");
+        assert!(
+            doubts[0].starts_with("left breast")
+                && doubts[0].contains("PSMFml lies 1 mm above the nipple"),
+            "{doubts:?}"
         );
     }
 
