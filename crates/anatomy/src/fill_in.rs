@@ -201,7 +201,7 @@ pub fn fill_hole(
     params.check()?;
     let spacing = params.lattice_spacing(&loop_positions);
     let mut base_side = BaseAlongLoop::gather(base, boundary_loop);
-    base_side.normals = jet_normals(base, &loop_positions, &base_side.normals);
+    base_side.normals = jet_normals(base, boundary_loop, &base_side.normals);
     let project = |frame: &Frame| -> Result<Boundary, FillInError> {
         let boundary = Boundary::project(
             frame,

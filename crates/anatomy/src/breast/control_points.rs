@@ -20,14 +20,6 @@ use std::path::Path;
 /// the shared scans, so a third encloses the upper pole without reaching the clavicle.
 pub const DEFAULT_PC_RATIO: f64 = 1.0 / 3.0;
 
-/// How far in front of (and behind) a default control point's target the ray that puts
-/// it on the surface starts (mm): beyond any breast's projection.
-const RAY_START_MM: f64 = 400.0;
-
-/// How far (mm, along the anterior direction) the lateral and medial default control
-/// points may lie behind the deeper of the two border points they lie between.
-const BORDER_DEPTH_MARGIN_MM: f64 = 10.0;
-
 /// How far below PSMFm and PSMF (mm, along the frame's down direction) the default curve
 /// runs: on the chest wall rather than in the fold's crease, whose walls would give the
 /// fill-in the tangents of the crease instead of the chest's. PSMFl is kept: on real
@@ -109,8 +101,8 @@ impl ControlPoints {
     /// bisector of the directions to the upper point and PSMFl (through the lateral side),
     /// at the mean of their distances from Pn; the medial point lies likewise between the
     /// upper point and PSMFm, as the breasts approach each other over the sternum. Both
-    /// are put on the surface by a ray from the front (see [`AroundNipple::between`] for
-    /// where it misses). Landmarks are expected on the surface.
+    /// lie at the mean depth of the two points they lie between (see
+    /// [`AroundNipple::between`]). Landmarks are expected on the surface.
     pub fn from_landmarks(
         surface: &MeasuredSurface<'_>,
         frame: &AnatomicalFrame,
@@ -271,21 +263,17 @@ struct AroundNipple<'a> {
 }
 
 impl AroundNipple<'_> {
-    /// The surface point seen from the front on the bisector of the directions from the
+    /// The surface point nearest to the target on the bisector of the directions from the
     /// nipple to `a` and `b` (both on the surface) that points towards `side` (a coronal
-    /// direction), at the mean of their distances from the nipple (in the coronal
-    /// plane). Where the ray from the front misses the surface, or meets it more than
-    /// [`BORDER_DEPTH_MARGIN_MM`] behind both `a` and `b`, the surface point nearest to
-    /// that target instead.
-    ///
-    /// The depth bound treats a ray that grazes the breast's side and meets the flank or
-    /// the arm far behind it like one that misses the body: which of the two happens turns
-    /// on millimetres of asymmetry, and the lateral point ended 100 mm deeper on one side
-    /// of a symmetric body than on the other.
+    /// direction), at the mean of their distances from the nipple in the coronal plane and
+    /// at the mean of their depths along the anterior axis: where the breast's border runs
+    /// at the depth of its neighbours on the curve. A point seen from the front instead
+    /// lands on the breast's slope, on the flank or on nothing, depending on millimetres
+    /// of the body's shape.
     fn between(&self, a: DVec3, b: DVec3, side: DVec3) -> DVec3 {
         let anterior = self.frame.anterior();
         let depth = |p: DVec3| (p - self.nipple).dot(anterior);
-        let deepest_mm = depth(a).min(depth(b)) - BORDER_DEPTH_MARGIN_MM;
+        let mean_depth_mm = 0.5 * (depth(a) + depth(b));
         let coronal = |p: DVec3| {
             let d = p - self.nipple;
             d - anterior * d.dot(anterior)
@@ -299,24 +287,9 @@ impl AroundNipple<'_> {
         } else {
             bisector
         };
-        let target = self.nipple + bisector * 0.5 * (a.length() + b.length());
-        self.seen_from_front(target)
-            .filter(|&point| depth(point) >= deepest_mm)
-            .unwrap_or_else(|| self.surface.index.closest_point(target).point)
-    }
-
-    /// The first surface point on the ray along the posterior direction through `target`,
-    /// if the ray meets the surface.
-    fn seen_from_front(&self, target: DVec3) -> Option<DVec3> {
-        let anterior = self.frame.anterior();
-        self.surface
-            .index
-            .cast_ray(
-                target + anterior * RAY_START_MM,
-                -anterior,
-                2.0 * RAY_START_MM,
-            )
-            .map(|hit| hit.point)
+        let target =
+            self.nipple + bisector * 0.5 * (a.length() + b.length()) + anterior * mean_depth_mm;
+        self.surface.index.closest_point(target).point
     }
 }
 
@@ -351,17 +324,12 @@ fn point_along(path: &SurfacePath, fraction: f64) -> DVec3 {
 mod tests {
     use super::*;
     use crate::frame::UpSource;
-    use glam::DMat3;
+    use glam::{DMat3, DVec2};
     use mesh::{SurfaceIndex, Topology, TriMesh};
 
-    /// A chest over x in [-130, 130] mm (z = 0) with a round breast of radius 60 mm about
-    /// (±70, 0) rising to 40 mm, and on the left only a flank panel 150 mm behind, past
-    /// the chest's edge.
-    fn chest_with_a_flank_on_the_left() -> TriMesh {
-        let height = |x: f64, y: f64| {
-            let r2 = ((x.abs() - 70.0).powi(2) + y * y) / 3600.0;
-            40.0 * (1.0 - r2).max(0.0).powi(2)
-        };
+    /// A grid of 2 mm squares over x in [-130, 130] mm, y in [-100, 100] mm, at
+    /// z = `height(x, y)`.
+    fn chest(height: impl Fn(f64, f64) -> f64) -> TriMesh {
         let (columns, rows) = (131, 101);
         let mut positions = Vec::new();
         for row in 0..rows {
@@ -379,48 +347,66 @@ mod tests {
                 triangles.extend([[a, b, c], [a, c, d]]);
             }
         }
-        let panel = positions.len() as u32;
+        TriMesh::new(positions, triangles)
+    }
+
+    /// The file's axes as the frame's (z anterior, y up, x the body's left).
+    fn file_frame() -> AnatomicalFrame {
+        AnatomicalFrame {
+            origin: DVec3::ZERO,
+            axes: DMat3::IDENTITY,
+            sternal_axes: DMat3::IDENTITY,
+            up_source: UpSource::FileVertical,
+        }
+    }
+
+    /// The lateral point of the nipple at `nipple` between `upper` and `lateral_end`, on
+    /// `mesh`, towards the side of the body (the sign of x) the nipple is on.
+    fn lateral_point(mesh: &TriMesh, nipple: DVec3, upper: DVec3, lateral_end: DVec3) -> DVec3 {
+        let topology = Topology::new(mesh);
+        let index = SurfaceIndex::new(mesh).unwrap();
+        let surface = MeasuredSurface {
+            mesh,
+            topology: &topology,
+            index: &index,
+        };
+        let frame = file_frame();
+        let around = AroundNipple {
+            surface: &surface,
+            frame: &frame,
+            nipple,
+        };
+        around.between(upper, lateral_end, DVec3::X * nipple.x.signum())
+    }
+
+    /// A chest (z = 0) with a round breast of radius 60 mm about (±70, 0) rising to 40 mm,
+    /// and on the left only a flank panel 150 mm behind, past the chest's edge.
+    #[test]
+    fn a_lateral_point_past_the_breast_does_not_reach_round_the_flank() {
+        let mut mesh = chest(|x, y| {
+            let r2 = ((x.abs() - 70.0).powi(2) + y * y) / 3600.0;
+            40.0 * (1.0 - r2).max(0.0).powi(2)
+        });
+        let panel = mesh.positions.len() as u32;
         for (x, y) in [
             (131.0, -200.0),
             (300.0, -200.0),
             (300.0, 200.0),
             (131.0, 200.0),
         ] {
-            positions.push(DVec3::new(x, y, -150.0));
+            mesh.positions.push(DVec3::new(x, y, -150.0));
         }
-        triangles.extend([[panel, panel + 1, panel + 2], [panel, panel + 2, panel + 3]]);
-        TriMesh::new(positions, triangles)
-    }
-
-    #[test]
-    fn a_lateral_point_past_the_breast_does_not_reach_round_the_flank() {
-        let mesh = chest_with_a_flank_on_the_left();
-        let topology = Topology::new(&mesh);
-        let index = SurfaceIndex::new(&mesh).unwrap();
-        let surface = MeasuredSurface {
-            mesh: &mesh,
-            topology: &topology,
-            index: &index,
-        };
-        let frame = AnatomicalFrame {
-            origin: DVec3::ZERO,
-            axes: DMat3::IDENTITY,
-            sternal_axes: DMat3::IDENTITY,
-            up_source: UpSource::FileVertical,
-        };
+        mesh.triangles
+            .extend([[panel, panel + 1, panel + 2], [panel, panel + 2, panel + 3]]);
         // Upper point and fold's lateral end on the chest; their bisector's target lies
-        // at x = ±150, beyond the chest: the left ray meets the panel 190 mm behind the
-        // nipple, the right one nothing.
+        // at x = ±150, beyond the chest, in front of the left panel.
         let point = |sign: f64| {
-            let around = AroundNipple {
-                surface: &surface,
-                frame: &frame,
-                nipple: DVec3::new(70.0 * sign, 0.0, 40.0),
-            };
-            let upper = DVec3::new(110.0 * sign, 90.0, 0.0);
-            let lateral_end = DVec3::new(125.0 * sign, -40.0, 0.0);
-            let lateral = DVec3::X * sign;
-            around.between(upper, lateral_end, lateral)
+            lateral_point(
+                &mesh,
+                DVec3::new(70.0 * sign, 0.0, 40.0),
+                DVec3::new(110.0 * sign, 90.0, 0.0),
+                DVec3::new(125.0 * sign, -40.0, 0.0),
+            )
         };
         let (left, right) = (point(1.0), point(-1.0));
         // Both are the chest's nearest point to the target, on its lateral edge: mirror
@@ -435,17 +421,39 @@ mod tests {
         );
     }
 
+    /// A flat chest with a lump (a paraboloid cap 30 mm high, 15 mm in radius) where the
+    /// lateral point's target lies: the point is the chest's nearest point to the target
+    /// at its neighbours' depth (z = 0), on the lump's foot, not its top 30 mm in front,
+    /// where a point seen from the front would land. The nearest point of the cap
+    /// `z = 30 (1 - r²/225)` to its centre's foot solves `r² + 900 (1 - r²/225)²` least:
+    /// r² = 225 (1 - 225/1800) = 196.9, z = 3.75 mm.
+    #[test]
+    fn a_lateral_point_lies_at_its_neighbours_depth() {
+        // Upper point (0, 60) and lateral end (60, 0) from the nipple at the origin:
+        // the target lies on the diagonal at their mean distance, 60 mm.
+        let centre = 60.0 * std::f64::consts::FRAC_1_SQRT_2;
+        let mesh = chest(|x, y| {
+            let r2 = (x - centre).powi(2) + (y - centre).powi(2);
+            30.0 * (1.0 - r2 / 225.0).max(0.0)
+        });
+        let point = lateral_point(
+            &mesh,
+            DVec3::new(0.0, 0.0, 40.0),
+            DVec3::new(0.0, 60.0, 0.0),
+            DVec3::new(60.0, 0.0, 0.0),
+        );
+        // The grid's 2 mm facets of the cap stand within 0.2 mm of the paraboloid.
+        assert!((point.z - 3.75).abs() < 0.3, "{point}");
+        let radius = DVec2::new(point.x - centre, point.y - centre).length();
+        assert!((radius - 196.9f64.sqrt()).abs() < 0.3, "{point}");
+    }
+
     /// A PSMFml marked at the nipple's height is named, a usual PSMFmr (30 mm below the
     /// nipple, PSMF 60 mm below) is not.
     #[test]
     fn a_medial_fold_end_at_the_nipples_height_is_doubted() {
         use crate::landmarks::LandmarkName::*;
-        let frame = AnatomicalFrame {
-            origin: DVec3::ZERO,
-            axes: DMat3::IDENTITY,
-            sternal_axes: DMat3::IDENTITY,
-            up_source: UpSource::FileVertical,
-        };
+        let frame = file_frame();
         let landmarks = Landmarks::new(|name| match name {
             Pnl => DVec3::new(90.0, 0.0, 100.0),
             Pnr => DVec3::new(-90.0, 0.0, 100.0),
@@ -468,12 +476,7 @@ mod tests {
     /// the side named and the mean distance (here 80 mm).
     #[test]
     fn a_file_with_its_sides_swapped_is_refused() {
-        let frame = AnatomicalFrame {
-            origin: DVec3::ZERO,
-            axes: DMat3::IDENTITY,
-            sternal_axes: DMat3::IDENTITY,
-            up_source: UpSource::FileVertical,
-        };
+        let frame = file_frame();
         let around = |x: f64| -> Vec<DVec3> {
             [(-30.0, 0.0), (30.0, 0.0), (0.0, 40.0)]
                 .iter()

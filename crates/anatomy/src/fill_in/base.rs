@@ -12,90 +12,136 @@ use mesh::TriMesh;
 const GAUSSIAN_CUTOFF_SIGMAS: f64 = 3.0;
 
 /// Radius (mm) of the base patch whose fitted quadric gives the base's normal at a loop
-/// vertex: some 20 scan vertices on the base side, so a scanner's noise (0.2-0.3 mm on
-/// 2 mm triangles, 8° on a single normal) averages out, while the quadric keeps the
-/// chest's curvature from tilting the normal as a plain average over the patch would.
-const JET_RADIUS_MM: f64 = 6.0;
+/// vertex: the chest's scale over a breast-sized hole, so the normal follows the chest's
+/// curvature (which the quadric fits) and not the tilt of the last few millimetres of
+/// skin next to the loop, which an implant under the curve lifts; a scanner's noise
+/// averages out over the patch's hundreds of vertices.
+const JET_RADIUS_MM: f64 = 20.0;
 
 /// A quadric fit needs at least this many points (it has six unknowns).
 const MIN_JET_POINTS: usize = 10;
 
-/// The base's normal at each loop vertex from a least-squares quadric
+/// The base's normal at each loop vertex (`boundary_loop[k]`) from a least-squares quadric
 /// `w = a + b·u + c·v + d·u² + e·u·v + f·v²` fitted to the base vertices within
-/// [`JET_RADIUS_MM`], in the tangent frame of its one-ring normal `normals[k]`: the normal
-/// of the quadric at the vertex, `(-b, -c, 1)`. Where too few points or a singular fit,
-/// the one-ring normal stays.
-pub(super) fn jet_normals(
-    base: &TriMesh,
-    loop_positions: &[DVec3],
-    normals: &[DVec3],
-) -> Vec<DVec3> {
-    let cell = |p: DVec3| (p / JET_RADIUS_MM).floor().as_ivec3();
-    let (low, high) = loop_positions
-        .iter()
-        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
-            (lo.min(p), hi.max(p))
-        });
-    let (low, high) = (low - JET_RADIUS_MM, high + JET_RADIUS_MM);
-    let mut cells: std::collections::HashMap<glam::IVec3, Vec<DVec3>> =
-        std::collections::HashMap::new();
-    for &p in &base.positions {
-        if p.cmpge(low).all() && p.cmple(high).all() {
-            cells.entry(cell(p)).or_default().push(p);
-        }
-    }
-    loop_positions
+/// [`JET_RADIUS_MM`] that base edges join to the loop vertex inside that ball (not another
+/// sheet of the scan the ball reaches: an arm, a fold's far side), in the tangent frame of
+/// its one-ring normal `normals[k]`: the normal of the quadric at the vertex, `(-b, -c, 1)`.
+/// Where too few points or a singular fit, the one-ring normal stays.
+pub(super) fn jet_normals(base: &TriMesh, boundary_loop: &[u32], normals: &[DVec3]) -> Vec<DVec3> {
+    let mut balls = ConnectedBalls::new(base);
+    let mut patch = Vec::new();
+    boundary_loop
         .iter()
         .zip(normals)
-        .map(|(&centre, &normal)| {
-            let Some(normal) = normal.try_normalize() else {
+        .map(|(&vertex, &normal)| {
+            let (Some(normal), Some(&centre)) =
+                (normal.try_normalize(), base.positions.get(vertex as usize))
+            else {
                 return normal;
             };
-            let (u_axis, v_axis) = normal.any_orthonormal_pair();
-            let mut normal_matrix = Mat::<f64>::zeros(6, 6);
-            let mut rhs = Mat::<f64>::zeros(6, 1);
-            let mut count = 0;
-            let home = cell(centre);
-            for offset in (-1..=1).flat_map(|x| {
-                (-1..=1).flat_map(move |y| (-1..=1).map(move |z| glam::IVec3::new(x, y, z)))
-            }) {
-                for &p in cells.get(&(home + offset)).into_iter().flatten() {
-                    let d = p - centre;
-                    if d.length_squared() > JET_RADIUS_MM * JET_RADIUS_MM {
-                        continue;
-                    }
-                    // Coordinates in units of the radius keep the system well scaled.
-                    let (u, v, w) = (
-                        d.dot(u_axis) / JET_RADIUS_MM,
-                        d.dot(v_axis) / JET_RADIUS_MM,
-                        d.dot(normal) / JET_RADIUS_MM,
-                    );
-                    let row = [1.0, u, v, u * u, u * v, v * v];
-                    for i in 0..6 {
-                        rhs[(i, 0)] += row[i] * w;
-                        for j in 0..6 {
-                            normal_matrix[(i, j)] += row[i] * row[j];
-                        }
-                    }
-                    count += 1;
-                }
-            }
-            if count < MIN_JET_POINTS {
-                return normal;
-            }
-            let Ok(cholesky) = normal_matrix.llt(Side::Lower) else {
-                return normal;
-            };
-            let x = cholesky.solve(&rhs);
-            let (slope_u, slope_v) = (x[(1, 0)], x[(2, 0)]);
-            let fitted = (normal - slope_u * u_axis - slope_v * v_axis).normalize_or_zero();
-            if fitted.is_finite() && fitted != DVec3::ZERO {
-                fitted
-            } else {
-                normal
-            }
+            balls.gather(base, vertex, JET_RADIUS_MM, &mut patch);
+            quadric_normal(centre, normal, &patch).unwrap_or(normal)
         })
         .collect()
+}
+
+/// The unit normal at `centre` of the quadric fitted to `patch` in the tangent frame of
+/// `normal` (unit), if the fit is determined.
+fn quadric_normal(centre: DVec3, normal: DVec3, patch: &[DVec3]) -> Option<DVec3> {
+    if patch.len() < MIN_JET_POINTS {
+        return None;
+    }
+    let (u_axis, v_axis) = normal.any_orthonormal_pair();
+    let mut normal_matrix = Mat::<f64>::zeros(6, 6);
+    let mut rhs = Mat::<f64>::zeros(6, 1);
+    for &p in patch {
+        let d = p - centre;
+        // Coordinates in units of the radius keep the system well scaled.
+        let (u, v, w) = (
+            d.dot(u_axis) / JET_RADIUS_MM,
+            d.dot(v_axis) / JET_RADIUS_MM,
+            d.dot(normal) / JET_RADIUS_MM,
+        );
+        let row = [1.0, u, v, u * u, u * v, v * v];
+        for i in 0..6 {
+            rhs[(i, 0)] += row[i] * w;
+            for j in 0..6 {
+                normal_matrix[(i, j)] += row[i] * row[j];
+            }
+        }
+    }
+    let x = normal_matrix.llt(Side::Lower).ok()?.solve(&rhs);
+    let (slope_u, slope_v) = (x[(1, 0)], x[(2, 0)]);
+    let fitted = (normal - slope_u * u_axis - slope_v * v_axis).normalize_or_zero();
+    (fitted.is_finite() && fitted != DVec3::ZERO).then_some(fitted)
+}
+
+/// The base's vertex adjacency, for gathering the vertices that edges join to a vertex
+/// within a ball about it; tolerates triangles with out-of-range indices (skipped).
+struct ConnectedBalls {
+    /// `neighbours[offsets[v]..offsets[v + 1]]` are the vertices sharing an edge with `v`.
+    offsets: Vec<usize>,
+    neighbours: Vec<u32>,
+    /// The gather that last reached each vertex, so no per-gather clearing is needed.
+    reached_by: Vec<usize>,
+    gathers: usize,
+}
+
+impl ConnectedBalls {
+    fn new(base: &TriMesh) -> ConnectedBalls {
+        let n = base.positions.len();
+        let valid = |t: &&[u32; 3]| t.iter().all(|&v| (v as usize) < n);
+        let mut offsets = vec![0usize; n + 1];
+        for triangle in base.triangles.iter().filter(valid) {
+            for &v in triangle {
+                offsets[v as usize + 1] += 2;
+            }
+        }
+        for v in 0..n {
+            offsets[v + 1] += offsets[v];
+        }
+        let mut filled = offsets.clone();
+        let mut neighbours = vec![0u32; offsets[n]];
+        for triangle in base.triangles.iter().filter(valid) {
+            for corner in 0..3 {
+                let v = triangle[corner] as usize;
+                for other in [triangle[(corner + 1) % 3], triangle[(corner + 2) % 3]] {
+                    neighbours[filled[v]] = other;
+                    filled[v] += 1;
+                }
+            }
+        }
+        ConnectedBalls {
+            offsets,
+            neighbours,
+            reached_by: vec![0; n],
+            gathers: 0,
+        }
+    }
+
+    /// Writes into `patch` the positions of the vertices within `radius_mm` of `centre`
+    /// that a path of base edges inside that ball joins to it, `centre` included.
+    fn gather(&mut self, base: &TriMesh, centre: u32, radius_mm: f64, patch: &mut Vec<DVec3>) {
+        self.gathers += 1;
+        patch.clear();
+        let origin = base.positions[centre as usize];
+        let mut queue = vec![centre];
+        self.reached_by[centre as usize] = self.gathers;
+        while let Some(vertex) = queue.pop() {
+            let vertex = vertex as usize;
+            patch.push(base.positions[vertex]);
+            for &next in &self.neighbours[self.offsets[vertex]..self.offsets[vertex + 1]] {
+                let slot = &mut self.reached_by[next as usize];
+                if *slot != self.gathers
+                    && base.positions[next as usize].distance_squared(origin)
+                        <= radius_mm * radius_mm
+                {
+                    *slot = self.gathers;
+                    queue.push(next);
+                }
+            }
+        }
+    }
 }
 
 /// What the base says along the loop.

@@ -311,7 +311,11 @@ fn a_capped_ellipsoid_gets_its_volume_back() {
     );
     assert!(max_deviation < 1.5, "{max_deviation}");
     assert!(cap > 1e4);
-    assert!(error.abs() < 0.03 * cap, "{error} of {cap}");
+    // With the base's normals fitted over 20 mm (exact on the cylinder above) the fill
+    // loses 3.35-3.43% of the cap, the same at icosphere levels 5 and 6: the Hermite
+    // surface's own error on this cap. One-ring normals, which lean by half a facet
+    // angle, had given -0.5% (level 5) and -1.9% (level 6), approaching it.
+    assert!(error.abs() < 0.04 * cap, "{error} of {cap}");
 }
 
 #[test]
@@ -517,4 +521,41 @@ fn orientation_signs_are_exact_for_nearly_collinear_points() {
     }
     assert_eq!(collinear, 64);
     assert!(plain_wrong > 0, "{plain_wrong}");
+}
+
+/// A sheet that is not the base's own (an arm, a fold's far side) 8 mm in front of the
+/// chest at the hole's upper border, tilted 45° to it, stays out of the quadric of the
+/// loop vertices it passes: their normals are the cylinder's radial direction, as
+/// without it. The quadric on 3.7 x 5 mm cells of a 150 mm cylinder is exact to about a
+/// degree; the sheet's points in the ball would tilt it by tens of degrees.
+#[test]
+fn the_base_normal_is_fitted_to_the_loop_vertexs_own_sheet() {
+    let (mut base, hole) = cut_hole(chest(), chest_centre(), |c| {
+        c.distance(chest_centre()) < 60.0
+    });
+    let top = chest_centre() + DVec3::Z * 60.0;
+    let sheet = mesh::shapes::grid(10, 10, 4.0);
+    let offset = base.positions.len() as u32;
+    // The sheet's x runs along y, its y up and outwards at 45° from 8 mm before `top`.
+    base.positions.extend(sheet.positions.iter().map(|p| {
+        let up_and_out = (p.y - 20.0) * std::f64::consts::FRAC_1_SQRT_2;
+        DVec3::new(top.x + 8.0 + up_and_out, p.x - 20.0, top.z + up_and_out)
+    }));
+    base.triangles
+        .extend(sheet.triangles.iter().map(|t| t.map(|v| v + offset)));
+    let one_ring = BaseAlongLoop::gather(&base, &hole).normals;
+    let fitted = jet_normals(&base, &hole, &one_ring);
+    let near_sheet: Vec<usize> = (0..hole.len())
+        .filter(|&k| base.positions[hole[k] as usize].distance(top) < 10.0)
+        .collect();
+    assert!(!near_sheet.is_empty());
+    for k in near_sheet {
+        let position = base.positions[hole[k] as usize];
+        let radial = radial(position).normalize();
+        let angle_deg = fitted[k].dot(radial).clamp(-1.0, 1.0).acos().to_degrees();
+        assert!(
+            angle_deg < 1.0,
+            "loop vertex {k} at {position}: {angle_deg:.2}°"
+        );
+    }
 }
