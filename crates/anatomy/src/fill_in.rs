@@ -20,9 +20,9 @@
 //!    enters and leaves the polygon, take the boundary's height and the slope of the base
 //!    surface in the line's direction, and span a cubic Hermite spline between the two
 //!    ends; a lattice point takes a blend of its row and column spline. The base normals
-//!    the slopes come from are those of a quadric fitted to the base within 20 mm of each
-//!    loop vertex (the vertices joined to it inside that ball), Gaussian-filtered along
-//!    the loop.
+//!    the slopes come from are those of a quadric fitted to the base around each loop
+//!    vertex (the vertices joined to it inside a ball of the hole's scale, 6 to 20 mm),
+//!    Gaussian-filtered along the loop.
 //! 5. Smooth the heights by Laplace-Beltrami steps (cotangent weights), boundary fixed.
 //!
 //! # Deviations from the paper, and why
@@ -52,9 +52,11 @@
 //! - The base normal at a loop vertex is that of a local quadric fit (a "jet") rather
 //!   than of its one ring of triangles: scanner noise tilts single normals by some 8°,
 //!   and on the phantom with 0.3 mm noise the one-ring normals left the two identical
-//!   breasts 3.7% apart in volume, the fitted ones 1%. The fit spans 20 mm, the chest's
-//!   scale, not the rim's: an implant under the curve tilts the skin next to it, and a
-//!   fill-in rebuilt after a simulation rose with that tilt (docs/dev/model-on-every-body.md).
+//!   breasts 3.7% apart in volume, the fitted ones (over 6 mm) 1%. Behind a breast the
+//!   fit spans 20 mm, the chest's scale, not the rim's: an implant under the curve tilts
+//!   the skin next to it, and a fill-in rebuilt after a simulation rose with that tilt
+//!   (docs/dev/model-on-every-body.md). A small scanner hole is fitted at its own scale,
+//!   the radius of a circle of its length (at least 6 mm).
 //! - The Gaussian filter acts on those normals along the loop (by arc length) rather than
 //!   on each family of row and column tangents: both tangents come from the same smoothed
 //!   normal, and the filter width does not depend on the lattice spacing.
@@ -98,7 +100,7 @@ mod triangulate;
 
 pub(crate) use triangulate::inside_polygon;
 
-use base::{BaseAlongLoop, jet_normals};
+use base::{BaseAlongLoop, jet_normals, jet_radius_mm};
 use boundary::Boundary;
 use frame::Frame;
 use glam::{DVec2, DVec3};
@@ -204,7 +206,13 @@ pub fn fill_hole(
     params.check()?;
     let spacing = params.lattice_spacing(&loop_positions);
     let mut base_side = BaseAlongLoop::gather(base, boundary_loop);
-    base_side.normals = jet_normals(base, boundary_loop, &base_side.normals);
+    let perimeter_mm: f64 = edge_lengths(&loop_positions).iter().sum();
+    base_side.normals = jet_normals(
+        base,
+        boundary_loop,
+        &base_side.normals,
+        jet_radius_mm(perimeter_mm),
+    );
     let project = |frame: &Frame| -> Result<Boundary, FillInError> {
         let boundary = Boundary::project(
             frame,

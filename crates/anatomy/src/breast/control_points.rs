@@ -324,7 +324,7 @@ fn point_along(path: &SurfacePath, fraction: f64) -> DVec3 {
 mod tests {
     use super::*;
     use crate::frame::UpSource;
-    use glam::{DMat3, DVec2};
+    use glam::DMat3;
     use mesh::{SurfaceIndex, Topology, TriMesh};
 
     /// A grid of 2 mm squares over x in [-130, 130] mm, y in [-100, 100] mm, at
@@ -424,9 +424,10 @@ mod tests {
     /// A flat chest with a lump (a paraboloid cap 30 mm high, 15 mm in radius) where the
     /// lateral point's target lies: the point is the chest's nearest point to the target
     /// at its neighbours' depth (z = 0), on the lump's foot, not its top 30 mm in front,
-    /// where a point seen from the front would land. The nearest point of the cap
-    /// `z = 30 (1 - r²/225)` to its centre's foot solves `r² + 900 (1 - r²/225)²` least:
-    /// r² = 225 (1 - 225/1800) = 196.9, z = 3.75 mm.
+    /// where a point seen from the front would land. The distance from the cap
+    /// `z = 30 (1 - r²/225)` to its centre's foot is least at r² = 225 (1 - 225/1800)
+    /// (z = 3.75 mm), 14.52 mm. The grid's facets lie under the cap by at most the
+    /// interpolation error of its curvature over 2 mm legs, (2/15)·2 = 0.27 mm: bound 0.3.
     #[test]
     fn a_lateral_point_lies_at_its_neighbours_depth() {
         // Upper point (0, 60) and lateral end (60, 0) from the nipple at the origin:
@@ -442,10 +443,12 @@ mod tests {
             DVec3::new(0.0, 60.0, 0.0),
             DVec3::new(60.0, 0.0, 0.0),
         );
-        // The grid's 2 mm facets of the cap stand within 0.2 mm of the paraboloid.
-        assert!((point.z - 3.75).abs() < 0.3, "{point}");
-        let radius = DVec2::new(point.x - centre, point.y - centre).length();
-        assert!((radius - 196.9f64.sqrt()).abs() < 0.3, "{point}");
+        let target = DVec3::new(centre, centre, 0.0);
+        let least_mm = (225.0 * (1.0 - 225.0 / 1800.0) + 3.75f64.powi(2)).sqrt();
+        let distance_mm = point.distance(target);
+        println!("{point}: {distance_mm:.3} mm from the target (cap: {least_mm:.3} mm)");
+        assert!((distance_mm - least_mm).abs() < 0.3, "{point}");
+        assert!(point.z < 5.0, "{point}");
     }
 
     /// A PSMFml marked at the nipple's height is named, a usual PSMFmr (30 mm below the

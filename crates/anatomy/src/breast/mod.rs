@@ -384,10 +384,10 @@ pub fn build_breast_model(
     let closed_scan = close_scan_holes(scan, topology, &hole_params);
     let closed_topology =
         (!closed_scan.closed.is_empty()).then(|| Topology::new(&closed_scan.mesh));
-    // Control points are put on the surface by rays and nearest points: over a hole
-    // the scan's own index would let a ray through to the back of the torso, so the
-    // closed scan gets its own. It starts with the scan's triangles, so points located
-    // on the scan stay valid on it.
+    // Control points are put on the surface as nearest points and on-surface lines:
+    // over a hole the scan's own index would put them on the hole's rim or the back of
+    // the torso, so the closed scan gets its own. It starts with the scan's triangles, so
+    // points located on the scan stay valid on it.
     let closed_index = closed_topology
         .is_some()
         .then(|| SurfaceIndex::new(&closed_scan.mesh))

@@ -11,43 +11,59 @@ use mesh::TriMesh;
 /// The Gaussian filter along the loop ignores vertices beyond this many sigmas.
 const GAUSSIAN_CUTOFF_SIGMAS: f64 = 3.0;
 
-/// Radius (mm) of the base patch whose fitted quadric gives the base's normal at a loop
-/// vertex: the chest's scale over a breast-sized hole, so the normal follows the chest's
-/// curvature (which the quadric fits) and not the tilt of the last few millimetres of
-/// skin next to the loop, which an implant under the curve lifts; a scanner's noise
-/// averages out over the patch's hundreds of vertices.
-const JET_RADIUS_MM: f64 = 20.0;
+/// Largest radius (mm) of the base patch whose fitted quadric gives the base's normal at a
+/// loop vertex: the chest's scale over a breast-sized hole, so the normal follows the
+/// chest's curvature (which the quadric fits) and not the tilt of the last few
+/// millimetres of skin next to the loop, which an implant under the curve lifts.
+const MAX_JET_RADIUS_MM: f64 = 20.0;
+
+/// Smallest patch radius (mm): some 20 scan vertices on the base side of 2 mm triangles,
+/// enough for a scanner's noise (8° on a single normal) to average out.
+const MIN_JET_RADIUS_MM: f64 = 6.0;
 
 /// A quadric fit needs at least this many points (it has six unknowns).
 const MIN_JET_POINTS: usize = 10;
 
+/// The patch radius for a hole whose loop is `perimeter_mm` long: the radius of a circle
+/// of that perimeter, the hole's own scale, within [`MIN_JET_RADIUS_MM`] and
+/// [`MAX_JET_RADIUS_MM`]; a small scanner hole in a crease or by the areola is not fitted
+/// over the crease's far wall or the nipple.
+pub(super) fn jet_radius_mm(perimeter_mm: f64) -> f64 {
+    (perimeter_mm / std::f64::consts::TAU).clamp(MIN_JET_RADIUS_MM, MAX_JET_RADIUS_MM)
+}
+
 /// The base's normal at each loop vertex (`boundary_loop[k]`) from a least-squares quadric
 /// `w = a + b·u + c·v + d·u² + e·u·v + f·v²` fitted to the base vertices within
-/// [`JET_RADIUS_MM`] that base edges join to the loop vertex inside that ball (not another
+/// `radius_mm` that base edges join to the loop vertex inside that ball (not another
 /// sheet of the scan the ball reaches: an arm, a fold's far side), in the tangent frame of
 /// its one-ring normal `normals[k]`: the normal of the quadric at the vertex, `(-b, -c, 1)`.
 /// Where too few points or a singular fit, the one-ring normal stays.
-pub(super) fn jet_normals(base: &TriMesh, boundary_loop: &[u32], normals: &[DVec3]) -> Vec<DVec3> {
+pub(super) fn jet_normals(
+    base: &TriMesh,
+    boundary_loop: &[u32],
+    normals: &[DVec3],
+    radius_mm: f64,
+) -> Vec<DVec3> {
     let mut balls = ConnectedBalls::new(base);
     let mut patch = Vec::new();
     boundary_loop
         .iter()
         .zip(normals)
         .map(|(&vertex, &normal)| {
-            let (Some(normal), Some(&centre)) =
-                (normal.try_normalize(), base.positions.get(vertex as usize))
-            else {
+            let Some(normal) = normal.try_normalize() else {
                 return normal;
             };
-            balls.gather(base, vertex, JET_RADIUS_MM, &mut patch);
-            quadric_normal(centre, normal, &patch).unwrap_or(normal)
+            let Some(centre) = balls.gather(vertex, radius_mm, &mut patch) else {
+                return normal;
+            };
+            quadric_normal(centre, normal, &patch, radius_mm).unwrap_or(normal)
         })
         .collect()
 }
 
 /// The unit normal at `centre` of the quadric fitted to `patch` in the tangent frame of
 /// `normal` (unit), if the fit is determined.
-fn quadric_normal(centre: DVec3, normal: DVec3, patch: &[DVec3]) -> Option<DVec3> {
+fn quadric_normal(centre: DVec3, normal: DVec3, patch: &[DVec3], radius_mm: f64) -> Option<DVec3> {
     if patch.len() < MIN_JET_POINTS {
         return None;
     }
@@ -58,9 +74,9 @@ fn quadric_normal(centre: DVec3, normal: DVec3, patch: &[DVec3]) -> Option<DVec3
         let d = p - centre;
         // Coordinates in units of the radius keep the system well scaled.
         let (u, v, w) = (
-            d.dot(u_axis) / JET_RADIUS_MM,
-            d.dot(v_axis) / JET_RADIUS_MM,
-            d.dot(normal) / JET_RADIUS_MM,
+            d.dot(u_axis) / radius_mm,
+            d.dot(v_axis) / radius_mm,
+            d.dot(normal) / radius_mm,
         );
         let row = [1.0, u, v, u * u, u * v, v * v];
         for i in 0..6 {
@@ -76,23 +92,26 @@ fn quadric_normal(centre: DVec3, normal: DVec3, patch: &[DVec3]) -> Option<DVec3
     (fitted.is_finite() && fitted != DVec3::ZERO).then_some(fitted)
 }
 
-/// The base's vertex adjacency, for gathering the vertices that edges join to a vertex
-/// within a ball about it; tolerates triangles with out-of-range indices (skipped).
-struct ConnectedBalls {
+/// A mesh's vertex adjacency, for gathering the vertices that edges join to a vertex
+/// within a ball about it; triangles with out-of-range indices are left out.
+pub(super) struct ConnectedBalls<'a> {
+    mesh: &'a TriMesh,
     /// `neighbours[offsets[v]..offsets[v + 1]]` are the vertices sharing an edge with `v`.
     offsets: Vec<usize>,
     neighbours: Vec<u32>,
     /// The gather that last reached each vertex, so no per-gather clearing is needed.
     reached_by: Vec<usize>,
     gathers: usize,
+    /// Vertices reached and not yet expanded (reused between gathers).
+    pending: Vec<u32>,
 }
 
-impl ConnectedBalls {
-    fn new(base: &TriMesh) -> ConnectedBalls {
-        let n = base.positions.len();
+impl<'a> ConnectedBalls<'a> {
+    pub(super) fn new(mesh: &'a TriMesh) -> ConnectedBalls<'a> {
+        let n = mesh.positions.len();
         let valid = |t: &&[u32; 3]| t.iter().all(|&v| (v as usize) < n);
         let mut offsets = vec![0usize; n + 1];
-        for triangle in base.triangles.iter().filter(valid) {
+        for triangle in mesh.triangles.iter().filter(valid) {
             for &v in triangle {
                 offsets[v as usize + 1] += 2;
             }
@@ -102,7 +121,7 @@ impl ConnectedBalls {
         }
         let mut filled = offsets.clone();
         let mut neighbours = vec![0u32; offsets[n]];
-        for triangle in base.triangles.iter().filter(valid) {
+        for triangle in mesh.triangles.iter().filter(valid) {
             for corner in 0..3 {
                 let v = triangle[corner] as usize;
                 for other in [triangle[(corner + 1) % 3], triangle[(corner + 2) % 3]] {
@@ -112,35 +131,45 @@ impl ConnectedBalls {
             }
         }
         ConnectedBalls {
+            mesh,
             offsets,
             neighbours,
             reached_by: vec![0; n],
             gathers: 0,
+            pending: Vec::new(),
         }
     }
 
-    /// Writes into `patch` the positions of the vertices within `radius_mm` of `centre`
-    /// that a path of base edges inside that ball joins to it, `centre` included.
-    fn gather(&mut self, base: &TriMesh, centre: u32, radius_mm: f64, patch: &mut Vec<DVec3>) {
-        self.gathers += 1;
+    /// Writes into `patch` the positions of the vertices within `radius_mm` of vertex
+    /// `centre` that a path of edges inside that ball joins to it, `centre` included, and
+    /// returns `centre`'s position; `None` (and `patch` empty) if there is no such vertex.
+    pub(super) fn gather(
+        &mut self,
+        centre: u32,
+        radius_mm: f64,
+        patch: &mut Vec<DVec3>,
+    ) -> Option<DVec3> {
         patch.clear();
-        let origin = base.positions[centre as usize];
-        let mut queue = vec![centre];
+        let origin = *self.mesh.positions.get(centre as usize)?;
+        self.gathers += 1;
+        self.pending.clear();
+        self.pending.push(centre);
         self.reached_by[centre as usize] = self.gathers;
-        while let Some(vertex) = queue.pop() {
+        while let Some(vertex) = self.pending.pop() {
             let vertex = vertex as usize;
-            patch.push(base.positions[vertex]);
+            patch.push(self.mesh.positions[vertex]);
             for &next in &self.neighbours[self.offsets[vertex]..self.offsets[vertex + 1]] {
-                let slot = &mut self.reached_by[next as usize];
-                if *slot != self.gathers
-                    && base.positions[next as usize].distance_squared(origin)
-                        <= radius_mm * radius_mm
+                let reached = &mut self.reached_by[next as usize];
+                let position = self.mesh.positions[next as usize];
+                if *reached != self.gathers
+                    && position.distance_squared(origin) <= radius_mm * radius_mm
                 {
-                    *slot = self.gathers;
-                    queue.push(next);
+                    *reached = self.gathers;
+                    self.pending.push(next);
                 }
             }
         }
+        Some(origin)
     }
 }
 

@@ -524,15 +524,18 @@ fn orientation_signs_are_exact_for_nearly_collinear_points() {
 }
 
 /// A sheet that is not the base's own (an arm, a fold's far side) 8 mm in front of the
-/// chest at the hole's upper border, tilted 45° to it, stays out of the quadric of the
-/// loop vertices it passes: their normals are the cylinder's radial direction, as
-/// without it. The quadric on 3.7 x 5 mm cells of a 150 mm cylinder is exact to about a
-/// degree; the sheet's points in the ball would tilt it by tens of degrees.
+/// chest at the hole's upper border, tilted 45° to it, stays out of the patch of the loop
+/// vertices it passes: their patches are the same with and without it, and their normals
+/// the cylinder's radial direction. The quadric reproduces the cylinder, whose vertices
+/// lie on it exactly, far within 0.1°; the one-ring normals lean by up to half the
+/// facets' 1.4° angle, and the sheet's points in the ball would tilt the fit by tens of
+/// degrees.
 #[test]
 fn the_base_normal_is_fitted_to_the_loop_vertexs_own_sheet() {
-    let (mut base, hole) = cut_hole(chest(), chest_centre(), |c| {
+    let (plain, hole) = cut_hole(chest(), chest_centre(), |c| {
         c.distance(chest_centre()) < 60.0
     });
+    let mut base = plain.clone();
     let top = chest_centre() + DVec3::Z * 60.0;
     let sheet = mesh::shapes::grid(10, 10, 4.0);
     let offset = base.positions.len() as u32;
@@ -543,19 +546,45 @@ fn the_base_normal_is_fitted_to_the_loop_vertexs_own_sheet() {
     }));
     base.triangles
         .extend(sheet.triangles.iter().map(|t| t.map(|v| v + offset)));
+    let perimeter_mm: f64 = edge_lengths(&loop_positions(&base, &hole).unwrap())
+        .iter()
+        .sum();
+    let radius_mm = base::jet_radius_mm(perimeter_mm);
+    assert_eq!(radius_mm, 20.0);
     let one_ring = BaseAlongLoop::gather(&base, &hole).normals;
-    let fitted = jet_normals(&base, &hole, &one_ring);
+    let fitted = jet_normals(&base, &hole, &one_ring, radius_mm);
     let near_sheet: Vec<usize> = (0..hole.len())
         .filter(|&k| base.positions[hole[k] as usize].distance(top) < 10.0)
         .collect();
     assert!(!near_sheet.is_empty());
+    let (mut with_sheet, mut without) = (
+        base::ConnectedBalls::new(&base),
+        base::ConnectedBalls::new(&plain),
+    );
+    let (mut patch, mut plain_patch) = (Vec::new(), Vec::new());
     for k in near_sheet {
+        with_sheet.gather(hole[k], radius_mm, &mut patch).unwrap();
+        without
+            .gather(hole[k], radius_mm, &mut plain_patch)
+            .unwrap();
+        // A half-disc of 20 mm on 3.7 x 5 mm cells: some 40 vertices.
+        assert!(patch.len() >= 30, "{}", patch.len());
+        assert_eq!(patch, plain_patch);
         let position = base.positions[hole[k] as usize];
         let radial = radial(position).normalize();
         let angle_deg = fitted[k].dot(radial).clamp(-1.0, 1.0).acos().to_degrees();
         assert!(
-            angle_deg < 1.0,
-            "loop vertex {k} at {position}: {angle_deg:.2}°"
+            angle_deg < 0.1,
+            "loop vertex {k} at {position}: {angle_deg:.3}°"
         );
     }
+}
+
+/// The patch radius is the radius of a circle of the hole's length, within 6 and 20 mm.
+#[test]
+fn the_patch_radius_follows_the_holes_length() {
+    let circle = |radius_mm: f64| std::f64::consts::TAU * radius_mm;
+    assert_eq!(base::jet_radius_mm(circle(2.0)), 6.0);
+    assert!((base::jet_radius_mm(circle(12.5)) - 12.5).abs() < 1e-12);
+    assert_eq!(base::jet_radius_mm(circle(70.0)), 20.0);
 }
