@@ -79,6 +79,7 @@ pub use clip_box::{ClipBox, ClipBoxFit};
 
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::Landmarks;
+use crate::place::Place;
 use clip::ClippedPart;
 use clip_box::{lateral_room, upright_box};
 use glam::DVec3;
@@ -250,6 +251,19 @@ pub enum ClosedSurfaceError {
         what: &'static str,
         near_mm: [f64; 3],
     },
+}
+
+impl ClosedSurfaceError {
+    /// Where on the body the problem lies (mm, the scan's file coordinates), for the
+    /// errors that have a place.
+    pub fn place(&self) -> Option<Place> {
+        match self {
+            ClosedSurfaceError::HoleInsideBox { center_mm, .. } => Some(Place::at(*center_mm)),
+            ClosedSurfaceError::RunsOffBorder { near_mm, .. }
+            | ClosedSurfaceError::SelfIntersecting { near_mm, .. } => Some(Place::at(*near_mm)),
+            _ => None,
+        }
+    }
 }
 
 /// A closed, outward-oriented surface around the breast region.

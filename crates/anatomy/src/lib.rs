@@ -9,6 +9,7 @@ pub mod fill_in;
 pub mod frame;
 pub mod landmarks;
 pub mod measure;
+pub mod place;
 pub mod register;
 pub mod scan_holes;
 mod wall_clearance;

@@ -25,6 +25,7 @@ use anatomy::measure::clinical_distances;
 use eframe::egui::{self, Color32, Key, Rect};
 use eframe::egui_wgpu;
 use glam::{DMat3, DVec3};
+use plan::Place;
 use plan::case::PlanningCase;
 use plan::catalog::Catalog;
 use std::path::{Path, PathBuf};
@@ -83,6 +84,8 @@ pub struct GuiApp {
     catalog: Catalog,
     build: Option<ModelBuild>,
     model: Option<ModelFigures>,
+    /// Where the last build's failure lies on the scan, if its error names a place.
+    failure_place: Option<Place>,
     live: Option<LiveSimulation>,
     implants: ImplantPlan,
     /// Why the implants cannot be simulated as edited (bad custom dimensions).
@@ -132,6 +135,7 @@ impl GuiApp {
             catalog: Catalog::builtin(),
             build: None,
             model: None,
+            failure_place: None,
             live: None,
             implants: ImplantPlan::default(),
             implant_error: None,
@@ -240,7 +244,7 @@ impl GuiApp {
     }
 
     fn error_status(&mut self, error: &anyhow::Error) {
-        self.status = Status::Error(format!("{error:#}"));
+        self.status = Status::Error(plan::one_line(error));
     }
 
     /// Shows a new scan: frames it from the front, restarts the distance worker and
@@ -248,6 +252,7 @@ impl GuiApp {
     fn set_document(&mut self, document: Document) {
         self.cancel_build();
         self.model = None;
+        self.failure_place = None;
         self.live = None;
         self.settings.control_points = None;
         self.control_points_edited = false;

@@ -699,3 +699,79 @@ fn harness_with_case(path: &std::path::Path) -> Harness<'static, GuiApp> {
     assert!(harness.state().is_building());
     harness
 }
+
+/// A build that fails at a place rings it on the scan, and the next build that succeeds
+/// takes the ring away. The failure is provoked: the left fold's lowest landmark (PSMFl)
+/// moved onto the scan's lower border, so the cut curve leaves the scan there. Independent
+/// check: the ring's centre lies on the scan's border (1 µm: a point of a border edge).
+#[test]
+fn a_failed_build_rings_the_place_it_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let phantom = phantom::generate(&PhantomParams::default());
+    let scan = &phantom.scan;
+    let border = mesh::Topology::new(scan)
+        .boundary_loops(scan)
+        .into_iter()
+        .max_by_key(|ring| ring.len())
+        .unwrap();
+    let fold = phantom.landmarks.get(anatomy::LandmarkName::PSMFl);
+    let below = (border.iter())
+        .map(|&v| scan.positions[v as usize])
+        .filter(|p| p.y < fold.y - 50.0)
+        .min_by(|a, b| (a.x - fold.x).abs().total_cmp(&(b.x - fold.x).abs()))
+        .unwrap();
+    let mut moved = phantom.landmarks.clone();
+    moved.set(anatomy::LandmarkName::PSMFl, below);
+    let (moved_path, original_path) = (
+        dir.path().join("moved.json"),
+        dir.path().join("phantom.json"),
+    );
+    moved.write(&moved_path, Default::default()).unwrap();
+    (phantom.landmarks)
+        .write(&original_path, Default::default())
+        .unwrap();
+
+    let mut harness = harness();
+    harness.step();
+    click(&mut harness, "File");
+    click(&mut harness, "Phantom with its landmarks");
+    set_slider(&mut harness, "Elements", ELEMENTS);
+    harness.state_mut().open(&moved_path);
+    click(&mut harness, "Build model");
+    let start = Instant::now();
+    while harness.state().is_building() {
+        assert!(start.elapsed() < PATIENCE, "the build did not end");
+        harness.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    harness.step();
+    let error = harness
+        .state()
+        .error()
+        .expect("the build failed")
+        .to_string();
+    assert!(
+        error.contains("the curve leaves the scan at its border"),
+        "{error}"
+    );
+    // said once (the breast's message carries the curve's, then its advice)
+    assert_eq!(error.matches("leaves the scan").count(), 1, "{error}");
+    let place = harness.state().overlay().failure.expect("a ringed place");
+    let to_border_mm = (0..border.len())
+        .map(|k| {
+            let a = scan.positions[border[k] as usize];
+            let b = scan.positions[border[(k + 1) % border.len()] as usize];
+            let t = ((place.centre() - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+            place.centre().distance(a + t * (b - a))
+        })
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        to_border_mm < 1e-3,
+        "ringed {to_border_mm} mm from the border"
+    );
+
+    harness.state_mut().open(&original_path);
+    click(&mut harness, "Build model");
+    wait_until(&mut harness, "a model", |app| app.model().is_some());
+    assert_eq!(harness.state().overlay().failure, None);
+}

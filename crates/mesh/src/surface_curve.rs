@@ -146,6 +146,21 @@ pub enum CurveError {
     SelfCrossing { position: [f64; 3] },
 }
 
+impl CurveError {
+    /// Where on the surface the curve failed (mm, the mesh's coordinates), for the errors
+    /// that have a place.
+    pub fn position(&self) -> Option<[f64; 3]> {
+        match self {
+            CurveError::LeavesMesh { position }
+            | CurveError::DegenerateTriangle { position, .. }
+            | CurveError::NoProgress { position, .. }
+            | CurveError::SelfCrossing { position } => Some(*position),
+            CurveError::NotClosed { last, .. } => Some(*last),
+            _ => None,
+        }
+    }
+}
+
 impl CurveLocation {
     /// The location of the point with barycentric coordinates `barycentric` in `triangle`,
     /// moved onto the edge or vertex it lies within [`SNAP_TOLERANCE`] of. Coordinates

@@ -9,6 +9,7 @@ pub mod catalog;
 mod checksum;
 pub mod compare;
 pub mod demo;
+mod failure_place;
 pub mod fem_solve;
 pub mod measure;
 pub mod model;
@@ -24,6 +25,7 @@ pub mod views;
 
 pub use anatomy::measure::Distance;
 pub use anatomy::{Up, UpSource};
+pub use failure_place::{Place, failure_place};
 pub use mesh::LengthUnit;
 pub use phantom::{Cup, PhantomParams};
 pub use scan::{MarkedScan, Scan, UpRecord, UpSourceName};
@@ -37,13 +39,14 @@ pub fn write_json(path: &std::path::Path, value: &impl serde::Serialize) -> anyh
     Ok(())
 }
 
-/// The error and its causes on one line, outermost first. A cause whose message the
-/// previous one already ends with (errors that print their source) is not repeated.
+/// The error and its causes on one line, outermost first. A cause whose message the line
+/// already holds (errors that print their source, some followed by advice) is not
+/// repeated.
 pub fn one_line(error: &anyhow::Error) -> String {
     let mut line = String::new();
     for cause in error.chain() {
         let message = cause.to_string();
-        if line.ends_with(&message) {
+        if line.contains(&message) {
             continue;
         }
         if !line.is_empty() {

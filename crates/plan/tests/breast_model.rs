@@ -522,6 +522,32 @@ fn a_breast_reconstructed_beyond_the_limit_is_an_error() {
     assert!((reconstructed_area_mm2 - hole_area).abs() < 0.15 * hole_area);
     assert!(area_mm2 > 10.0 * hole_area);
     assert!(error.to_string().contains("was not seen by the scanner"));
+    // The place shown is the hole: seen from the front, its centre lies at the hole's
+    // (within 4 mm: the fill-in spreads its vertices evenly over the skin, and a hole
+    // round seen from the front is tilted on the breast, so their mean leans towards the
+    // steeper side; 2.2 mm here) and its radius is the hole's 20 mm, lengthened by the
+    // breast's slope there (within 20-30 mm; 27 mm here).
+    let place = error.place().expect("the unseen skin has a place");
+    let hole_centre = phantom.landmarks.get(LandmarkName::Pnr) + 35.0 * DVec3::Y;
+    let off_mm = place.centre().truncate().distance(hole_centre.truncate());
+    println!(
+        "ringed {off_mm:.2} mm from the hole's centre, radius {:.1} mm",
+        place.radius_mm
+    );
+    assert!(off_mm < 4.0, "{off_mm} mm");
+    assert!((20.0..30.0).contains(&place.radius_mm), "{place:?}");
+}
+
+/// The distance (mm) from `point` to the closed polyline through `mesh`'s vertices `ring`.
+fn distance_to_loop(mesh: &TriMesh, ring: &[u32], point: DVec3) -> f64 {
+    (0..ring.len())
+        .map(|k| {
+            let a = mesh.positions[ring[k] as usize];
+            let b = mesh.positions[ring[(k + 1) % ring.len()] as usize];
+            let t = ((point - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+            point.distance(a + t * (b - a))
+        })
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// The area (mm²) `holed` lacks against `full`.
@@ -568,6 +594,12 @@ fn a_curve_across_the_scan_border_is_an_error() {
         ),
         "{error:?}"
     );
+    // The place shown lies on the scan's border, where the curve meets it (1 µm: it is
+    // a point of a border edge, up to rounding).
+    let place = error.place().expect("a curve on the border has a place");
+    let to_border_mm = distance_to_loop(scan, &border, place.centre());
+    println!("ringed {to_border_mm:.2e} mm from the border");
+    assert!(to_border_mm < 1e-3, "{to_border_mm} mm");
     // Farther out, the control point itself is off the scan.
     points.left[1] = below - 40.0 * DVec3::Y;
     let error = build(scan, &phantom.landmarks, &with_points(points)).unwrap_err();

@@ -41,6 +41,7 @@ use crate::fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks, MAX_SNAP_DISTANCE_MM};
 use crate::measure::{MeasuredSurface, mean_normal_near};
+use crate::place::Place;
 use crate::scan_holes::{ClosedHole, OpenHole, close_scan_holes, loop_length};
 use glam::DVec3;
 use mesh::{
@@ -340,27 +341,65 @@ pub enum BreastError {
         reconstructed_area_mm2: f64,
         area_mm2: f64,
         max_share: f64,
+        /// Around the unseen skin.
+        place: Option<Place>,
     },
     #[error("{side} breast: the fill-in behind the breast failed: {source}")]
     FillIn {
         side: Side,
         #[source]
         source: FillInError,
+        /// Around the cut curve.
+        place: Option<Place>,
     },
     #[error(
         "{side} breast: the breast surface is not closed ({open_edges} open edges): a scanner hole inside the breast could not be filled; rescan or move the cut curve"
     )]
-    BreastOpen { side: Side, open_edges: usize },
+    BreastOpen {
+        side: Side,
+        open_edges: usize,
+        /// Around the open edges.
+        place: Option<Place>,
+    },
     #[error(
         "{side} breast: the closed breast surface encloses {volume_ml:.1} ml; the cut curve does not enclose the breast"
     )]
-    NotEnclosed { side: Side, volume_ml: f64 },
+    NotEnclosed {
+        side: Side,
+        volume_ml: f64,
+        /// Around the cut curve.
+        place: Option<Place>,
+    },
     #[error("{side} breast: quadrants: {source}")]
     Quadrants {
         side: Side,
         #[source]
         source: QuadrantError,
+        /// The nipple the quadrant lines run from.
+        place: Place,
     },
+}
+
+impl BreastError {
+    /// Where on the body the problem lies (mm, the scan's file coordinates), for the
+    /// errors that have a place: `None` for invalid options and files.
+    pub fn place(&self) -> Option<Place> {
+        match self {
+            BreastError::ControlPointOffSurface { position, .. }
+            | BreastError::CurveOnBorder { position, .. }
+            | BreastError::CurvesTouch { position } => Some(Place::at(*position)),
+            BreastError::Curve { source, .. } => source.position().map(Place::at),
+            BreastError::Cut(
+                CutError::Triangulation { position, .. } | CutError::LabelConflict { position },
+            ) => Some(Place::at(*position)),
+            BreastError::MostlyUnscanned { place, .. }
+            | BreastError::FillIn { place, .. }
+            | BreastError::BreastOpen { place, .. }
+            | BreastError::NotEnclosed { place, .. } => *place,
+            BreastError::Quadrants { place, .. } => Some(*place),
+            _ => None,
+        }
+    }
 }
 
 /// Builds both breasts and the rear wall from a scan (mm) with its topology and spatial
@@ -433,68 +472,101 @@ pub fn build_breast_model(
         cylinder_axis: options.fill_in.cylinder_axis.or(Some(frame.up())),
         ..options.fill_in
     };
-    let breast = |side: Side, control_points: Vec<DVec3>, curve: SurfaceCurve| {
-        let curve_index = side as usize;
-        let cut_loop = &cut_mesh.loops[curve_index];
-        let base_loop: Vec<u32> = cut_loop.iter().map(|&v| to_base[v as usize]).collect();
-        if let Some(k) = base_loop.iter().position(|&v| v == NOT_IN_PART) {
-            let position = cut_mesh.mesh.positions[cut_loop[k] as usize].to_array();
-            return Err(BreastError::CurveOnBorder { side, position });
-        }
-        let fill = fill_hole(&base.mesh, &base_loop, &fill_params)
-            .map_err(|source| BreastError::FillIn { side, source })?;
-        let patch = cut_mesh.part(Region::Inside(curve_index));
-        let to_patch = inverse_map(&patch.vertex_map, cut_mesh.mesh.vertex_count());
-        if let Some(&v) = cut_loop
-            .iter()
-            .find(|&&v| to_patch[v as usize] == NOT_IN_PART)
-        {
-            let position = cut_mesh.mesh.positions[v as usize].to_array();
-            return Err(BreastError::CurveOnBorder { side, position });
-        }
-        let reconstructed = reconstructed_part(
-            &patch.mesh,
-            reconstructed_triangles(
-                &cut_mesh,
-                Region::Inside(curve_index),
-                scan.triangle_count(),
-                closed_scan.mesh.triangle_count(),
-                closed_index.as_ref(),
-            ),
-        );
-        if reconstructed.area_share > options.max_reconstructed_share {
-            return Err(BreastError::MostlyUnscanned {
+    let breast =
+        |side: Side, control_points: Vec<DVec3>, curve: SurfaceCurve| {
+            let curve_index = side as usize;
+            let cut_loop = &cut_mesh.loops[curve_index];
+            let base_loop: Vec<u32> = cut_loop.iter().map(|&v| to_base[v as usize]).collect();
+            if let Some(k) = base_loop.iter().position(|&v| v == NOT_IN_PART) {
+                let position = cut_mesh.mesh.positions[cut_loop[k] as usize].to_array();
+                return Err(BreastError::CurveOnBorder { side, position });
+            }
+            // Around the cut curve: where the errors of a breast as a whole are shown.
+            let curve_place = || {
+                let points: Vec<DVec3> = (cut_loop.iter())
+                    .map(|&v| cut_mesh.mesh.positions[v as usize])
+                    .collect();
+                Place::around(&points)
+            };
+            let fill = fill_hole(&base.mesh, &base_loop, &fill_params).map_err(|source| {
+                BreastError::FillIn {
+                    side,
+                    source,
+                    place: curve_place(),
+                }
+            })?;
+            let patch = cut_mesh.part(Region::Inside(curve_index));
+            let to_patch = inverse_map(&patch.vertex_map, cut_mesh.mesh.vertex_count());
+            if let Some(&v) = cut_loop
+                .iter()
+                .find(|&&v| to_patch[v as usize] == NOT_IN_PART)
+            {
+                let position = cut_mesh.mesh.positions[v as usize].to_array();
+                return Err(BreastError::CurveOnBorder { side, position });
+            }
+            let reconstructed = reconstructed_part(
+                &patch.mesh,
+                reconstructed_triangles(
+                    &cut_mesh,
+                    Region::Inside(curve_index),
+                    scan.triangle_count(),
+                    closed_scan.mesh.triangle_count(),
+                    closed_index.as_ref(),
+                ),
+            );
+            if reconstructed.area_share > options.max_reconstructed_share {
+                return Err(BreastError::MostlyUnscanned {
+                    side,
+                    reconstructed_area_mm2: reconstructed.area_mm2,
+                    area_mm2: patch.mesh.area(),
+                    max_share: options.max_reconstructed_share,
+                    place: Place::around(&flagged_positions(
+                        &patch.mesh.positions,
+                        &reconstructed.vertex_flags,
+                    )),
+                });
+            }
+            let closed = close_patch(&patch.mesh, &fill, cut_loop, &to_patch);
+            let closed_topology = Topology::new(&closed);
+            let open_edges = closed_topology.boundary_edge_count;
+            if open_edges > 0 {
+                let open: Vec<DVec3> = (closed_topology.boundary_loops(&closed).iter().flatten())
+                    .map(|&v| closed.positions[v as usize])
+                    .collect();
+                return Err(BreastError::BreastOpen {
+                    side,
+                    open_edges,
+                    place: Place::around(&open),
+                });
+            }
+            let volume_ml = closed.signed_volume() / 1000.0;
+            let encloses = volume_ml > 0.0;
+            if !encloses {
+                return Err(BreastError::NotEnclosed {
+                    side,
+                    volume_ml,
+                    place: curve_place(),
+                });
+            }
+            let lines = QuadrantLines::of_breast(side, landmarks);
+            let quadrant_volume_ml = quadrant_volumes_ml(&closed, &lines, frame.anterior())
+                .map_err(|source| BreastError::Quadrants {
+                    side,
+                    source,
+                    place: Place::at(lines.nipple.to_array()),
+                })?;
+            Ok(Breast {
                 side,
-                reconstructed_area_mm2: reconstructed.area_mm2,
-                area_mm2: patch.mesh.area(),
-                max_share: options.max_reconstructed_share,
-            });
-        }
-        let closed = close_patch(&patch.mesh, &fill, cut_loop, &to_patch);
-        let open_edges = Topology::new(&closed).boundary_edge_count;
-        if open_edges > 0 {
-            return Err(BreastError::BreastOpen { side, open_edges });
-        }
-        let volume_ml = closed.signed_volume() / 1000.0;
-        let encloses = volume_ml > 0.0;
-        if !encloses {
-            return Err(BreastError::NotEnclosed { side, volume_ml });
-        }
-        let lines = QuadrantLines::of_breast(side, landmarks);
-        let quadrant_volume_ml = quadrant_volumes_ml(&closed, &lines, frame.anterior())
-            .map_err(|source| BreastError::Quadrants { side, source })?;
-        Ok(Breast {
-            side,
-            control_points,
-            curve,
-            patch,
-            fill,
-            closed,
-            volume_ml,
-            quadrant_volume_ml,
-            reconstructed,
-        })
-    };
+                control_points,
+                curve,
+                patch,
+                fill,
+                closed,
+                volume_ml,
+                quadrant_volume_ml,
+                reconstructed,
+            })
+        };
     let left = breast(Side::Left, left_points, left_curve)?;
     let right = breast(Side::Right, right_points, right_curve)?;
     let filled_base = stitch(&stitch(&base.mesh, &left.fill), &right.fill);
@@ -509,6 +581,14 @@ pub fn build_breast_model(
         base,
         filled_base,
     })
+}
+
+/// The positions whose flag is set.
+fn flagged_positions(positions: &[DVec3], flags: &[bool]) -> Vec<DVec3> {
+    (positions.iter().zip(flags))
+        .filter(|(_, flag)| **flag)
+        .map(|(p, _)| *p)
+        .collect()
 }
 
 /// Fails on a sample spacing or a reconstructed share no model can be built with.
@@ -586,22 +666,19 @@ fn curve_error_hint(
     control_points: &[DVec3],
     roles: Option<&[&str]>,
 ) -> String {
-    let (place, advice) = match error {
-        CurveError::LeavesMesh { position } => (
-            *position,
-            "onto skin the scanner saw, away from the scan's edge",
-        ),
-        CurveError::NotClosed { last, .. } => (
-            *last,
-            "onto skin the scanner saw, away from the scan's edge",
-        ),
-        CurveError::DegenerateTriangle { position, .. }
-        | CurveError::NoProgress { position, .. }
-        | CurveError::SelfCrossing { position } => (
-            *position,
-            "so that the curve runs once round the breast without doubling back",
-        ),
+    let advice = match error {
+        CurveError::LeavesMesh { .. } | CurveError::NotClosed { .. } => {
+            "onto skin the scanner saw, away from the scan's edge"
+        }
+        CurveError::DegenerateTriangle { .. }
+        | CurveError::NoProgress { .. }
+        | CurveError::SelfCrossing { .. } => {
+            "so that the curve runs once round the breast without doubling back"
+        }
         _ => return String::new(),
+    };
+    let Some(place) = error.position() else {
+        return String::new();
     };
     let place = DVec3::from_array(place);
     let Some((index, distance_mm)) = control_points

@@ -136,6 +136,7 @@ impl GuiApp {
             Err(error) => return self.error_status(&error),
         };
         self.cancel_build();
+        self.failure_place = None;
         // The build cuts along the control points as they are now.
         self.control_points_edited = false;
         self.control_point_tool = None;
@@ -210,7 +211,10 @@ impl GuiApp {
                 }
             }
             BuildOutcome::Cancelled => self.info("model building cancelled"),
-            BuildOutcome::Failed(error) => self.error_status(&error.context("building the model")),
+            BuildOutcome::Failed(error) => {
+                self.failure_place = plan::failure_place(&error);
+                self.error_status(&error.context("building the model"));
+            }
         }
     }
 

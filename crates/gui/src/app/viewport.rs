@@ -5,8 +5,8 @@
 //! landmarks, dragging, inserting and removing control points.
 
 use super::{
-    CURVE_COLOR, CURVE_WIDTH, DisplayMode, EXTRA_COLOR, GRAB_RADIUS, GuiApp, MARKER_RADIUS,
-    OCCLUSION_TOLERANCE_MM, PLACED_COLOR, SELECTED_COLOR, Status, ZOOM_PER_SCROLL,
+    CURVE_COLOR, CURVE_WIDTH, DisplayMode, ERROR_COLOR, EXTRA_COLOR, GRAB_RADIUS, GuiApp,
+    MARKER_RADIUS, OCCLUSION_TOLERANCE_MM, PLACED_COLOR, SELECTED_COLOR, Status, ZOOM_PER_SCROLL,
 };
 use crate::camera::Camera;
 use crate::carried::carried;
@@ -20,12 +20,15 @@ use assess::{DEVIATION_COLOR_MAX_MM, deviation_color};
 use eframe::egui::{self, Color32, PointerButton, Pos2, Rect, Sense, Stroke};
 use eframe::egui_wgpu;
 use glam::{DVec2, DVec3};
+use plan::Place;
 use std::sync::Arc;
 
 use super::postoperative::DeviationReference;
 
 /// Colour of the cut curves' control points.
 const CONTROL_POINT_COLOR: Color32 = Color32::from_rgb(255, 150, 40);
+/// Width of the ring around the place a build failed (pixels).
+const FAILURE_RING_WIDTH: f32 = 2.5;
 /// Colour of the implant outlines.
 const OUTLINE_COLOR: Color32 = Color32::from_rgb(80, 220, 235);
 /// Colour of the pocket outlines.
@@ -81,6 +84,8 @@ pub struct Overlay {
     pub outlines: Vec<Vec<DVec3>>,
     /// The outlines of the pockets the implants lie in (closed).
     pub pockets: Vec<Vec<DVec3>>,
+    /// Where the last build failed, ringed (the pre-operative scan).
+    pub failure: Option<Place>,
     /// Landmarks and control points can be placed and moved (the pre-operative scan).
     pub editable: bool,
 }
@@ -378,6 +383,7 @@ impl GuiApp {
                     landmarks: owned(document.landmarks.iter()),
                     outlines: outlines(&document.scan.mesh.positions, false),
                     pockets: outlines(&document.scan.mesh.positions, true),
+                    failure: self.failure_place,
                     editable: true,
                 }
             }
@@ -540,6 +546,9 @@ fn draw_overlay(
     for pocket in &overlay.pockets {
         closed_line(pocket, Stroke::new(CURVE_WIDTH, POCKET_COLOR));
     }
+    if let Some(place) = &overlay.failure {
+        draw_failure(painter, place, camera, size, &on_screen, visible);
+    }
     for &(_, _, point) in &overlay.control_points {
         let Some(at) = on_screen(point) else {
             continue;
@@ -596,6 +605,43 @@ fn draw_overlay(
             },
         );
     }
+}
+
+/// Rings `place`, where a build failed, at its radius on the body (at least a marker's
+/// size), labelled below (landmark names stand above their markers); dimmed where the
+/// surface hides its centre.
+fn draw_failure(
+    painter: &egui::Painter,
+    place: &Place,
+    camera: &Camera,
+    size: DVec2,
+    on_screen: &impl Fn(DVec3) -> Option<Pos2>,
+    visible: &impl Fn(DVec3) -> bool,
+) {
+    let centre = place.centre();
+    let Some(at) = on_screen(centre) else {
+        return;
+    };
+    let Some(pixel) = camera.project(centre, size) else {
+        return;
+    };
+    let radius_px = camera
+        .project(centre + camera.right() * place.radius_mm, size)
+        .map_or(0.0, |edge| edge.distance(pixel) as f32)
+        .max(2.0 * MARKER_RADIUS);
+    let color = if visible(centre) {
+        ERROR_COLOR
+    } else {
+        ERROR_COLOR.gamma_multiply(0.6)
+    };
+    painter.circle_stroke(at, radius_px, Stroke::new(FAILURE_RING_WIDTH, color));
+    painter.text(
+        at + egui::vec2(0.0, radius_px + 2.0),
+        egui::Align2::CENTER_TOP,
+        "the model failed here",
+        egui::FontId::proportional(13.0),
+        color,
+    );
 }
 
 /// The visible marker (landmark or control point) within [`GRAB_RADIUS`] of `pixel`,
