@@ -60,11 +60,11 @@
 //!   offset of the scan, so where the chest is steep (the lateral planes) its distance
 //!   from the scan along the normal is less than the offset.
 //! - The lateral planes are planes (straight lines in the coronal plane) and stay inside
-//!   the scan at every height of the box. On the phantom and the shared scans the
-//!   breasts reach to within a few millimetres of the torso's silhouette, so the planes
-//!   still cut 8 to 17 mm off the lateral edge of each footprint (it was 20 to 30 mm with
-//!   upright planes); see the warnings. A curved lateral boundary following the outline
-//!   would gain a few millimetres more.
+//!   the scan at every height of the box. The default upright box, held inside the
+//!   waist, cuts 19 to 25 mm off the lateral edge of each footprint on every shared
+//!   scan; the fitted, leaning planes 7 to 16 mm, but the simulation does not yet
+//!   converge reliably against them (`docs/dev/model-on-every-body.md`). A curved
+//!   lateral boundary following the outline would keep more.
 //!
 //! # Files
 //! - `clip_box.rs`: the clip box ([`ClipBox`]): its planes, fitted or upright.
@@ -155,9 +155,9 @@ pub struct ClosedSurfaceOptions {
     pub rear_wall_offset_mm: f64,
     /// Fit leaning lateral planes to the breast footprints
     /// ([`ClipBox::around_breasts_and_footprints`]) instead of the upright box held
-    /// inside the waist. Default `false` for now: it keeps 8 to 14 mm more of each
-    /// breast's lateral side, but the simulation's phantom tests then see 2 inverted
-    /// elements and a slower solve near the lateral clip faces (to be resolved there).
+    /// inside the waist. Default `false` for now: it keeps 3 to 15 mm more of each
+    /// breast's lateral side on the shared scans, but the phantom's implant stage then
+    /// stops short of convergence near the lateral clip faces (to be resolved there).
     pub fit_lateral_planes: bool,
 }
 
