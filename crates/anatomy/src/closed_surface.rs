@@ -261,7 +261,13 @@ impl ClosedSurfaceError {
             ClosedSurfaceError::HoleInsideBox { center_mm, .. } => Some(Place::at(*center_mm)),
             ClosedSurfaceError::RunsOffBorder { near_mm, .. }
             | ClosedSurfaceError::SelfIntersecting { near_mm, .. } => Some(Place::at(*near_mm)),
-            _ => None,
+            ClosedSurfaceError::InvalidInput(_)
+            | ClosedSurfaceError::InvalidMesh { .. }
+            | ClosedSurfaceError::TooFewTriangles { .. }
+            | ClosedSurfaceError::MissingCorners { .. }
+            | ClosedSurfaceError::Stitch(_)
+            | ClosedSurfaceError::NotWatertight(_)
+            | ClosedSurfaceError::WallInFront { .. } => None,
         }
     }
 }

@@ -290,6 +290,8 @@ impl GuiApp {
     /// Tells the distance worker that the landmarks changed; a model built before no
     /// longer matches them (nor do its control points).
     fn landmarks_changed(&mut self) {
+        // The ring marked where the old landmarks failed.
+        self.failure_place = None;
         if let (Some(document), Some(distances)) = (&self.document, &mut self.distances) {
             distances.update(&document.landmarks);
         }

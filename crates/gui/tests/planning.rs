@@ -756,6 +756,11 @@ fn a_failed_build_rings_the_place_it_names() {
     );
     // said once (the breast's message carries the curve's, then its advice)
     assert_eq!(error.matches("leaves the scan").count(), 1, "{error}");
+    // drawn on the scan the build was given
+    assert_eq!(
+        harness.state().display(),
+        gui::app::DisplayMode::PreOperative
+    );
     let place = harness.state().overlay().failure.expect("a ringed place");
     let to_border_mm = (0..border.len())
         .map(|k| {
@@ -770,8 +775,10 @@ fn a_failed_build_rings_the_place_it_names() {
         "ringed {to_border_mm} mm from the border"
     );
 
+    // new landmarks take the ring away; a good build leaves none
     harness.state_mut().open(&original_path);
+    assert_eq!(harness.state().failure_place(), None);
     click(&mut harness, "Build model");
     wait_until(&mut harness, "a model", |app| app.model().is_some());
-    assert_eq!(harness.state().overlay().failure, None);
+    assert_eq!(harness.state().failure_place(), None);
 }

@@ -154,9 +154,16 @@ impl CurveError {
             CurveError::LeavesMesh { position }
             | CurveError::DegenerateTriangle { position, .. }
             | CurveError::NoProgress { position, .. }
-            | CurveError::SelfCrossing { position } => Some(*position),
+            | CurveError::SelfCrossing { position }
+            | CurveError::StartOffTriangle { position, .. } => Some(*position),
             CurveError::NotClosed { last, .. } => Some(*last),
-            _ => None,
+            // Not finite, or not a place on the mesh.
+            CurveError::NonFiniteSample { .. }
+            | CurveError::TopologyMismatch { .. }
+            | CurveError::TooFewPoints { .. }
+            | CurveError::StartOutOfRange { .. }
+            | CurveError::InvalidLocation { .. }
+            | CurveError::NotConnected { .. } => None,
         }
     }
 }

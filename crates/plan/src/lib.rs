@@ -39,22 +39,79 @@ pub fn write_json(path: &std::path::Path, value: &impl serde::Serialize) -> anyh
     Ok(())
 }
 
-/// The error and its causes on one line, outermost first. A cause whose message the line
-/// already holds (errors that print their source, some followed by advice) is not
-/// repeated.
+/// The error and its causes on one line, outermost first. A cause its parent already
+/// prints (at the parent's end, or after a colon and followed by advice) is not repeated.
 pub fn one_line(error: &anyhow::Error) -> String {
     let mut line = String::new();
+    let mut parent = String::new();
     for cause in error.chain() {
         let message = cause.to_string();
-        if line.contains(&message) {
-            continue;
+        let printed = parent.ends_with(&message) || parent.contains(&format!(": {message}"));
+        if !printed {
+            if !line.is_empty() {
+                line += ": ";
+            }
+            line += &message;
         }
-        if !line.is_empty() {
-            line += ": ";
-        }
-        line += &message;
+        parent = message;
     }
     line
+}
+
+#[cfg(test)]
+mod tests {
+    use super::one_line;
+
+    use std::fmt;
+
+    #[derive(Debug)]
+    struct Message(&'static str);
+
+    impl fmt::Display for Message {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str(self.0)
+        }
+    }
+
+    impl std::error::Error for Message {}
+
+    /// An error that prints its source, then advice.
+    #[derive(Debug)]
+    struct PrintsItsSource {
+        source: Message,
+    }
+
+    impl fmt::Display for PrintsItsSource {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(f, "the curve failed: {}; move the point", self.source)
+        }
+    }
+
+    impl std::error::Error for PrintsItsSource {
+        fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+            Some(&self.source)
+        }
+    }
+
+    #[test]
+    fn a_cause_is_said_once_and_only_a_printed_one_is_left_out() {
+        // The parent prints its source before its advice: said once.
+        let error = anyhow::Error::new(PrintsItsSource {
+            source: Message("it leaves the scan"),
+        })
+        .context("building the model");
+        assert_eq!(
+            one_line(&error),
+            "building the model: the curve failed: it leaves the scan; move the point"
+        );
+        // A cause whose words merely occur earlier in the line (here in a path) is kept.
+        let error = anyhow::Error::new(Message("cancelled"))
+            .context("/data/cancelled/scan.ply: reading the scan");
+        assert_eq!(
+            one_line(&error),
+            "/data/cancelled/scan.ply: reading the scan: cancelled"
+        );
+    }
 }
 
 /// Receives progress of long operations (a terminal bar, a GUI, or nothing) and may ask

@@ -523,10 +523,10 @@ fn a_breast_reconstructed_beyond_the_limit_is_an_error() {
     assert!(area_mm2 > 10.0 * hole_area);
     assert!(error.to_string().contains("was not seen by the scanner"));
     // The place shown is the hole: seen from the front, its centre lies at the hole's
-    // (within 4 mm: the fill-in spreads its vertices evenly over the skin, and a hole
+    // (within 4 mm: the fill-in spreads its triangles evenly over the skin, and a hole
     // round seen from the front is tilted on the breast, so their mean leans towards the
-    // steeper side; 2.2 mm here) and its radius is the hole's 20 mm, lengthened by the
-    // breast's slope there (within 20-30 mm; 27 mm here).
+    // steeper side; 1.9 mm here) and its radius is the hole's 20 mm, lengthened by the
+    // breast's slope there (within 20-35 mm, a slope of up to 55 degrees; 28 mm here).
     let place = error.place().expect("the unseen skin has a place");
     let hole_centre = phantom.landmarks.get(LandmarkName::Pnr) + 35.0 * DVec3::Y;
     let off_mm = place.centre().truncate().distance(hole_centre.truncate());
@@ -535,7 +535,7 @@ fn a_breast_reconstructed_beyond_the_limit_is_an_error() {
         place.radius_mm
     );
     assert!(off_mm < 4.0, "{off_mm} mm");
-    assert!((20.0..30.0).contains(&place.radius_mm), "{place:?}");
+    assert!((20.0..35.0).contains(&place.radius_mm), "{place:?}");
 }
 
 /// The distance (mm) from `point` to the closed polyline through `mesh`'s vertices `ring`.

@@ -390,14 +390,28 @@ impl BreastError {
             | BreastError::CurvesTouch { position } => Some(Place::at(*position)),
             BreastError::Curve { source, .. } => source.position().map(Place::at),
             BreastError::Cut(
-                CutError::Triangulation { position, .. } | CutError::LabelConflict { position },
+                CutError::Triangulation { position, .. }
+                | CutError::LabelConflict { position }
+                | CutError::CurvesTouch { position, .. },
             ) => Some(Place::at(*position)),
+            BreastError::Cut(
+                CutError::Curve { source, .. } | CutError::TopologyMismatch(source),
+            ) => source.position().map(Place::at),
             BreastError::MostlyUnscanned { place, .. }
             | BreastError::FillIn { place, .. }
             | BreastError::BreastOpen { place, .. }
             | BreastError::NotEnclosed { place, .. } => *place,
             BreastError::Quadrants { place, .. } => Some(*place),
-            _ => None,
+            // Settings, files, a line between two named landmarks, a curve with too few
+            // points or a cut with nothing to cut: no one place on the body.
+            BreastError::InvalidPcRatio(_)
+            | BreastError::InvalidSampleSpacing(_)
+            | BreastError::InvalidReconstructedShare(_)
+            | BreastError::ControlPointFile { .. }
+            | BreastError::Section { .. }
+            | BreastError::TooFewControlPoints { .. }
+            | BreastError::CoincidentControlPoints { .. }
+            | BreastError::Cut(CutError::NoCurves | CutError::CurveInsideTriangle { .. }) => None,
         }
     }
 }
@@ -472,101 +486,99 @@ pub fn build_breast_model(
         cylinder_axis: options.fill_in.cylinder_axis.or(Some(frame.up())),
         ..options.fill_in
     };
-    let breast =
-        |side: Side, control_points: Vec<DVec3>, curve: SurfaceCurve| {
-            let curve_index = side as usize;
-            let cut_loop = &cut_mesh.loops[curve_index];
-            let base_loop: Vec<u32> = cut_loop.iter().map(|&v| to_base[v as usize]).collect();
-            if let Some(k) = base_loop.iter().position(|&v| v == NOT_IN_PART) {
-                let position = cut_mesh.mesh.positions[cut_loop[k] as usize].to_array();
-                return Err(BreastError::CurveOnBorder { side, position });
+    let breast = |side: Side, control_points: Vec<DVec3>, curve: SurfaceCurve| {
+        let curve_index = side as usize;
+        let cut_loop = &cut_mesh.loops[curve_index];
+        let base_loop: Vec<u32> = cut_loop.iter().map(|&v| to_base[v as usize]).collect();
+        if let Some(k) = base_loop.iter().position(|&v| v == NOT_IN_PART) {
+            let position = cut_mesh.mesh.positions[cut_loop[k] as usize].to_array();
+            return Err(BreastError::CurveOnBorder { side, position });
+        }
+        // Around the cut curve: where the errors of a breast as a whole are shown.
+        let curve_place = || {
+            let points: Vec<DVec3> = (cut_loop.iter())
+                .map(|&v| cut_mesh.mesh.positions[v as usize])
+                .collect();
+            Place::around(&points)
+        };
+        let fill = fill_hole(&base.mesh, &base_loop, &fill_params).map_err(|source| {
+            BreastError::FillIn {
+                side,
+                source,
+                place: curve_place(),
             }
-            // Around the cut curve: where the errors of a breast as a whole are shown.
-            let curve_place = || {
-                let points: Vec<DVec3> = (cut_loop.iter())
-                    .map(|&v| cut_mesh.mesh.positions[v as usize])
-                    .collect();
-                Place::around(&points)
-            };
-            let fill = fill_hole(&base.mesh, &base_loop, &fill_params).map_err(|source| {
-                BreastError::FillIn {
-                    side,
-                    source,
-                    place: curve_place(),
-                }
-            })?;
-            let patch = cut_mesh.part(Region::Inside(curve_index));
-            let to_patch = inverse_map(&patch.vertex_map, cut_mesh.mesh.vertex_count());
-            if let Some(&v) = cut_loop
-                .iter()
-                .find(|&&v| to_patch[v as usize] == NOT_IN_PART)
-            {
-                let position = cut_mesh.mesh.positions[v as usize].to_array();
-                return Err(BreastError::CurveOnBorder { side, position });
-            }
-            let reconstructed = reconstructed_part(
-                &patch.mesh,
-                reconstructed_triangles(
-                    &cut_mesh,
-                    Region::Inside(curve_index),
-                    scan.triangle_count(),
-                    closed_scan.mesh.triangle_count(),
-                    closed_index.as_ref(),
-                ),
-            );
-            if reconstructed.area_share > options.max_reconstructed_share {
-                return Err(BreastError::MostlyUnscanned {
-                    side,
-                    reconstructed_area_mm2: reconstructed.area_mm2,
-                    area_mm2: patch.mesh.area(),
-                    max_share: options.max_reconstructed_share,
-                    place: Place::around(&flagged_positions(
-                        &patch.mesh.positions,
-                        &reconstructed.vertex_flags,
-                    )),
-                });
-            }
-            let closed = close_patch(&patch.mesh, &fill, cut_loop, &to_patch);
-            let closed_topology = Topology::new(&closed);
-            let open_edges = closed_topology.boundary_edge_count;
-            if open_edges > 0 {
-                let open: Vec<DVec3> = (closed_topology.boundary_loops(&closed).iter().flatten())
-                    .map(|&v| closed.positions[v as usize])
-                    .collect();
-                return Err(BreastError::BreastOpen {
-                    side,
-                    open_edges,
-                    place: Place::around(&open),
-                });
-            }
-            let volume_ml = closed.signed_volume() / 1000.0;
-            let encloses = volume_ml > 0.0;
-            if !encloses {
-                return Err(BreastError::NotEnclosed {
-                    side,
-                    volume_ml,
-                    place: curve_place(),
-                });
-            }
-            let lines = QuadrantLines::of_breast(side, landmarks);
-            let quadrant_volume_ml = quadrant_volumes_ml(&closed, &lines, frame.anterior())
-                .map_err(|source| BreastError::Quadrants {
+        })?;
+        let patch = cut_mesh.part(Region::Inside(curve_index));
+        let to_patch = inverse_map(&patch.vertex_map, cut_mesh.mesh.vertex_count());
+        if let Some(&v) = cut_loop
+            .iter()
+            .find(|&&v| to_patch[v as usize] == NOT_IN_PART)
+        {
+            let position = cut_mesh.mesh.positions[v as usize].to_array();
+            return Err(BreastError::CurveOnBorder { side, position });
+        }
+        let reconstructed = reconstructed_part(
+            &patch.mesh,
+            reconstructed_triangles(
+                &cut_mesh,
+                Region::Inside(curve_index),
+                scan.triangle_count(),
+                closed_scan.mesh.triangle_count(),
+                closed_index.as_ref(),
+            ),
+        );
+        if reconstructed.area_share > options.max_reconstructed_share {
+            return Err(BreastError::MostlyUnscanned {
+                side,
+                reconstructed_area_mm2: reconstructed.area_mm2,
+                area_mm2: patch.mesh.area(),
+                max_share: options.max_reconstructed_share,
+                place: Place::around(&flagged_centres(&patch.mesh, &reconstructed.triangle_flags)),
+            });
+        }
+        let closed = close_patch(&patch.mesh, &fill, cut_loop, &to_patch);
+        let closed_topology = Topology::new(&closed);
+        let open_edges = closed_topology.boundary_edge_count;
+        if open_edges > 0 {
+            let open: Vec<DVec3> = (closed_topology.boundary_loops(&closed).iter().flatten())
+                .map(|&v| closed.positions[v as usize])
+                .collect();
+            return Err(BreastError::BreastOpen {
+                side,
+                open_edges,
+                place: Place::around(&open),
+            });
+        }
+        let volume_ml = closed.signed_volume() / 1000.0;
+        let encloses = volume_ml > 0.0;
+        if !encloses {
+            return Err(BreastError::NotEnclosed {
+                side,
+                volume_ml,
+                place: curve_place(),
+            });
+        }
+        let lines = QuadrantLines::of_breast(side, landmarks);
+        let quadrant_volume_ml =
+            quadrant_volumes_ml(&closed, &lines, frame.anterior()).map_err(|source| {
+                BreastError::Quadrants {
                     side,
                     source,
                     place: Place::at(lines.nipple.to_array()),
-                })?;
-            Ok(Breast {
-                side,
-                control_points,
-                curve,
-                patch,
-                fill,
-                closed,
-                volume_ml,
-                quadrant_volume_ml,
-                reconstructed,
-            })
-        };
+                }
+            })?;
+        Ok(Breast {
+            side,
+            control_points,
+            curve,
+            patch,
+            fill,
+            closed,
+            volume_ml,
+            quadrant_volume_ml,
+            reconstructed,
+        })
+    };
     let left = breast(Side::Left, left_points, left_curve)?;
     let right = breast(Side::Right, right_points, right_curve)?;
     let filled_base = stitch(&stitch(&base.mesh, &left.fill), &right.fill);
@@ -583,11 +595,11 @@ pub fn build_breast_model(
     })
 }
 
-/// The positions whose flag is set.
-fn flagged_positions(positions: &[DVec3], flags: &[bool]) -> Vec<DVec3> {
-    (positions.iter().zip(flags))
-        .filter(|(_, flag)| **flag)
-        .map(|(p, _)| *p)
+/// The centres of the triangles of `mesh` whose flag is set.
+fn flagged_centres(mesh: &TriMesh, flags: &[bool]) -> Vec<DVec3> {
+    (0..mesh.triangle_count())
+        .filter(|&t| flags.get(t).copied().unwrap_or(false))
+        .map(|t| mesh.triangle_positions(t).iter().sum::<DVec3>() / 3.0)
         .collect()
 }
 

@@ -16,6 +16,7 @@ use anatomy::ControlPoints;
 use anatomy::breast::{QuadrantVolumes, Side};
 use eframe::egui::{self, Color32};
 use glam::DVec3;
+use plan::Place;
 use plan::case::PlanningCase;
 use plan::model::{DEFAULT_ELEMENTS, PerSide};
 use plan::report::PostoperativeScan;
@@ -101,6 +102,12 @@ impl GuiApp {
         self.model.as_ref()
     }
 
+    /// Where the last build failed, if its error names a place and nothing has changed
+    /// since (a new build, scan or landmarks take it away).
+    pub fn failure_place(&self) -> Option<Place> {
+        self.failure_place
+    }
+
     /// Whether a model build is under way.
     pub fn is_building(&self) -> bool {
         self.build.is_some()
@@ -128,6 +135,7 @@ impl GuiApp {
 
     /// Starts building the model of the open scan on a worker thread.
     pub(super) fn start_build(&mut self) {
+        self.failure_place = None;
         let Some(document) = &self.document else {
             return;
         };
@@ -136,7 +144,6 @@ impl GuiApp {
             Err(error) => return self.error_status(&error),
         };
         self.cancel_build();
-        self.failure_place = None;
         // The build cuts along the control points as they are now.
         self.control_points_edited = false;
         self.control_point_tool = None;
@@ -213,6 +220,10 @@ impl GuiApp {
             BuildOutcome::Cancelled => self.info("model building cancelled"),
             BuildOutcome::Failed(error) => {
                 self.failure_place = plan::failure_place(&error);
+                if self.failure_place.is_some() {
+                    // The ring is drawn on the scan the failed build was given.
+                    self.display = DisplayMode::PreOperative;
+                }
                 self.error_status(&error.context("building the model"));
             }
         }

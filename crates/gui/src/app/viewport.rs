@@ -547,7 +547,7 @@ fn draw_overlay(
         closed_line(pocket, Stroke::new(CURVE_WIDTH, POCKET_COLOR));
     }
     if let Some(place) = &overlay.failure {
-        draw_failure(painter, place, camera, size, &on_screen, visible);
+        draw_failure(painter, rect, place, camera, size);
     }
     for &(_, _, point) in &overlay.control_points {
         let Some(at) = on_screen(point) else {
@@ -608,39 +608,25 @@ fn draw_overlay(
 }
 
 /// Rings `place`, where a build failed, at its radius on the body (at least a marker's
-/// size), labelled below (landmark names stand above their markers); dimmed where the
-/// surface hides its centre.
-fn draw_failure(
-    painter: &egui::Painter,
-    place: &Place,
-    camera: &Camera,
-    size: DVec2,
-    on_screen: &impl Fn(DVec3) -> Option<Pos2>,
-    visible: &impl Fn(DVec3) -> bool,
-) {
+/// size), labelled below (landmark names stand above their markers). Never dimmed: a
+/// region's centre lies inside the body, behind the skin it rings.
+fn draw_failure(painter: &egui::Painter, rect: Rect, place: &Place, camera: &Camera, size: DVec2) {
     let centre = place.centre();
-    let Some(at) = on_screen(centre) else {
-        return;
-    };
     let Some(pixel) = camera.project(centre, size) else {
         return;
     };
+    let at = rect.min + egui::vec2(pixel.x as f32, pixel.y as f32);
     let radius_px = camera
         .project(centre + camera.right() * place.radius_mm, size)
         .map_or(0.0, |edge| edge.distance(pixel) as f32)
         .max(2.0 * MARKER_RADIUS);
-    let color = if visible(centre) {
-        ERROR_COLOR
-    } else {
-        ERROR_COLOR.gamma_multiply(0.6)
-    };
-    painter.circle_stroke(at, radius_px, Stroke::new(FAILURE_RING_WIDTH, color));
+    painter.circle_stroke(at, radius_px, Stroke::new(FAILURE_RING_WIDTH, ERROR_COLOR));
     painter.text(
         at + egui::vec2(0.0, radius_px + 2.0),
         egui::Align2::CENTER_TOP,
         "the model failed here",
         egui::FontId::proportional(13.0),
-        color,
+        ERROR_COLOR,
     );
 }
 
