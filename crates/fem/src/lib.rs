@@ -43,6 +43,7 @@
 mod blocks;
 pub mod boxmesh;
 pub mod direct;
+mod eigen3;
 pub mod error;
 pub mod material;
 pub mod model;
@@ -60,7 +61,7 @@ pub use material::{
     STANDARD_GRAVITY_M_S2,
 };
 pub use model::{
-    CompressionPenalty, ElementRest, ElementState, FemModel, Formulation, InversionBarrier, Tangent,
+    CompressionPenalty, ElementRest, FemModel, Formulation, InversionBarrier, Tangent,
 };
 pub use polar::{polar_rotation, rotation_variant_svd};
 pub use solve::{SolveOptions, StaticSolution, StaticSolver, solve_static};

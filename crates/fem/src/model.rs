@@ -6,9 +6,10 @@
 //! are in kPa and forces in mN; density in kg/m³ and gravity in m/s², converted with
 //! 1 kg/m³ · 1 m/s² = 1e-6 mN/mm³.
 
+use crate::eigen3::symmetric_eigen_closed_form;
 use crate::error::FemError;
 use crate::material::Material;
-use crate::polar::{POLAR_LANES, polar_rotation, polar_rotations, rotation_variant_svd};
+use crate::polar::{POLAR_LANES, polar_rotation, polar_rotations};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use tetmesh::TetMesh;
@@ -119,35 +120,18 @@ pub struct ElementRest {
     pub vol_mu: f64,
 }
 
-/// The current state of one element: its rotation, rotated shape function gradients, its
-/// (unrotated) stress and its elastic force on its four vertices.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ElementState {
-    /// Element rotation (identity in [`Formulation::Linear`]).
-    pub rotation: DMat3,
+/// What the assembly reads of one element in its current state.
+pub(crate) struct WarpedElement {
     /// `R gᵢ`: the rest gradients rotated into the current frame. The rotated element
     /// stiffness block is `K'ᵢⱼ = V (λ hᵢ hⱼᵀ + μ hⱼ hᵢᵀ + μ (hᵢ·hⱼ) I)`.
-    pub rotated_grad: [DVec3; 4],
-    /// Internal elastic force `R K (Rᵀ x - X)` at the four vertices (mN); the force the
-    /// element exerts on a vertex is its negative.
-    pub force: [DVec3; 4],
-    /// Geometric (twist) term of [`Tangent::Full`]: for each principal axis pair
-    /// (0,1), (0,2), (1,2), per vertex `t = ½ (uᵢ (g·vⱼ) - uⱼ (g·vᵢ))`; the block
-    /// `(a, b)` gains `Σ twist_coef · t_a t_bᵀ`.
-    pub twist: [[DVec3; 4]; 3],
-    /// Volume-scaled coefficients of the twist term (mN·mm); zero for none.
-    pub twist_coef: [f64; 3],
-    /// `d²Ψ/dJ²` of the volume terms ([`InversionBarrier`], [`CompressionPenalty`]) where
-    /// they act on the element (mN·mm; `2κV` for the barrier), else zero: the block
-    /// `(a, b)` gains `barrier_stiffness · bₐ b_bᵀ` with `b = FemModel::volume_gradients`.
-    pub barrier_stiffness: f64,
-}
-
-/// The rotated gradients, internal forces (with the [`InversionBarrier`]'s) and the
-/// barrier's stiffness coefficient of one element (see [`ElementState`]).
-pub(crate) struct WarpedElement {
     pub(crate) rotated_grad: [DVec3; 4],
+    /// Internal elastic force `R K (Rᵀ x - X)` at the four vertices (mN), with the
+    /// volume terms' ([`InversionBarrier`], [`CompressionPenalty`]); the force the
+    /// element exerts on a vertex is its negative.
     pub(crate) force: [DVec3; 4],
+    /// `d²Ψ/dJ²` of the volume terms where they act on the element (mN·mm; `2κV` for
+    /// the barrier), else zero: the block `(a, b)` gains `barrier_stiffness · bₐ b_bᵀ`
+    /// with `b = FemModel::volume_gradients`.
     pub(crate) barrier_stiffness: f64,
 }
 
@@ -514,63 +498,6 @@ impl FemModel {
         (sigma, r)
     }
 
-    /// State of element `e` for displacement `u`: rotation, rotated gradients, and the
-    /// internal elastic force `fᵢ = V R σ gᵢ` (= `R K (Rᵀ x - X)` at vertex i).
-    #[inline]
-    pub fn element_state(
-        &self,
-        e: usize,
-        u: &[DVec3],
-        formulation: Formulation,
-        tangent: Tangent,
-    ) -> ElementState {
-        let el = &self.elements[e];
-        let du = self.displacement_gradient(e, u);
-        let (r, svd) = match (formulation, tangent) {
-            (Formulation::Linear, _) => (DMat3::IDENTITY, None),
-            (Formulation::Corotated, Tangent::Full) => {
-                let (r, v, s) = rotation_variant_svd(DMat3::IDENTITY + du);
-                (r, Some((v, s)))
-            }
-            (Formulation::Corotated, Tangent::Warped) => {
-                (polar_rotation(DMat3::IDENTITY + du), None)
-            }
-        };
-        let WarpedElement {
-            rotated_grad,
-            force,
-            barrier_stiffness,
-        } = self.rotated_forces(e, formulation, r, du);
-        let mut twist = [[DVec3::ZERO; 4]; 3];
-        let mut twist_coef = [0.0; 3];
-        if let Some((v, s)) = svd {
-            let trs = s[0] + s[1] + s[2] - 3.0;
-            let vsig = s.map(|si| 2.0 * el.vol_mu * (si - 1.0) + el.vol_lambda * trs);
-            let uu = r * v;
-            let (vc, uc) = (
-                [v.x_axis, v.y_axis, v.z_axis],
-                [uu.x_axis, uu.y_axis, uu.z_axis],
-            );
-            for (m, (i, j)) in [(0usize, 1usize), (0, 2), (1, 2)].into_iter().enumerate() {
-                let c = 2.0 * (vsig[i] + vsig[j]).max(0.0) / (s[i] + s[j]).max(0.1);
-                if c > 0.0 {
-                    twist_coef[m] = c;
-                    twist[m] = el
-                        .grad
-                        .map(|gb| (uc[i] * gb.dot(vc[j]) - uc[j] * gb.dot(vc[i])) * 0.5);
-                }
-            }
-        }
-        ElementState {
-            rotation: r,
-            rotated_grad,
-            force,
-            twist,
-            twist_coef,
-            barrier_stiffness,
-        }
-    }
-
     /// Displacement gradients and rotations of the elements `first..` (at most
     /// [`POLAR_LANES`], fewer at the end of the mesh; the rest of the arrays is unused),
     /// the rotations computed together by [`polar_rotations`].
@@ -598,8 +525,7 @@ impl FemModel {
 
     /// The rotated gradients `R gᵢ` and internal forces `V R σ gᵢ` (mN) of the elements
     /// `first..` (at most [`POLAR_LANES`]) for the [`Tangent::Warped`] rotations of
-    /// displacement `u`, handed to `emit(lane, element)`: the part of
-    /// [`FemModel::element_state`] that the warped assembly reads.
+    /// displacement `u`, handed to `emit(lane, element)`.
     #[inline]
     pub(crate) fn elements_warped(
         &self,
@@ -612,6 +538,71 @@ impl FemModel {
         for l in 0..count {
             emit(l, self.rotated_forces(first + l, formulation, r[l], du[l]));
         }
+    }
+
+    /// [`FemModel::elements_warped`] with each element's twist stiffness of
+    /// [`Tangent::Full`] ([`FemModel::twist_stiffness`]); corotated.
+    pub(crate) fn elements_full(
+        &self,
+        first: usize,
+        u: &[DVec3],
+        mut emit: impl FnMut(usize, WarpedElement, DMat3),
+    ) {
+        let (count, du, r) = self.chunk_rotations(first, u, Formulation::Corotated);
+        for l in 0..count {
+            let e = first + l;
+            let warped = self.rotated_forces(e, Formulation::Corotated, r[l], du[l]);
+            emit(l, warped, self.twist_stiffness(e, r[l], du[l]));
+        }
+    }
+
+    /// The geometric (twist) term of [`Tangent::Full`] for element `e` at rotation `r`
+    /// and displacement gradient `du`, as the symmetric `C` (mN·mm) with which the block
+    /// `(a, b)` gains `[hₐ]ₓ C [h_b]ₓᵀ` (`h = R g` the rotated gradients, `[h]ₓ` the
+    /// cross-product matrix).
+    ///
+    /// With the principal stretches `sₖ` and axes `vₖ` of `S = Rᵀ(I + ∇u)` (symmetric for
+    /// the polar `R`) and `uₖ = R vₖ`, the positive part of the geometric stiffness is
+    /// `Σ cᵢⱼ tᵢⱼ,ₐ tᵢⱼ,_bᵀ` over the axis pairs with `cᵢⱼ = 2 max(σ̂ᵢ + σ̂ⱼ, 0) / (sᵢ + sⱼ)`
+    /// (`σ̂` the principal stresses times the volume) and
+    /// `tᵢⱼ,ₐ = ½ (uᵢ (gₐ·vⱼ) - uⱼ (gₐ·vᵢ)) = ±½ hₐ × uₖ` (`k` the third axis), so
+    /// `C = ¼ Σₖ cᵢⱼ uₖ uₖᵀ`: six numbers per element instead of twelve vectors. Zero
+    /// without the eigendecomposition where an upper bound of every pair's stress sum
+    /// (Gershgorin's on the largest principal strain) is not positive: compressed
+    /// elements cost no more than in the warped assembly.
+    #[inline]
+    fn twist_stiffness(&self, e: usize, r: DMat3, du: DMat3) -> DMat3 {
+        let el = &self.elements[e];
+        let f = r.transpose() * (DMat3::IDENTITY + du);
+        let strain = (f + f.transpose()) * 0.5 - DMat3::IDENTITY;
+        let a = strain.to_cols_array_2d();
+        let trace = a[0][0] + a[1][1] + a[2][2];
+        let largest_strain_bound = (0..3)
+            .map(|i| {
+                a[i][i]
+                    + (0..3)
+                        .filter(|&j| j != i)
+                        .map(|j| a[i][j].abs())
+                        .sum::<f64>()
+            })
+            .fold(f64::NEG_INFINITY, f64::max);
+        if 4.0 * el.vol_mu * largest_strain_bound + 2.0 * el.vol_lambda * trace <= 0.0 {
+            return DMat3::ZERO;
+        }
+        let (principal_strains, v) = symmetric_eigen_closed_form(strain);
+        let s = principal_strains.map(|e| 1.0 + e);
+        let trs = s[0] + s[1] + s[2] - 3.0;
+        let vsig = s.map(|si| 2.0 * el.vol_mu * (si - 1.0) + el.vol_lambda * trs);
+        let axes = r * v;
+        let mut c = DMat3::ZERO;
+        for (i, j, k) in [(0usize, 1usize, 2usize), (0, 2, 1), (1, 2, 0)] {
+            let coef = 2.0 * (vsig[i] + vsig[j]).max(0.0) / (s[i] + s[j]).max(0.1);
+            if coef > 0.0 {
+                let uk = axes.col(k);
+                c += outer(uk, uk) * (0.25 * coef);
+            }
+        }
+        c
     }
 
     /// Rotated gradients and forces of element `e` for rotation `r` and displacement

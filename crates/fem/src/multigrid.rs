@@ -49,7 +49,8 @@
 //! Use: [`Multigrid::cycle`] does one interactive step (reassemble every level at the
 //! current displacement, one V-cycle on the correction from zero, i.e. warm-started from
 //! the current displacement, the correction scaled as [`MultigridOptions::optimal_step`]
-//! says); [`Multigrid::vcycle`] is one V-cycle on the assembled finest system;
+//! says, or a few conjugate gradient iterations as [`MultigridOptions::krylov_iterations`]
+//! says: an inexact Newton-Krylov step with the full tangent); [`Multigrid::vcycle`] is one V-cycle on the assembled finest system;
 //! [`Multigrid::pcg`] is conjugate gradients preconditioned by one symmetric V(ν₁, ν₁)
 //! cycle ([`PcgIteration`]).
 //!
@@ -117,6 +118,11 @@ pub struct MultigridOptions {
     /// V-cycle; one more finest matrix-vector product). Default on: see the module
     /// documentation for the measured gain, and why corotated cycles are not scaled.
     pub optimal_step: bool,
+    /// Conjugate gradient iterations per [`Multigrid::cycle`], each preconditioned by
+    /// one symmetric V-cycle ([`PcgIteration`]), for the correction on the assembled
+    /// tangent system; 0 runs the single V(ν₁, ν₂) cycle (with
+    /// [`MultigridOptions::optimal_step`] for the linear formulation).
+    pub krylov_iterations: usize,
 }
 
 /// How the coarse levels' operators are built.
@@ -147,6 +153,7 @@ impl Default for MultigridOptions {
             prolongation_smoothing: 0.0,
             tangent: Tangent::Warped,
             optimal_step: true,
+            krylov_iterations: 0,
         }
     }
 }
@@ -379,6 +386,12 @@ impl Multigrid {
             self.options.tangent = tangent;
             self.assembled = false;
         }
+    }
+
+    /// Changes how [`Multigrid::cycle`] computes its correction
+    /// ([`MultigridOptions::krylov_iterations`]).
+    pub fn set_krylov_iterations(&mut self, iterations: usize) {
+        self.options.krylov_iterations = iterations;
     }
 
     /// The corotated tangent the assemblies compute.
@@ -724,7 +737,10 @@ impl Multigrid {
         let b = self.system().rhs.clone();
         let residual_before = norm(&b);
         let mut du = vec![DVec3::ZERO; b.len()];
-        let step_scale = if self.options.optimal_step && formulation == Formulation::Linear {
+        let step_scale = if self.options.krylov_iterations > 0 {
+            self.pcg(&b, &mut du, 0.0, self.options.krylov_iterations);
+            1.0
+        } else if self.options.optimal_step && formulation == Formulation::Linear {
             self.optimal_correction(&b, &mut du)
         } else {
             self.vcycle(&mut du, &b);

@@ -29,7 +29,7 @@ use glam::{DMat3, DVec3};
 
 /// Symmetric eigendecomposition of a 3x3 matrix by cyclic Jacobi rotations. Returns the
 /// eigenvalues in descending order and the matching eigenvectors as columns of `V`.
-fn symmetric_eigen(s: DMat3) -> ([f64; 3], DMat3) {
+pub(crate) fn symmetric_eigen(s: DMat3) -> ([f64; 3], DMat3) {
     // a[r][c], row-major working copy
     let mut a = [
         [s.x_axis.x, s.y_axis.x, s.z_axis.x],
@@ -85,7 +85,7 @@ fn symmetric_eigen(s: DMat3) -> ([f64; 3], DMat3) {
 }
 
 /// Any unit vector orthogonal to the unit vector `u`.
-fn any_orthogonal(u: DVec3) -> DVec3 {
+pub(crate) fn any_orthogonal(u: DVec3) -> DVec3 {
     let other = if u.x.abs() < 0.6 {
         DVec3::X
     } else if u.y.abs() < 0.6 {

@@ -26,7 +26,7 @@ use crate::blocks::{self, BlockKernels};
 use crate::error::FemError;
 use crate::model::{FemModel, Formulation, Tangent};
 use crate::polar::POLAR_LANES;
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use std::marker::PhantomData;
 
@@ -222,13 +222,6 @@ struct ElementCore {
     barrier_stiffness: f64,
 }
 
-/// Per-element twist (geometric stiffness) term of [`Tangent::Full`].
-#[derive(Debug, Clone, Copy, Default)]
-struct ElementTwist {
-    twist: [[DVec3; 4]; 3],
-    coef: [f64; 3],
-}
-
 /// The reduced system over the free vertices: the fixed block pattern with its
 /// element-to-slot maps, and the values and right-hand side of the latest assembly.
 #[derive(Debug, Clone)]
@@ -260,7 +253,7 @@ pub struct ReducedSystem {
     /// Rotated gradients and forces of each element, latest assembly.
     cores: Vec<ElementCore>,
     /// Twist terms of each element for [`Tangent::Full`] (empty otherwise).
-    twists: Vec<ElementTwist>,
+    twists: Vec<DMat3>,
     /// For each unknown, whether a changeable constraint holds it (eliminated at
     /// assembly).
     eliminated: Vec<bool>,
@@ -592,18 +585,17 @@ impl ReducedSystem {
         };
         self.cores.resize(ne, ElementCore::default());
         if full {
-            self.twists.resize(ne, ElementTwist::default());
+            self.twists.resize(ne, DMat3::ZERO);
             self.cores
-                .par_iter_mut()
-                .zip(self.twists.par_iter_mut())
+                .par_chunks_mut(POLAR_LANES)
+                .zip(self.twists.par_chunks_mut(POLAR_LANES))
                 .enumerate()
-                .for_each(|(e, (c, t))| {
-                    let s = model.element_state(e, u, formulation, tangent);
-                    *c = core(e, s.rotated_grad, s.force, s.barrier_stiffness);
-                    *t = ElementTwist {
-                        twist: s.twist,
-                        coef: s.twist_coef,
-                    };
+                .for_each(|(k, (chunk, twists))| {
+                    let first = k * POLAR_LANES;
+                    model.elements_full(first, u, |l, w, twist| {
+                        chunk[l] = core(first + l, w.rotated_grad, w.force, w.barrier_stiffness);
+                        twists[l] = twist;
+                    });
                 });
         } else {
             self.twists.clear();
@@ -667,7 +659,7 @@ struct RowGather<'a> {
     f_ext: &'a [DVec3],
     full: bool,
     cores: &'a [ElementCore],
-    twists: &'a [ElementTwist],
+    twists: &'a [DMat3],
     row_ptr: &'a [usize],
     cols: &'a [u32],
     eliminated: &'a [bool],
@@ -707,6 +699,9 @@ impl RowGather<'_> {
             // recomputed here rather than stored for all
             let barrier = (c.barrier_stiffness != 0.0)
                 .then(|| self.model.volume_gradients(e, self.u).map(|g| g.to_array()));
+            // [hₐ]ₓ C of the twist term, where the element has one
+            let twist_a = (self.full && self.twists[e] != DMat3::ZERO)
+                .then(|| cross_matrix(c.rotated_grad[a]) * self.twists[e]);
             for (b, &s) in self.incident_slots[k].iter().enumerate() {
                 // a held unknown's column stays zero (eliminated)
                 if s == NOT_FREE || self.eliminated[ucols[s as usize] as usize] {
@@ -718,8 +713,8 @@ impl RowGather<'_> {
                 } else {
                     K::add_element_block(out, lambda_ha, mu_ha, c.rotated_grad[b].to_array());
                 }
-                if self.full {
-                    add_twist_block(out, &self.twists[e], a, b);
+                if let Some(twist_a) = twist_a {
+                    add_twist_block(out, twist_a, c.rotated_grad[b], a == b);
                 }
                 if let Some(g) = &barrier {
                     add_rank_one(out, c.barrier_stiffness, g[a], g[b]);
@@ -896,15 +891,32 @@ pub(crate) fn split_rows<'a, T>(mut values: &'a mut [T], ptr: &[usize]) -> Vec<&
     rows
 }
 
-/// Adds the twist term `Σ coef · t_a t_bᵀ` of [`Tangent::Full`] to block `(a, b)`.
+/// Adds the twist term `[hₐ]ₓ C [h_b]ₓᵀ` of [`Tangent::Full`] to a block, given
+/// `twist_a = [hₐ]ₓ C`; a diagonal block (`a = b`) gets the symmetric part, so that it
+/// stays exactly symmetric.
 #[inline]
-fn add_twist_block(out: &mut [f64; 9], t: &ElementTwist, a: usize, b: usize) {
-    for m in 0..3 {
-        let c = t.coef[m];
-        if c != 0.0 {
-            add_rank_one(out, c, t.twist[m][a].to_array(), t.twist[m][b].to_array());
+fn add_twist_block(out: &mut [f64; 9], twist_a: DMat3, h_b: DVec3, diagonal: bool) {
+    let m = twist_a * cross_matrix(h_b).transpose();
+    let m = if diagonal {
+        (m + m.transpose()) * 0.5
+    } else {
+        m
+    };
+    for p in 0..3 {
+        for q in 0..3 {
+            out[3 * p + q] += m.col(q)[p];
         }
     }
+}
+
+/// The cross-product matrix `[h]ₓ` (`[h]ₓ x = h × x`).
+#[inline]
+fn cross_matrix(h: DVec3) -> DMat3 {
+    DMat3::from_cols(
+        DVec3::new(0.0, h.z, -h.y),
+        DVec3::new(-h.z, 0.0, h.x),
+        DVec3::new(h.y, -h.x, 0.0),
+    )
 }
 
 /// `out += c · x yᵀ`; the products `x[p] y[q]` round alike for `(x, y)` and `(y, x)`,

@@ -188,6 +188,9 @@ pub struct CycleInfo {
     pub step: f64,
     /// A linear warm-up cycle (see [`SimulationOptions::linear_warmup_cycles`]).
     pub linear: bool,
+    /// A Newton-Krylov step of a stalled stage 1 (see
+    /// [`SimulationOptions::newton_krylov_iterations`]).
+    pub newton_krylov: bool,
     /// Wall-clock time of the cycle, a rebuild included (ms).
     pub time_ms: f64,
 }
@@ -332,6 +335,11 @@ pub struct Simulation {
     /// Stage 1's residual grew from one corotated cycle to the next: line search on
     /// for the rest of the stage.
     stage_one_search: bool,
+    /// Stage 1's relative residuals after its corotated cycles so far (the stall test's).
+    stage_one_residuals: Vec<f64>,
+    /// Stage 1 stalled: Newton-Krylov steps for the rest of the stage
+    /// ([`SimulationOptions::newton_krylov_iterations`]).
+    newton_krylov: bool,
     /// Potential energy at the current displacement, when known, and the last step.
     last_energy: Option<f64>,
     last_step: f64,

@@ -113,6 +113,8 @@ impl Simulation {
             stage_cycles: 0,
             fresh: true,
             stage_one_search: false,
+            stage_one_residuals: Vec::new(),
+            newton_krylov: false,
             warmup_left: 0,
             last_energy: None,
             last_step: 1.0,

@@ -70,6 +70,14 @@ pub const WARMUP_TOLERANCE: f64 = 0.05;
 /// Most halvings of a cycle's step by the line search.
 pub const MAX_HALVINGS: usize = 5;
 
+/// Stage 1 counts as stalled when its relative residual fell by less than
+/// [`STALL_REDUCTION`] over this many corotated cycles (see
+/// [`SimulationOptions::newton_krylov_iterations`]).
+pub const STALL_WINDOW: usize = 4;
+
+/// See [`STALL_WINDOW`].
+pub const STALL_REDUCTION: f64 = 2.0;
+
 /// Furthest the bed may be moved in front of the fill-in (mm).
 pub const MAX_FORWARD_SHIFT_MM: f64 = 10.0;
 
@@ -143,6 +151,14 @@ pub struct SimulationOptions {
     /// vertices through their neighbours and take many cycles to untangle
     /// (docs/dev/session-choices.md).
     pub linear_warmup_cycles: usize,
+    /// Once stage 1 stalls ([`STALL_WINDOW`]), each of its further cycles is a
+    /// Newton-Krylov step: the full tangent ([`Tangent::Full`], with the geometric term
+    /// the warped stiffness lacks) solved by this many conjugate gradient iterations
+    /// preconditioned by the multigrid, instead of one V-cycle on the warped stiffness.
+    /// Dearer per cycle (about twice), so only where the cheap cycles stopped
+    /// converging: against the free lateral faces of a model, where tissue is stretched
+    /// and turned, they settle into an oscillation (docs/dev/converged.md). 0: never.
+    pub newton_krylov_iterations: usize,
     /// The finest level's safeguard against inverted elements (see
     /// [`fem::InversionBarrier`]; `None`: the paper's plain corotated energy). Default
     /// [`DEFAULT_INVERSION_BARRIER`].
@@ -188,6 +204,7 @@ impl Default for SimulationOptions {
             max_levels: None,
             line_search: true,
             linear_warmup_cycles: 6,
+            newton_krylov_iterations: 2,
             max_cycles: DEFAULT_MAX_CYCLES,
             relative_tolerance: DEFAULT_RELATIVE_TOLERANCE,
             falloff_mm: DEFAULT_FALLOFF_MM,

@@ -17,6 +17,8 @@ impl Simulation {
         self.dirty = true;
         self.fresh = true;
         self.stage_one_search = false;
+        self.stage_one_residuals.clear();
+        self.newton_krylov = false;
         self.warmup_left = 0;
     }
 
@@ -317,6 +319,7 @@ impl Simulation {
                 rebuilt: false,
                 step: 1.0,
                 linear: false,
+                newton_krylov: false,
                 time_ms: elapsed_ms(start),
             });
         }
@@ -327,7 +330,18 @@ impl Simulation {
             && !fresh
             && formulation == Formulation::Corotated;
         let u_old = search.then(|| self.u.clone());
+        let newton_krylov = self.newton_krylov && formulation == Formulation::Corotated;
+        let (tangent, krylov_iterations) = if newton_krylov {
+            (Tangent::Full, self.options.newton_krylov_iterations)
+        } else {
+            (
+                self.options.multigrid.tangent,
+                self.options.multigrid.krylov_iterations,
+            )
+        };
         let mg = &mut self.multigrid.insert(kept).multigrid;
+        mg.set_tangent(tangent);
+        mg.set_krylov_iterations(krylov_iterations);
         let report = mg.cycle(&mut self.u, &self.f_ext, formulation)?;
         if let Some(u_old) = u_old {
             // backtracking on the potential energy (the corotated forces are conservative)
@@ -365,6 +379,11 @@ impl Simulation {
             self.stage_one_search = true;
         }
         self.last_relative_residual = relative;
+        if formulation == Formulation::Corotated {
+            self.stage_one_residuals.push(relative);
+            self.newton_krylov |=
+                self.options.newton_krylov_iterations > 0 && stalled(&self.stage_one_residuals);
+        }
         self.stage_cycles += 1;
         Ok(CycleInfo {
             stage: Stage::Implant,
@@ -373,6 +392,7 @@ impl Simulation {
             rebuilt,
             step: self.last_step,
             linear: formulation == Formulation::Linear,
+            newton_krylov,
             time_ms: elapsed_ms(start),
         })
     }
@@ -483,6 +503,15 @@ impl Simulation {
             Some(self.solve(max, tol)?)
         };
         Ok(RunReport { implant, gravity })
+    }
+}
+
+/// Whether the last [`STALL_WINDOW`] corotated cycles reduced the relative residual by
+/// less than [`STALL_REDUCTION`] in all.
+fn stalled(residuals: &[f64]) -> bool {
+    match residuals.len().checked_sub(STALL_WINDOW + 1) {
+        Some(start) => residuals[start] < STALL_REDUCTION * residuals[residuals.len() - 1],
+        None => false,
     }
 }
 
