@@ -6,29 +6,12 @@ mod common;
 
 use anatomy::breast::Side;
 use implant::Catalog;
-use phantom::PhantomParams;
-use plan::model::{ModelOptions, build_model};
-use plan::{MarkedScan, Scan, Silent};
 use simulation::{Placement, SimulationOptions};
-use std::path::Path;
 
 fn fitted_phantom() -> common::Patient {
-    let phantom = phantom::generate(&PhantomParams::default());
-    let marked = MarkedScan::new(
-        Scan::from_mesh(phantom.scan.clone(), Path::new("phantom.ply")).unwrap(),
-        phantom.landmarks.clone(),
-        Path::new("phantom.json"),
-        None,
-        &Silent,
-    )
-    .unwrap();
-    let mut options = ModelOptions {
-        elements: common::ELEMENTS,
-        ..Default::default()
-    };
+    let mut options = common::default_model_options();
     options.closed_surface.fit_lateral_planes = true;
-    let model = build_model(&marked, &options, &Silent).unwrap();
-    common::Patient { marked, model }
+    common::patient("phantom", &options).unwrap()
 }
 
 /// Both implants placed; stage 1 run with at most `max_cycles` to the session's

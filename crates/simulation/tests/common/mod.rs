@@ -48,44 +48,51 @@ pub const ELEMENTS: usize = 60_000;
 /// The symmetric default phantom's model.
 pub fn phantom() -> &'static Patient {
     static PATIENT: OnceLock<Patient> = OnceLock::new();
-    PATIENT.get_or_init(|| {
+    PATIENT.get_or_init(|| patient("phantom", &default_model_options()).unwrap())
+}
+
+/// `model`'s options with the tests' element count.
+pub fn default_model_options() -> ModelOptions {
+    ModelOptions {
+        elements: ELEMENTS,
+        ..Default::default()
+    }
+}
+
+/// The model of a body with `options`: `phantom` (the symmetric default phantom), a shared
+/// scan, or a zoo body (`s01`..), if present (see [`shared_scan`]).
+pub fn patient(name: &str, options: &ModelOptions) -> Option<Patient> {
+    let marked = if name == "phantom" {
         let phantom = phantom::generate(&PhantomParams::default());
-        let marked = MarkedScan::new(
+        MarkedScan::new(
             Scan::from_mesh(phantom.scan.clone(), Path::new("phantom.ply")).unwrap(),
             phantom.landmarks.clone(),
             Path::new("phantom.json"),
             None,
             &Silent,
         )
-        .unwrap();
-        let options = ModelOptions {
-            elements: ELEMENTS,
-            ..Default::default()
-        };
-        let model = build_model(&marked, &options, &Silent).unwrap();
-        Patient { marked, model }
-    })
+        .unwrap()
+    } else {
+        let dir = std::env::var_os("MAMMAPLAN_SCANS")
+            .map(std::path::PathBuf::from)
+            .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scans"));
+        let zoo = name.len() == 3 && name.starts_with('s');
+        let dir = if zoo { dir.join("zoo") } else { dir };
+        let scan = dir.join(format!("{name}.ply"));
+        let landmarks = dir.join(format!("{name}_landmarks.json"));
+        if !scan.exists() || !landmarks.exists() {
+            return None;
+        }
+        MarkedScan::load(&scan, &landmarks, None, &Silent).unwrap()
+    };
+    let model = build_model(&marked, options, &Silent).unwrap();
+    Some(Patient { marked, model })
 }
 
 /// A shared scan's model (`shared/scans` beside the checkout, as the other crates' tests
 /// find it, or `$MAMMAPLAN_SCANS`), if present.
 pub fn shared_scan(name: &str) -> Option<Patient> {
-    let dir = std::env::var_os("MAMMAPLAN_SCANS")
-        .map(std::path::PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scans"));
-    let dir = dir.as_path();
-    let scan = dir.join(format!("{name}.ply"));
-    let landmarks = dir.join(format!("{name}_landmarks.json"));
-    if !scan.exists() || !landmarks.exists() {
-        return None;
-    }
-    let marked = MarkedScan::load(&scan, &landmarks, None, &Silent).unwrap();
-    let options = ModelOptions {
-        elements: ELEMENTS,
-        ..Default::default()
-    };
-    let model = build_model(&marked, &options, &Silent).unwrap();
-    Some(Patient { marked, model })
+    patient(name, &default_model_options())
 }
 
 /// The nipple of a side.
