@@ -50,7 +50,7 @@
 //! current displacement, one V-cycle on the correction from zero, i.e. warm-started from
 //! the current displacement, the correction scaled as [`MultigridOptions::optimal_step`]
 //! says, or a few conjugate gradient iterations as [`MultigridOptions::krylov_iterations`]
-//! says: an inexact Newton-Krylov step with the full tangent); [`Multigrid::vcycle`] is one V-cycle on the assembled finest system;
+//! says: with the full tangent, an inexact Newton-Krylov step); [`Multigrid::vcycle`] is one V-cycle on the assembled finest system;
 //! [`Multigrid::pcg`] is conjugate gradients preconditioned by one symmetric V(ν₁, ν₁)
 //! cycle ([`PcgIteration`]).
 //!
@@ -720,8 +720,10 @@ impl Multigrid {
 
     /// One interactive step on the finest displacement `u` (mm, all vertices; the
     /// prescribed values are imposed on it): reassembles every level at `u`, runs one
-    /// V-cycle on `K'_ff Δu_f = f_ext - f_int(u)` from `Δu_f = 0` and adds `Δu_f`. For
-    /// the linear formulation this is exactly one V-cycle warm-started from `u`.
+    /// V-cycle (or [`MultigridOptions::krylov_iterations`] preconditioned conjugate
+    /// gradient iterations) on `K'_ff Δu_f = f_ext - f_int(u)` from `Δu_f = 0` and adds
+    /// `Δu_f`. For the linear formulation one V-cycle is exactly one V-cycle
+    /// warm-started from `u`.
     pub fn cycle(
         &mut self,
         u: &mut [DVec3],

@@ -318,7 +318,8 @@ impl Session {
         self.simulation.remove_implant(side);
     }
 
-    /// One V-cycle of the current stage, warm-started from the current displacement.
+    /// One cycle of the current stage, warm-started from the current displacement
+    /// ([`Simulation::cycle`]).
     pub fn cycle(&mut self) -> Result<CycleInfo> {
         Ok(self.simulation.cycle()?)
     }

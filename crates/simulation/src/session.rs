@@ -18,7 +18,8 @@
 //!
 //! # Stages
 //! 1. [`Stage::Implant`]: the Dirichlet problem of the template, solved by
-//!    [`Multigrid::cycle`] (rotation update, reassembly, one V(2,1)-cycle) on the
+//!    [`Multigrid::cycle`] (rotation update, reassembly, one V(2,1)-cycle; Newton-Krylov
+//!    steps once these stall, see [`SimulationOptions::newton_krylov_iterations`]) on the
 //!    corotated formulation. The scan as captured is the rest state: the tissue's own
 //!    weight is already in it, so no body force acts.
 //! 2. [`Stage::Gravity`] (paper V-B): the implant vertices are released; the force that
@@ -335,7 +336,8 @@ pub struct Simulation {
     /// Stage 1's residual grew from one corotated cycle to the next: line search on
     /// for the rest of the stage.
     stage_one_search: bool,
-    /// Stage 1's relative residuals after its corotated cycles so far (the stall test's).
+    /// Stage 1's relative residuals before its last corotated cycles, at most
+    /// [`STALL_WINDOW`] + 1 (the stall test's).
     stage_one_residuals: Vec<f64>,
     /// Stage 1 stalled: Newton-Krylov steps for the rest of the stage
     /// ([`SimulationOptions::newton_krylov_iterations`]).

@@ -40,11 +40,11 @@ fn implant_stage(
 }
 
 /// Where the warped cycles settle into an oscillation (relative residual about 3e-3
-/// for ten cycles; 28 cycles to the tolerance of 1e-3), the session switches to
+/// for ten cycles; 28 cycles to the tolerance of 1e-3 without the switch, measured by
+/// `tests/stage_one_probe.rs`), the session switches to
 /// Newton-Krylov steps and reaches the tolerance in at most 22 cycles. Its answer is
 /// the equilibrium: the skin lies within 0.1 mm (the `converged_ms` criterion of
 /// `mammaplan bench`) of the same session solved on to a relative residual of 1e-7.
-/// Without the switch, the same number of cycles does not reach the tolerance.
 #[test]
 fn a_stalled_implant_stage_converges_by_newton_krylov_steps() {
     let patient = fitted_phantom();
@@ -63,12 +63,4 @@ fn a_stalled_implant_stage_converges_by_newton_krylov_steps() {
         .fold(0.0, f64::max);
     println!("largest distance of the skin from the equilibrium: {largest:.3} mm");
     assert!(largest < 0.1, "{largest}");
-
-    let cheap = SimulationOptions {
-        newton_krylov_iterations: 0,
-        ..SimulationOptions::default()
-    };
-    let (_, _, cheap_converged, _) = implant_stage(&patient, cheap, cycles);
-    println!("without it, {cycles} cycles converged: {cheap_converged}");
-    assert!(!cheap_converged);
 }

@@ -128,7 +128,7 @@ pub struct SimulationOptions {
     /// Gravity (m/s²), acting along the anatomical frame's `-y`.
     pub gravity_m_s2: f64,
     /// The corotated tangent `K` of the gravity stage's linear system (stage 1 uses the
-    /// multigrid's, the paper's warped stiffness). [`Tangent::Full`] adds the positive
+    /// multigrid's, the paper's warped stiffness, until it stalls). [`Tangent::Full`] adds the positive
     /// part of the geometric stiffness, the better linearisation where tissue is
     /// stretched and turned.
     pub gravity_tangent: Tangent,

@@ -251,7 +251,8 @@ impl Simulation {
     }
 
     /// One interactive step: rotation update, reassembly and one V(2,1)-cycle of the
-    /// current stage, warm-started from the current displacement (giving stage 1's
+    /// current stage (a Newton-Krylov step in a stalled stage 1, one preconditioned
+    /// conjugate gradient iteration in stage 2), warm-started from the current displacement (giving stage 1's
     /// multigrid the new constraints first if they changed, building it at the session's
     /// first cycle).
     pub fn cycle(&mut self) -> Result<CycleInfo, SimulationError> {
@@ -380,6 +381,9 @@ impl Simulation {
         }
         self.last_relative_residual = relative;
         if formulation == Formulation::Corotated {
+            if self.stage_one_residuals.len() > STALL_WINDOW {
+                self.stage_one_residuals.remove(0);
+            }
             self.stage_one_residuals.push(relative);
             self.newton_krylov |=
                 self.options.newton_krylov_iterations > 0 && stalled(&self.stage_one_residuals);
@@ -539,5 +543,23 @@ impl GravityStage {
             }
         }
         (residual, residual / self.rhs_norm_mn.max(f64::MIN_POSITIVE))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Over the last [`STALL_WINDOW`] cycles: halved four times is progress, a fall by
+    /// less than [`STALL_REDUCTION`] (steady or oscillating) is a stall, and too short a
+    /// history is neither.
+    #[test]
+    fn a_stall_is_a_window_without_halving() {
+        assert!(!stalled(&[1.0, 0.5, 0.25, 0.12, 0.06]));
+        assert!(stalled(&[1.0, 0.9, 0.8, 0.7, 0.6]));
+        assert!(stalled(&[3.5e-3, 3.4e-3, 3.5e-3, 3.2e-3, 3.4e-3]));
+        assert!(!stalled(&[1.0, 1.0, 1.0, 1.0]));
+        // the cycles before the window do not count
+        assert!(!stalled(&[9.0, 1.0, 0.5, 0.4, 0.45, 0.3, 0.2]));
     }
 }
