@@ -778,15 +778,7 @@ pub(crate) fn outer(a: DVec3, b: DVec3) -> DMat3 {
 mod tests {
     use super::*;
     use crate::polar::rotation_variant_svd;
-
-    /// `[h]ₓ`.
-    fn cross_matrix(h: DVec3) -> DMat3 {
-        DMat3::from_cols(
-            DVec3::new(0.0, h.z, -h.y),
-            DVec3::new(-h.z, 0.0, h.x),
-            DVec3::new(h.y, -h.x, 0.0),
-        )
-    }
+    use crate::system::cross_matrix;
 
     /// The compact twist stiffness `C` gives, block by block, the sum it replaces:
     /// `Σ cᵢⱼ tᵢⱼ,ₐ tᵢⱼ,_bᵀ` with `tᵢⱼ,ₐ = ½ (uᵢ (gₐ·vⱼ) - uⱼ (gₐ·vᵢ))` from the rotation-

@@ -911,7 +911,7 @@ fn add_twist_block(out: &mut [f64; 9], twist_a: DMat3, h_b: DVec3, diagonal: boo
 
 /// The cross-product matrix `[h]ₓ` (`[h]ₓ x = h × x`).
 #[inline]
-fn cross_matrix(h: DVec3) -> DMat3 {
+pub(crate) fn cross_matrix(h: DVec3) -> DMat3 {
     DMat3::from_cols(
         DVec3::new(0.0, h.z, -h.y),
         DVec3::new(-h.z, 0.0, h.x),
