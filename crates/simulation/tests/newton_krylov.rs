@@ -1,6 +1,6 @@
 //! Stage 1 where its cheap cycles stall: the phantom's model with the lateral clip planes
-//! fitted to the breasts' footprints (`ClosedSurfaceOptions::fit_lateral_planes`), whose
-//! free lateral faces lie close to the implants.
+//! fitted to the breasts' footprints (`ClosedSurfaceOptions::fit_lateral_planes`, the
+//! default, set here explicitly), whose free lateral faces lie close to the implants.
 
 mod common;
 

@@ -1,10 +1,11 @@
 //! Stage 1's cycles with and without the switch to Newton-Krylov steps, cycle by cycle
 //! (docs/dev/converged.md). A measurement, not a check:
 //!
-//! `PROBE_BODIES=phantom,v02_average [PROBE_FIT=1] cargo test --release -p simulation
+//! `PROBE_BODIES=phantom,v02_average [PROBE_UPRIGHT=1] cargo test --release -p simulation
 //! --test stage_one_probe -- --ignored --nocapture`
 //!
-//! `PROBE_FIT` fits the lateral clip planes to the footprints. Per body, switch off and
+//! `PROBE_UPRIGHT` builds the model with the upright lateral clip planes (the default
+//! before session 26) instead of those fitted to the footprints. Per body, switch off and
 //! on: R-MOD-115 on both sides at the default placement from rest (solve 0), then both
 //! moved up 10 mm (solve 1), each stage 1 to the session's tolerance and the gravity
 //! correction after it; the relative residual of every stage-1 cycle (`@0.5`: the line
@@ -20,7 +21,7 @@ use simulation::{Placement, SimulationOptions};
 #[ignore]
 fn stage_one_cycles() {
     let bodies = std::env::var("PROBE_BODIES").unwrap_or_else(|_| "phantom".into());
-    let fit = std::env::var("PROBE_FIT").is_ok();
+    let fit = std::env::var("PROBE_UPRIGHT").is_err();
     let shape = *Catalog::builtin().get("R-MOD-115").unwrap().shape();
     for name in bodies.split(',') {
         let mut model_options = common::default_model_options();

@@ -69,7 +69,14 @@ impl Simulation {
             on_band,
             on_skin,
             coarse_walls,
-        } = held_vertices(&input, &finest, &beds, levels.len(), &finest_wall_and_band)?;
+        } = held_vertices(
+            &input,
+            &options,
+            &finest,
+            &beds,
+            levels.len(),
+            &finest_wall_and_band,
+        )?;
         let ScanMaps {
             scan_rest,
             scan_map,
@@ -322,30 +329,40 @@ fn bed_choices(
     })
 }
 
-/// The wall and band vertices held at every stage (the band except where a clip plane
-/// cuts breast tissue in front of an implant bed), on every level used, and the finest
-/// level's wall, band and skin vertices.
+/// The vertices held at every stage, on every level used: the wall, the band (except
+/// where a clip plane cuts breast tissue in front of an implant bed) and, with
+/// [`SimulationOptions::hold_sternum`], the strip over the sternum (except in front of a
+/// bed); and the finest level's wall, band and skin vertices.
 fn held_vertices(
     input: &PatientInput,
+    options: &SimulationOptions,
     finest: &TetMesh,
     beds: &[ImplantBed; 2],
     level_count: usize,
     finest_wall_and_band: &[(u32, bool)],
 ) -> Result<HeldVertices, SimulationError> {
     let closed = input.closed_surface;
-    // the band is held except where a clip plane cuts through breast tissue in front
-    // of an implant bed
+    let sternum = options
+        .hold_sternum
+        .then(|| SternumStrip::new(input.frame, input.landmarks));
     let held = |mesh: &TetMesh, wall_and_band: &[(u32, bool)]| -> Vec<u32> {
-        wall_and_band
-            .iter()
-            .filter(|&&(v, band)| {
-                !band
-                    || !beds.iter().any(|bed| {
-                        let c = bed.cylinder.to_cylindrical(mesh.positions[v as usize]);
-                        bed.at(DVec2::new(c.x, c.y)).is_some_and(|b| c.z > b.w)
-                    })
+        let in_front_of_a_bed = |v: u32| {
+            beds.iter().any(|bed| {
+                let c = bed.cylinder.to_cylindrical(mesh.positions[v as usize]);
+                bed.at(DVec2::new(c.x, c.y)).is_some_and(|b| c.z > b.w)
             })
-            .map(|&(v, _)| v)
+        };
+        let mut held = vec![false; mesh.positions.len()];
+        for &(v, band) in wall_and_band {
+            held[v as usize] = !band || !in_front_of_a_bed(v);
+        }
+        if let Some(strip) = &sternum {
+            for (v, &p) in mesh.positions.iter().enumerate() {
+                held[v] |= strip.contains(p) && !in_front_of_a_bed(v as u32);
+            }
+        }
+        (0..mesh.positions.len() as u32)
+            .filter(|&v| held[v as usize])
             .collect()
     };
     let wall = held(finest, finest_wall_and_band);
@@ -418,4 +435,28 @@ fn scan_maps(
         control_points,
         control_point_feet,
     })
+}
+
+/// The tissue over the sternum: within [`STERNUM_HALF_WIDTH_MM`] of the midline (the
+/// sternal frame's `x = 0`, through Pj and Px) and between Pj and Px along the sternum,
+/// at any depth.
+struct SternumStrip {
+    frame: AnatomicalFrame,
+    length_mm: f64,
+}
+
+impl SternumStrip {
+    fn new(frame: &AnatomicalFrame, landmarks: &Landmarks) -> SternumStrip {
+        SternumStrip {
+            frame: frame.sternal(),
+            length_mm: landmarks
+                .get(LandmarkName::Pj)
+                .distance(landmarks.get(LandmarkName::Px)),
+        }
+    }
+
+    fn contains(&self, p: DVec3) -> bool {
+        let local = self.frame.to_local(p);
+        local.x.abs() <= STERNUM_HALF_WIDTH_MM && (-self.length_mm..=0.0).contains(&local.y)
+    }
 }

@@ -6,6 +6,11 @@ use super::*;
 /// closed surface lies on such a triangle within this many finest spacings.
 pub const WALL_TOLERANCE_FACTOR: f64 = 0.25;
 
+/// Half-width of the strip over the sternum held with
+/// [`SimulationOptions::hold_sternum`] (mm): the sternal body is 2-3 cm wide, and the
+/// pocket keeps 15 mm from the midline ([`crate::pocket::DEFAULT_MIDLINE_CLEARANCE_MM`]).
+pub const STERNUM_HALF_WIDTH_MM: f64 = 10.0;
+
 /// Default Young's modulus of implant elements as a fraction of the tissue's: "very soft"
 /// (paper V-A). Only stage 2 sees it (in stage 1 every implant element has all its corners
 /// prescribed).
@@ -106,6 +111,13 @@ pub struct SimulationOptions {
     /// edge of the implant on one side and dragged along the free slab on the other,
     /// invert and the corotated iteration stall (docs/dev/session-choices.md).
     pub hold_bed: bool,
+    /// Hold the tissue over the sternum ([`STERNUM_HALF_WIDTH_MM`] either side of the
+    /// midline, from Pj down to Px) to the bone at every stage. The presternal skin is
+    /// bound to the sternum; it lifts off only where the pockets join over it
+    /// (symmastia), which the pocket's midline clearance rules out. Left free, the
+    /// 15 mm slab in front of the rear wall let the breasts drag the skin at Px 2-3 mm
+    /// forwards on most bodies (docs/dev/session-choices.md).
+    pub hold_sternum: bool,
     /// Radius of the kernel that mollifies the implant's thickness in the template
     /// (mm); `None`: [`RIM_SMOOTHING_SPACINGS`] finest lattice spacings. `Some(0.0)`: no
     /// smoothing.
@@ -190,6 +202,7 @@ impl Default for SimulationOptions {
             pocket: Some([PocketLimits::default(); 2]),
             fit_footprint: true,
             hold_bed: true,
+            hold_sternum: true,
             rim_smoothing_mm: None,
             template_layer_mm: None,
             tissue: Material::default(),
