@@ -260,14 +260,20 @@ pub struct RefinementReport {
     pub longest_edge_in_band_mm: f64,
 }
 
-/// The clip planes of the closed surface, as coordinates in the anatomical frame (mm):
-/// `x` towards the patient's left, `y` up.
+/// The clip planes of the closed surface in the body's sternal frame (mm; origin Pj,
+/// `x` towards the patient's left, `y` along the sternum towards Pj): top and bottom
+/// `y = y_max_mm`, `y = y_min_mm`; the patient's right plane
+/// `x = x_min_mm + x_min_slope * (y - y_ref_mm)`, the left one likewise with `x_max`
+/// (slopes 0: upright).
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct ClipBoxReport {
     pub x_min_mm: f64,
     pub x_max_mm: f64,
     pub y_min_mm: f64,
     pub y_max_mm: f64,
+    pub x_min_slope: f64,
+    pub x_max_slope: f64,
+    pub y_ref_mm: f64,
 }
 
 /// A scanner hole inside a breast region, closed by the fill-in.
@@ -650,6 +656,9 @@ impl PatientModel {
                 x_max_mm: clip.x_max_mm,
                 y_min_mm: clip.y_min_mm,
                 y_max_mm: clip.y_max_mm,
+                x_min_slope: clip.x_min_slope,
+                x_max_slope: clip.x_max_slope,
+                y_ref_mm: clip.y_ref_mm,
             },
             holes_closed: model.holes_closed.iter().map(HoleSummary::from).collect(),
             holes_in_breasts: model
