@@ -6,11 +6,11 @@
 //! solution, with the barycentric and the smoothed prolongation, on the homogeneous
 //! tissue (with the default skin layer, PCG still agrees with the direct solver).
 //!
-//! The bare-cycle bounds hold on the model issue 5 was measured on, the upright clip
-//! box. The default model's lateral clip planes lean to follow the breasts' footprints;
+//! The bare-cycle bounds hold on the model issue 5 was measured on: the upright clip
+//! box, the tissue over the sternum free. The default model's lateral clip planes lean to follow the breasts' footprints;
 //! on their slanted faces the coarse levels' tetrahedra (each level meshed on its own)
-//! leave v02_average a slow mode, five bare cycles ending at 1.6e-3
-//! (docs/dev/model-on-every-body.md). The session does not rely on bare cycles there:
+//! leave v02_average a slow mode, five bare cycles ending above 1e-3
+//! (docs/dev/model-on-every-body.md), bounded here at twice that. The session does not rely on bare cycles there:
 //! Newton-Krylov steps and PCG, checked here against the direct solver on the default
 //! model.
 
@@ -76,10 +76,10 @@ fn multigrid_matches_the_direct_solver_on_shared_scans() {
         let mut session = session_with(&ModelOptions::default(), homogeneous());
         let mg = session.simulation.multigrid_mut().expect("assembled");
         pcg_matches_direct(name, "homogeneous", mg);
-        println!(
-            "{name}: homogeneous, barycentric P: {}",
-            bare_cycles(mg, false)
-        );
+        let fitted = bare_cycles(mg, false);
+        println!("{name}: homogeneous, barycentric P: {fitted}");
+        // a regression bound for the slanted faces' slow mode: twice issue 5's
+        assert!(fitted.error < 2e-3, "{name}: {fitted}");
 
         // issue 5's bounds on bare cycles stand for the homogeneous tissue (the paper's
         // model): a skin 40-150 times stiffer in the outer elements is a coefficient jump
@@ -87,13 +87,17 @@ fn multigrid_matches_the_direct_solver_on_shared_scans() {
         // (see the module documentation)
         let mut upright = ModelOptions::default();
         upright.closed_surface.fit_lateral_planes = false;
+        let homogeneous = || simulation::SimulationOptions {
+            hold_sternum: false,
+            ..homogeneous()
+        };
         let mut session = session_with(&upright, homogeneous());
         let mg = session.simulation.multigrid_mut().expect("assembled");
         pcg_matches_direct(name, "homogeneous, upright box", mg);
         let plain = bare_cycles(mg, false);
         println!("{name}: upright box, barycentric P: {plain}");
         // the issue's bound: five cycles within 1e-3 of the converged answer (measured
-        // 3e-4 to 7e-4)
+        // 2e-4 to 7e-4)
         assert!(plain.error < 1e-3, "{name}: {plain}");
         // the energy-optimal scale of each correction: measured 2.0e-4, 9.8e-5 and 1.8e-4
         // after five cycles (3.7, 3.5 and 3.4 times closer), reductions 5.1 and more

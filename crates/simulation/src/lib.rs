@@ -58,7 +58,7 @@ pub use field::{DEFAULT_FALLOFF_MM, PointMap};
 pub use placement::{Anchor, AnchorRule, ParseAnchorRuleError, Placement};
 pub use session::{
     BreastVolume, CARRIED_CONTROL_POINT_SPACING_MM, CycleInfo, PatientInput, PlacedImplant,
-    RunReport, Simulation, SimulationOptions, SolveReport, Stage,
+    RunReport, Simulation, SimulationOptions, SolveReport, SolvedState, Stage,
 };
 pub use skin::SkinLayer;
 pub use template::ImplantTemplate;

@@ -12,6 +12,10 @@
 //!   implant (docs/dev/session-choices.md); they are left free (traction-free). Vertices are assigned to the wall or
 //!   band when their closest point on the closed surface lies on one of those triangles
 //!   and within [`WALL_TOLERANCE_FACTOR`] times the finest spacing of it.
+//! - Held at all times with [`SimulationOptions::hold_sternum`]: the tissue over the
+//!   sternum, within [`STERNUM_HALF_WIDTH_MM`] of the midline from Pj down to Px, at any
+//!   depth, except in front of any bed an implant may lie on (the fill-ins' and the
+//!   pockets').
 //! - Per implant ([`crate::template`]): implant vertices displaced along the bed normal by
 //!   the implant's thickness, back vertices inside the footprint fixed. A vertex that is
 //!   both wall and implant takes the implant's value.
@@ -32,7 +36,8 @@
 //!    `K Δu = r` with `K` the corotated tangent at the stage-1 displacement (implant
 //!    vertices free) and `r` the added weight (and what is left of stage 1's residual),
 //!    solved by conjugate gradients preconditioned with the multigrid, one iteration per
-//!    cycle ([`fem::multigrid::PcgIteration`]), from the stage-1 displacement. The breast
+//!    cycle ([`fem::multigrid::PcgIteration`]), from the stage-1 displacement plus the
+//!    best multiple of the session's last correction (none after a restart). The breast
 //!    sags: the nipple moves down. Why linear: under the dead loads the soft implant
 //!    region has no stiffness of its own against moving as a whole, and the corotated
 //!    iteration wandered off; the added weight moves the nipple by a few millimetres,
@@ -53,7 +58,8 @@
 //! and assembled tangent ([`Multigrid::set_tangent`]; the stages assemble different
 //! tangents, see [`SimulationOptions::gravity_tangent`]), so neither the start of the
 //! gravity correction nor a change after it costs more than an ordinary cycle. The
-//! displacement is kept as the warm start.
+//! displacement is kept as the warm start, and so is the last gravity correction, for the
+//! next one.
 
 mod build;
 mod carried;
@@ -134,6 +140,16 @@ impl StageState {
             StageState::Gravity(_) => Stage::Gravity,
         }
     }
+}
+
+/// A session's state to start again from ([`Simulation::solved_state`],
+/// [`Simulation::restore`]).
+#[derive(Debug, Clone)]
+pub struct SolvedState {
+    /// The displacement (mm, per finest vertex).
+    u: Vec<DVec3>,
+    /// The gravity correction in it, if known (mm, per finest vertex).
+    gravity_correction: Option<Vec<DVec3>>,
 }
 
 /// Stage 2: the linear correction of stage 1's displacement.
@@ -300,7 +316,8 @@ pub struct Simulation {
     pocket_bounds: [Option<PocketBounds>; 2],
     /// The template candidates' feet on each side's current bed.
     feet: [BedFeet; 2],
-    /// Posterior wall and band vertices of the finest level.
+    /// The finest vertices held at every stage (the wall, the band as held, the strip
+    /// over the sternum).
     wall: Vec<u32>,
     /// Per finest vertex: on the wall (held at every stage).
     on_wall: Vec<bool>,
@@ -308,7 +325,8 @@ pub struct Simulation {
     on_band: Vec<bool>,
     /// Per finest vertex: on the skin (a boundary vertex off the wall and the band).
     on_skin: Vec<bool>,
-    /// Held wall and band vertices of each coarser level (for rediscretised operators).
+    /// The held vertices of each coarser level, chosen alike (for rediscretised
+    /// operators).
     coarse_walls: Vec<Vec<u32>>,
     /// The coarse operator in use, and how often Galerkin failed.
     coarse_operator: CoarseOperator,
@@ -339,6 +357,11 @@ pub struct Simulation {
     /// Stage 1's relative residuals before its last corotated cycles, at most
     /// [`STALL_WINDOW`] + 1 (the stall test's).
     stage_one_residuals: Vec<f64>,
+    /// The last gravity correction (mm, per finest vertex): stage 2's displacement minus
+    /// stage 1's when the session last left stage 2. The next correction starts from
+    /// its best multiple ([`PcgIteration::from_guess`]): after a small change of the
+    /// implants it is close to the new one.
+    gravity_guess: Option<Vec<DVec3>>,
     /// Stage 1 stalled: Newton-Krylov steps for the rest of the stage
     /// ([`SimulationOptions::newton_krylov_iterations`]).
     newton_krylov: bool,
@@ -398,7 +421,8 @@ impl Simulation {
         self.pocket_bounds[side as usize].as_ref()
     }
 
-    /// The finest vertices held at the posterior wall and the clip faces.
+    /// The finest vertices held at every stage: the posterior wall, the clip faces but
+    /// where they cut a breast, and the strip over the sternum.
     pub fn wall_vertices(&self) -> &[u32] {
         &self.wall
     }
@@ -419,19 +443,61 @@ impl Simulation {
     }
 
     /// Starts stage 1 afresh from the displacement `u` (mm, one per finest vertex, as
-    /// [`Simulation::displacement`] gives it), as after a change of the implants: a saved
-    /// state restored, or two solves compared from one start. On error nothing changes.
+    /// [`Simulation::displacement`] gives it), as after a change of the implants: two
+    /// solves compared from one start. No gravity correction is known for it (see
+    /// [`Simulation::restore`]). On error nothing changes.
     pub fn restart_from(&mut self, u: &[DVec3]) -> Result<(), SimulationError> {
-        if u.len() != self.u.len() || !u.iter().all(|d| d.is_finite()) {
-            return Err(SimulationError::BadModel(format!(
-                "a restart needs {} finite displacements, got {}",
-                self.u.len(),
-                u.len()
-            )));
+        self.restore(&SolvedState {
+            u: u.to_vec(),
+            gravity_correction: None,
+        })
+    }
+
+    /// The current state to start again from: the displacement and the gravity
+    /// correction in it (or the last one the session made).
+    pub fn solved_state(&self) -> SolvedState {
+        SolvedState {
+            u: self.u.clone(),
+            gravity_correction: self.gravity_correction(),
         }
-        self.u.copy_from_slice(u);
+    }
+
+    /// Starts stage 1 afresh from a state [`Simulation::solved_state`] gave, as after a
+    /// change of the implants; the next gravity correction starts from the state's. On
+    /// error nothing changes.
+    pub fn restore(&mut self, state: &SolvedState) -> Result<(), SimulationError> {
+        let count = self.u.len();
+        let fits = |v: &[DVec3]| v.len() == count && v.iter().all(|d| d.is_finite());
+        for (what, values) in [
+            ("displacements", Some(&state.u)),
+            ("gravity corrections", state.gravity_correction.as_ref()),
+        ] {
+            if let Some(values) = values.filter(|v| !fits(v)) {
+                return Err(SimulationError::BadModel(format!(
+                    "a restart needs {count} finite {what}, got {}",
+                    values.len()
+                )));
+            }
+        }
+        self.u.copy_from_slice(&state.u);
         self.constraints_changed();
+        self.gravity_guess = state.gravity_correction.clone();
         Ok(())
+    }
+
+    /// The gravity correction in the current state (stage 2, once it has iterated),
+    /// else the last one made.
+    fn gravity_correction(&self) -> Option<Vec<DVec3>> {
+        match &self.stage {
+            StageState::Gravity(gravity) if gravity.iteration.iterations() > 0 => Some(
+                self.u
+                    .iter()
+                    .zip(&gravity.u_implant)
+                    .map(|(u, u_implant)| *u - *u_implant)
+                    .collect(),
+            ),
+            _ => self.gravity_guess.clone(),
+        }
     }
 
     /// Removes the implant of one side (back to stage 1).

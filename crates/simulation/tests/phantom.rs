@@ -611,3 +611,53 @@ fn a_restart_from_a_solved_state_starts_at_its_equilibrium() {
     let first = sim.cycle().unwrap();
     assert!(first.relative_residual < 1e-5, "{first:?}");
 }
+
+/// After the implants move, the gravity correction starts from the best multiple of the
+/// last one (`PcgIteration::from_guess`) and needs fewer conjugate gradient cycles than
+/// from zero (`restart_from` forgets it), for the same answer: every finest vertex of
+/// both within 0.1 mm (the bench's `converged_ms` criterion) of the answer solved on to
+/// 1e-7.
+#[test]
+fn a_moved_implant_corrects_gravity_from_the_last_correction() {
+    let p = common::phantom();
+    let mut sim = p.session(SimulationOptions::default());
+    let place = |sim: &mut simulation::Simulation, up_mm: f64| {
+        for side in Side::BOTH {
+            sim.set_implant(side, implant(), Placement::moved(0.0, up_mm, 0.0))
+                .unwrap();
+        }
+    };
+    place(&mut sim, 0.0);
+    sim.run(false).unwrap();
+    let warm = sim.solved_state();
+    let u_warm = sim.displacement().to_vec();
+    let solve_moved = |sim: &mut simulation::Simulation, tolerance: f64| {
+        place(sim, 5.0);
+        let implant_stage = sim.solve(300, tolerance).unwrap();
+        assert!(implant_stage.converged, "{implant_stage:?}");
+        sim.start_gravity_correction().unwrap();
+        let gravity = sim.solve(300, tolerance).unwrap();
+        assert!(gravity.converged, "{gravity:?}");
+        (gravity.cycles, sim.displacement().to_vec())
+    };
+    sim.restore(&warm).unwrap();
+    let (warm_cycles, u_from_guess) = solve_moved(&mut sim, 1e-3);
+    sim.restart_from(&u_warm).unwrap();
+    let (cold_cycles, u_from_zero) = solve_moved(&mut sim, 1e-3);
+    sim.restore(&warm).unwrap();
+    let (_, tight) = solve_moved(&mut sim, 1e-7);
+    let largest = |u: &[glam::DVec3]| {
+        u.iter()
+            .zip(&tight)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, f64::max)
+    };
+    println!(
+        "gravity cycles from the last correction {warm_cycles}, from zero {cold_cycles}; \
+         largest distance to the tight answer {:.3} / {:.3} mm",
+        largest(&u_from_guess),
+        largest(&u_from_zero)
+    );
+    assert!(warm_cycles < cold_cycles, "{warm_cycles} vs {cold_cycles}");
+    assert!(largest(&u_from_guess) < 0.1 && largest(&u_from_zero) < 0.1);
+}

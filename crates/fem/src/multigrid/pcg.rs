@@ -38,7 +38,44 @@ impl PcgIteration {
         let n = b.len();
         assert_eq!(x.len(), n, "PcgIteration: x and b differ in length");
         let mut r = vec![DVec3::ZERO; n];
-        residual(mg.levels[0].op(), &x, b, &mut r);
+        if x.iter().all(|xi| *xi == DVec3::ZERO) {
+            r.copy_from_slice(b);
+        } else {
+            residual(mg.levels[0].op(), &x, b, &mut r);
+        }
+        PcgIteration::starting(x, r)
+    }
+
+    /// Starts from the multiple `α g` of a guess `g` (a related system's solution: the
+    /// same problem before a small change) closest to the solution in the energy norm,
+    /// `α = gᵀb / gᵀAg` (zero when `gᵀAg` is not positive): never further from the
+    /// solution in that norm than a start from zero. The guess is zero at eliminated
+    /// unknowns (their rows are the identity with a zero right-hand side).
+    ///
+    /// # Panics
+    /// Before the first [`Multigrid::assemble`], or on length mismatches.
+    pub fn from_guess(mg: &mut Multigrid, b: &[DVec3], guess: Vec<DVec3>) -> PcgIteration {
+        let n = b.len();
+        assert_eq!(guess.len(), n, "PcgIteration: guess and b differ in length");
+        let mut a_guess = vec![DVec3::ZERO; n];
+        mg.levels[0].op().mul_vec(&guess, &mut a_guess);
+        let energy = dot(&guess, &a_guess);
+        let alpha = if energy > 0.0 {
+            dot(&guess, b) / energy
+        } else {
+            0.0
+        };
+        let x: Vec<DVec3> = guess.iter().map(|g| *g * alpha).collect();
+        let r: Vec<DVec3> = b
+            .iter()
+            .zip(&a_guess)
+            .map(|(bi, agi)| *bi - *agi * alpha)
+            .collect();
+        PcgIteration::starting(x, r)
+    }
+
+    fn starting(x: Vec<DVec3>, r: Vec<DVec3>) -> PcgIteration {
+        let n = x.len();
         PcgIteration {
             x,
             r,
@@ -88,6 +125,11 @@ impl PcgIteration {
     /// The current iterate `x`.
     pub fn solution(&self) -> &[DVec3] {
         &self.x
+    }
+
+    /// The iterations taken so far.
+    pub fn iterations(&self) -> usize {
+        self.iterations
     }
 }
 

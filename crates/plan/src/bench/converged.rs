@@ -11,6 +11,7 @@ use anatomy::breast::Side;
 use anyhow::Result;
 use glam::DVec3;
 use serde::Serialize;
+use simulation::SolvedState;
 use std::time::Instant;
 
 /// How near the tightly converged skin an answer must be (mm, the largest distance): the
@@ -94,17 +95,24 @@ pub fn converged_timing(session: &mut Session, spec: &str) -> Result<ConvergedTi
             break;
         }
     }
-    let warm_start = session.simulation.displacement().to_vec();
-    let tight_from = |session: &mut Session, start: &[DVec3]| -> Result<Vec<DVec3>> {
-        session.simulation.restart_from(start)?;
+    let warm_start = session.simulation.solved_state();
+    // from the warm state, or from rest
+    let tight_from = |session: &mut Session, start: Option<&SolvedState>| -> Result<Vec<DVec3>> {
+        match start {
+            Some(state) => session.simulation.restore(state)?,
+            None => {
+                let rest = vec![DVec3::ZERO; session.simulation.displacement().len()];
+                session.simulation.restart_from(&rest)?
+            }
+        }
         place(session, changed)?;
         session.simulation.solve(MAX_CYCLES, TIGHT_TOLERANCE)?;
         session.simulation.start_gravity_correction()?;
         session.simulation.solve(MAX_CYCLES, TIGHT_TOLERANCE)?;
         Ok(session.scan_positions())
     };
-    let from_rest = tight_from(session, &vec![DVec3::ZERO; warm_start.len()])?;
-    let tight = tight_from(session, &warm_start)?;
+    let from_rest = tight_from(session, None)?;
+    let tight = tight_from(session, Some(&warm_start))?;
     let rest = &session.marked.scan.mesh.positions;
     let compared: Vec<usize> = (0..tight.len())
         .filter(|&v| tight[v].distance(rest[v]) > MOVED_MM)
@@ -114,7 +122,7 @@ pub fn converged_timing(session: &mut Session, spec: &str) -> Result<ConvergedTi
 
     let start_dependence = SkinDistance::between(&from_rest, &tight, &compared);
 
-    session.simulation.restart_from(&warm_start)?;
+    session.simulation.restore(&warm_start)?;
     let mut elapsed_ms = 0.0;
     let start = Instant::now();
     place(session, changed)?;

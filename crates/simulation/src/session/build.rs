@@ -28,8 +28,8 @@ struct ScanMaps {
 
 impl Simulation {
     /// Prepares a session: the tissue model of every level, the implant beds at the
-    /// default shift with their default anchors, the template index, the held wall and
-    /// band vertices, and the maps of the scan and landmarks onto the finest level.
+    /// default shift with their default anchors, the template index, the vertices held
+    /// at every stage (wall, band, the strip over the sternum), and the maps of the scan and landmarks onto the finest level.
     ///
     /// Errors: bad options, a hierarchy without levels or with inverted elements, a
     /// fill-in that cannot carry an implant.
@@ -63,6 +63,7 @@ impl Simulation {
                 }
             }
         }
+        let every_bed: Vec<&ImplantBed> = bed_choices.iter().flatten().map(|c| &c.bed).collect();
         let HeldVertices {
             wall,
             on_wall,
@@ -73,7 +74,7 @@ impl Simulation {
             &input,
             &options,
             &finest,
-            &beds,
+            (&beds, &every_bed),
             levels.len(),
             &finest_wall_and_band,
         )?;
@@ -122,6 +123,7 @@ impl Simulation {
             stage_one_search: false,
             stage_one_residuals: Vec::new(),
             newton_krylov: false,
+            gravity_guess: None,
             warmup_left: 0,
             last_energy: None,
             last_step: 1.0,
@@ -330,14 +332,15 @@ fn bed_choices(
 }
 
 /// The vertices held at every stage, on every level used: the wall, the band (except
-/// where a clip plane cuts breast tissue in front of an implant bed) and, with
-/// [`SimulationOptions::hold_sternum`], the strip over the sternum (except in front of a
-/// bed); and the finest level's wall, band and skin vertices.
+/// where a clip plane cuts breast tissue in front of one of the default `beds`) and,
+/// with [`SimulationOptions::hold_sternum`], the strip over the sternum (except in front
+/// of any of `every_bed`, the fill-ins' and the pockets'); and the finest level's wall,
+/// band and skin vertices.
 fn held_vertices(
     input: &PatientInput,
     options: &SimulationOptions,
     finest: &TetMesh,
-    beds: &[ImplantBed; 2],
+    (beds, every_bed): (&[ImplantBed; 2], &[&ImplantBed]),
     level_count: usize,
     finest_wall_and_band: &[(u32, bool)],
 ) -> Result<HeldVertices, SimulationError> {
@@ -346,19 +349,18 @@ fn held_vertices(
         .hold_sternum
         .then(|| SternumStrip::new(input.frame, input.landmarks));
     let held = |mesh: &TetMesh, wall_and_band: &[(u32, bool)]| -> Vec<u32> {
-        let in_front_of_a_bed = |v: u32| {
-            beds.iter().any(|bed| {
-                let c = bed.cylinder.to_cylindrical(mesh.positions[v as usize]);
-                bed.at(DVec2::new(c.x, c.y)).is_some_and(|b| c.z > b.w)
-            })
+        let in_front_of = |bed: &ImplantBed, p: DVec3| {
+            let c = bed.cylinder.to_cylindrical(p);
+            bed.at(DVec2::new(c.x, c.y)).is_some_and(|b| c.z > b.w)
         };
         let mut held = vec![false; mesh.positions.len()];
         for &(v, band) in wall_and_band {
-            held[v as usize] = !band || !in_front_of_a_bed(v);
+            let p = mesh.positions[v as usize];
+            held[v as usize] = !band || !beds.iter().any(|bed| in_front_of(bed, p));
         }
         if let Some(strip) = &sternum {
             for (v, &p) in mesh.positions.iter().enumerate() {
-                held[v] |= strip.contains(p) && !in_front_of_a_bed(v as u32);
+                held[v] |= strip.contains(p) && !every_bed.iter().any(|bed| in_front_of(bed, p));
             }
         }
         (0..mesh.positions.len() as u32)

@@ -6,6 +6,7 @@ use super::*;
 
 impl Simulation {
     pub(super) fn constraints_changed(&mut self) {
+        self.gravity_guess = self.gravity_correction();
         if let StageState::Gravity(gravity) =
             std::mem::replace(&mut self.stage, StageState::Implant)
         {
@@ -480,8 +481,25 @@ impl Simulation {
         mg.assemble(&u_implant, &self.f_ext, Formulation::Corotated)?;
         let rhs = mg.system().rhs.clone();
         let rhs_norm_mn = rhs.iter().map(|d| d.length_squared()).sum::<f64>().sqrt();
-        let zero = vec![DVec3::ZERO; rhs.len()];
-        let iteration = PcgIteration::new(mg, &rhs, zero);
+        let iteration = match &self.gravity_guess {
+            Some(correction) => {
+                let sys = mg.system();
+                let guess = sys
+                    .free
+                    .iter()
+                    .zip(sys.eliminated())
+                    .map(|(&v, &held)| {
+                        if held {
+                            DVec3::ZERO
+                        } else {
+                            correction[v as usize]
+                        }
+                    })
+                    .collect();
+                PcgIteration::from_guess(mg, &rhs, guess)
+            }
+            None => PcgIteration::new(mg, &rhs, vec![DVec3::ZERO; rhs.len()]),
+        };
         self.stage = StageState::Gravity(Box::new(GravityStage {
             multigrid: kept,
             u_implant,
