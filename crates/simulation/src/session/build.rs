@@ -29,7 +29,8 @@ struct ScanMaps {
 impl Simulation {
     /// Prepares a session: the tissue model of every level, the implant beds at the
     /// default shift with their default anchors, the template index, the vertices held
-    /// at every stage (wall, band, the strip over the sternum), and the maps of the scan and landmarks onto the finest level.
+    /// at every stage (wall, band, the strip over the sternum), and the maps of the scan
+    /// and landmarks onto the finest level.
     ///
     /// Errors: bad options, a hierarchy without levels or with inverted elements, a
     /// fill-in that cannot carry an implant.
