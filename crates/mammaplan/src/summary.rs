@@ -419,17 +419,27 @@ pub fn bench(report: &plan::bench::BenchReport) -> String {
     );
     for row in &report.rows {
         let c = &row.converged;
+        let range = |runs: &[f64]| {
+            let (low, high) = runs
+                .iter()
+                .fold((f64::INFINITY, 0.0_f64), |(l, h), &t| (l.min(t), h.max(t)));
+            format!("{low:.0}-{high:.0} ms over {} runs", runs.len())
+        };
         let converged = match (c.converged_ms, c.converged_cycles) {
-            (Some(ms), Some(cycles)) => format!("{ms:.0} ms ({cycles} cycles)"),
+            (Some(ms), Some(cycles)) => format!(
+                "{ms:.0} ms ({cycles} cycles; median, {})",
+                range(&c.converged_ms_runs)
+            ),
             _ => "not within the cycle limit".to_string(),
         };
         let _ = writeln!(
             out,
-            "{:>9}  skin within {} mm of the tight answer after {converged}; the session's own stop after {:.0} ms ({} cycles), RMS {:.3}, 95th percentile {:.3}, largest {:.2} mm from it; the tight answer from rest: RMS {:.3}, 95th percentile {:.3}, largest {:.2} mm from the one from the warm start",
+            "{:>9}  skin within {} mm of the tight answer after {converged}; the session's own stop after {:.0} ms ({} cycles; {}), RMS {:.3}, 95th percentile {:.3}, largest {:.2} mm from it; the tight answer from rest: RMS {:.3}, 95th percentile {:.3}, largest {:.2} mm from the one from the warm start",
             row.elements,
             plan::bench::SKIN_TOLERANCE_MM,
             c.default_stop_ms,
             c.default_stop_cycles,
+            range(&c.default_stop_ms_runs),
             c.default_stop_skin.rms_mm,
             c.default_stop_skin.p95_mm,
             c.default_stop_skin.max_mm,

@@ -394,6 +394,16 @@ impl Simulation {
         &self.options
     }
 
+    /// Sets [`SimulationOptions::newton_krylov_iterations`]; 0 also ends the Newton-Krylov
+    /// steps of a stage 1 that has stalled (its further cycles are warped ones), for
+    /// timing the paper's cycles alone.
+    pub fn set_newton_krylov_iterations(&mut self, iterations: usize) {
+        self.options.newton_krylov_iterations = iterations;
+        if iterations == 0 {
+            self.newton_krylov = false;
+        }
+    }
+
     /// The finest level (rest state).
     pub fn finest_mesh(&self) -> &TetMesh {
         &self.finest
