@@ -419,16 +419,16 @@ pub fn bench(report: &plan::bench::BenchReport) -> String {
     );
     for row in &report.rows {
         let c = &row.converged;
-        let range = |runs: &[f64]| {
-            let (low, high) = runs
+        let range = |times: Vec<f64>| {
+            let (low, high) = times
                 .iter()
                 .fold((f64::INFINITY, 0.0_f64), |(l, h), &t| (l.min(t), h.max(t)));
-            format!("{low:.0}-{high:.0} ms over {} runs", runs.len())
+            format!("{low:.0}-{high:.0} ms over {} runs", times.len())
         };
         let converged = match (c.converged_ms, c.converged_cycles) {
             (Some(ms), Some(cycles)) => format!(
                 "{ms:.0} ms ({cycles} cycles; median, {})",
-                range(&c.converged_ms_runs)
+                range(c.runs.iter().filter_map(|r| r.converged_ms).collect())
             ),
             _ => "not within the cycle limit".to_string(),
         };
@@ -439,7 +439,7 @@ pub fn bench(report: &plan::bench::BenchReport) -> String {
             plan::bench::SKIN_TOLERANCE_MM,
             c.default_stop_ms,
             c.default_stop_cycles,
-            range(&c.default_stop_ms_runs),
+            range(c.runs.iter().map(|r| r.default_stop_ms).collect()),
             c.default_stop_skin.rms_mm,
             c.default_stop_skin.p95_mm,
             c.default_stop_skin.max_mm,

@@ -30,29 +30,29 @@ const MAX_CYCLES: usize = 400;
 /// The change timed: both implants moved up by this much from their warm placement (mm).
 const MOVE_UP_MM: f64 = 5.0;
 
-/// Times the change is timed, each from the same warm state: the times reported are
-/// the medians, as single runs on a shared machine vary by half.
+/// Times the change is timed, each from the same warm state (medians reported: single
+/// runs on a shared machine vary).
 const TIMED_RUNS: usize = 5;
 
-/// What [`converged_timing`] measured.
+/// What [`converged_timing`] measured: the medians of [`TIMED_RUNS`] runs of the same
+/// change from the same warm state, and every run.
 #[derive(Debug, Clone, Serialize)]
 pub struct ConvergedTiming {
     /// From the change (the implants placed, their templates built) to the first cycle of
     /// the gravity correction after which the skin lies within [`SKIN_TOLERANCE_MM`] of
-    /// the tight answer (ms, the median of [`TIMED_RUNS`] runs; the distance checks not
-    /// counted). `None` when [`MAX_CYCLES`] cycles did not get there.
+    /// the tight answer (ms, the median run's; the distance checks not counted). `None`
+    /// when a run did not get there within [`MAX_CYCLES`] cycles.
     pub converged_ms: Option<f64>,
+    /// The cycles of the run whose `converged_ms` is the median.
     pub converged_cycles: Option<usize>,
-    /// Every run's time to the 0.1 mm answer (ms).
-    pub converged_ms_runs: Vec<f64>,
     /// Where the session's own rule stops (the options' relative tolerance in each
-    /// stage): the time (ms, the median run's), the cycles and the skin's distance to
-    /// the tight answer.
+    /// stage): the time (ms) of the run whose time is the median, its cycles and its
+    /// skin's distance to the tight answer.
     pub default_stop_ms: f64,
-    /// Every run's time to the session's own stop (ms).
-    pub default_stop_ms_runs: Vec<f64>,
     pub default_stop_cycles: usize,
     pub default_stop_skin: SkinDistance,
+    /// Every run, in order.
+    pub runs: Vec<TimedRun>,
     /// The tight answer solved from rest against the one solved from the warm start.
     pub start_dependence: SkinDistance,
 }
@@ -140,28 +140,35 @@ pub fn converged_timing(session: &mut Session, spec: &str) -> Result<ConvergedTi
             &skin_distance,
         )?);
     }
-    let converged_runs: Vec<f64> = runs.iter().filter_map(|r| r.converged_ms).collect();
-    let median_run = median_by(&runs, |r| r.default_stop_ms);
+    let converged_median = if runs.iter().all(|r| r.converged_ms.is_some()) {
+        Some(median_run(&runs, |r| {
+            r.converged_ms.unwrap_or(f64::INFINITY)
+        }))
+    } else {
+        None
+    };
+    let default_stop = median_run(&runs, |r| r.default_stop_ms);
     Ok(ConvergedTiming {
-        converged_ms: (converged_runs.len() == runs.len()).then(|| median(&converged_runs)),
-        converged_cycles: median_run.converged_cycles,
-        converged_ms_runs: converged_runs,
-        default_stop_ms: median_run.default_stop_ms,
-        default_stop_ms_runs: runs.iter().map(|r| r.default_stop_ms).collect(),
-        default_stop_cycles: median_run.default_stop_cycles,
-        default_stop_skin: median_run.default_stop_skin,
+        converged_ms: converged_median.and_then(|r| r.converged_ms),
+        converged_cycles: converged_median.and_then(|r| r.converged_cycles),
+        default_stop_ms: default_stop.default_stop_ms,
+        default_stop_cycles: default_stop.default_stop_cycles,
+        default_stop_skin: default_stop.default_stop_skin,
+        runs,
         start_dependence,
     })
 }
 
-/// One timed change: the times and cycles to the 0.1 mm answer and to the session's
-/// own stop.
-struct TimedRun {
-    converged_ms: Option<f64>,
-    converged_cycles: Option<usize>,
-    default_stop_ms: f64,
-    default_stop_cycles: usize,
-    default_stop_skin: SkinDistance,
+/// One timed change: the time (ms) and cycles to the 0.1 mm answer (`None`: not within
+/// [`MAX_CYCLES`]) and to the session's own stop, and the skin's distance to the tight
+/// answer there.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct TimedRun {
+    pub converged_ms: Option<f64>,
+    pub converged_cycles: Option<usize>,
+    pub default_stop_ms: f64,
+    pub default_stop_cycles: usize,
+    pub default_stop_skin: SkinDistance,
 }
 
 /// Times `change` and the session's cycles after it, from the state the session is in.
@@ -205,16 +212,9 @@ fn timed_change(
     })
 }
 
-/// The median of `values` (the upper of the two middle ones for an even count).
-fn median(values: &[f64]) -> f64 {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    sorted.get(sorted.len() / 2).copied().unwrap_or(f64::NAN)
-}
-
 /// The run whose `key` is the median of the runs' (the upper middle one for an even
 /// count).
-fn median_by(runs: &[TimedRun], key: impl Fn(&TimedRun) -> f64) -> &TimedRun {
+fn median_run(runs: &[TimedRun], key: impl Fn(&TimedRun) -> f64) -> &TimedRun {
     let mut order: Vec<&TimedRun> = runs.iter().collect();
     order.sort_by(|a, b| key(a).total_cmp(&key(b)));
     order[order.len() / 2]

@@ -76,13 +76,14 @@ pub const WARMUP_TOLERANCE: f64 = 0.05;
 pub const MAX_HALVINGS: usize = 5;
 
 /// Stage 1 counts as stalled when its relative residual fell, per corotated cycle and
-/// on average over the last [`STALL_WINDOW`] of them, by a factor worse than
-/// [`STALL_CONTRACTION`] (see [`SimulationOptions::newton_krylov_iterations`]).
+/// on average over the last [`STALL_WINDOW`] of them (the first cycle after a change
+/// not counted), by a factor worse than [`STALL_CONTRACTION`] (see
+/// [`SimulationOptions::newton_krylov_iterations`]).
 pub const STALL_WINDOW: usize = 2;
 
-/// The break-even contraction per warped cycle: a Newton-Krylov step costs about two
-/// to three warped cycles and reduces the residual four- to six-fold, about 0.5 per
-/// warped cycle's time (docs/dev/converged.md).
+/// The ratio of the residual after a warped cycle to the one before, above which a
+/// Newton-Krylov step (dearer per cycle, faster per millisecond there) takes over
+/// (docs/dev/converged.md).
 pub const STALL_CONTRACTION: f64 = 0.5;
 
 /// Furthest the bed may be moved in front of the fill-in (mm).
@@ -169,8 +170,8 @@ pub struct SimulationOptions {
     /// Newton-Krylov step: the full tangent ([`Tangent::Full`], with the geometric term
     /// the warped stiffness lacks) solved by this many conjugate gradient iterations
     /// preconditioned by the multigrid, instead of one V-cycle on the warped stiffness.
-    /// Dearer per cycle (two to three times), so only once the cheap cycles converge
-    /// more slowly than these steps would in the same time: near the answer, and
+    /// Dearer per cycle, so only once the cheap cycles converge more slowly than these
+    /// steps would in the same time ([`STALL_CONTRACTION`]): near the answer, and
     /// against the free lateral faces of a model, where tissue is stretched and turned,
     /// they settle into an oscillation (docs/dev/converged.md). 0: never.
     pub newton_krylov_iterations: usize,

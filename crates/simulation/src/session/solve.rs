@@ -381,7 +381,9 @@ impl Simulation {
             self.stage_one_search = true;
         }
         self.last_relative_residual = relative;
-        if formulation == Formulation::Corotated {
+        // the residual before a fresh cycle is the change's, not the iteration's: the
+        // window starts after it
+        if formulation == Formulation::Corotated && !fresh {
             if self.stage_one_residuals.len() > STALL_WINDOW {
                 self.stage_one_residuals.remove(0);
             }
@@ -582,7 +584,8 @@ mod tests {
         assert!(stalled(&[3.5e-3, 3.4e-3, 3.5e-3]));
         assert!(stalled(&[1.0, 1.2, 1.1]));
         assert!(!stalled(&[1.0, 1.0]));
-        // the cycles before the window do not count
-        assert!(!stalled(&[9.0, 1.0, 0.9, 0.3, 0.1]));
+        // only the window counts: the first entry here is before it
+        assert!(stalled(&[9.0, 1.0, 0.9, 0.8]));
+        assert!(!stalled(&[1.0, 1.0, 0.3, 0.1]));
     }
 }
