@@ -27,7 +27,9 @@
 //!    The border must then be a single loop lying on the planes, with one corner vertex on
 //!    each of the four plane intersections; a loop off the planes means the box reaches
 //!    beyond the surface's border, a further loop a hole inside the box.
-//! 3. The clipped base is translated by the rear-wall offset along the posterior axis
+//! 3. The clipped base, smoothed first (ten Laplacian steps inside its border: the
+//!    scanner's noise means nothing on a stand-in for the chest wall), is translated by
+//!    the rear-wall offset along the posterior axis
 //!    (`-z` of the frame), the paper's "shifted towards the back"; a translation keeps
 //!    its border on the same four planes. Where the scan runs almost parallel to that
 //!    axis (the underside of a hanging breast), the translated wall stays too close to
@@ -47,9 +49,10 @@
 //!    of the wall where a breast's fill-in meets a filled scan hole, are smoothed out
 //!    first, [`mesh::untangle`], with a warning), and a positive volume
 //!    (else the wall lies in front of the scan).
-//! 6. If clipping or stitching fails, [`build_closed_surface`] retries with the lateral
-//!    planes further in, a few times, then with the upright box of earlier versions
-//!    (see there).
+//! 6. Before all this, [`build_closed_surface`] moves each lateral plane inwards, by at
+//!    most 10 mm, off any graze of the torso's side: to where the smoothed base's
+//!    section on it has no closed loop and does not run front to back along an overhang
+//!    (`lateral_section.rs`). The surface is then built once; an error is that box's.
 //!
 //! The result is in the scan's (file) coordinates.
 //!
@@ -68,11 +71,13 @@
 //!
 //! # Files
 //! - `clip_box.rs`: the clip box ([`ClipBox`]): its planes, fitted or upright.
+//! - `lateral_section.rs`: where a lateral plane crosses the torso's side cleanly.
 //! - `clip.rs`: a surface clipped to the box, with its border split into four sides.
 //! - `stitch.rs`: the band that stitches the two borders on each plane.
 
 mod clip;
 mod clip_box;
+mod lateral_section;
 mod stitch;
 
 pub use clip_box::{ClipBox, ClipBoxFit};
@@ -83,7 +88,10 @@ use crate::place::Place;
 use clip::ClippedPart;
 use clip_box::{lateral_room, upright_box};
 use glam::DVec3;
-use mesh::{ManifoldReport, MeshError, Topology, TriMesh, manifold_report, untangle};
+use lateral_section::clear_of_grazing;
+use mesh::{
+    ManifoldReport, MeshError, Topology, TriMesh, manifold_report, smooth_inside_borders, untangle,
+};
 use std::ops::Range;
 use stitch::bands;
 
@@ -100,16 +108,6 @@ pub const MAX_REAR_WALL_OFFSET_MM: f64 = 60.0;
 /// A clip box needs at least this many triangles of each surface inside it; fewer means
 /// the box misses the surface.
 const MIN_CLIPPED_TRIANGLES: usize = 16;
-/// Further attempts of [`build_closed_surface`] after a failed clip or stitch, each with
-/// the lateral planes [`RETRY_STEP_MM`] further in.
-const LATERAL_RETRIES: usize = 4;
-/// See [`LATERAL_RETRIES`] (mm).
-const RETRY_STEP_MM: f64 = 1.0;
-/// Attempts with the box fitted to the footprints, each [`FITTED_RETRY_STEP_MM`] further
-/// in, before [`build_closed_surface`] falls back to the upright box.
-const FITTED_RETRIES: usize = 5;
-/// See [`FITTED_RETRIES`] (mm).
-const FITTED_RETRY_STEP_MM: f64 = 2.0;
 /// How far inside a lateral plane the breast landmarks should lie (mm); see
 /// [`ClosedSurfaceOptions::min_border_clearance_mm`].
 pub const LANDMARK_MARGIN_MM: f64 = 5.0;
@@ -123,6 +121,11 @@ const MAX_UNTANGLE_MM: f64 = 1.5;
 ///
 /// [`keep_wall_clear`]: crate::wall_clearance::keep_wall_clear
 const WALL_CLEARANCE_FRACTION: f64 = 0.2;
+
+/// Laplacian steps ([`mesh::laplacian_smooth`]) on the filled base before it becomes
+/// the wall: each halves noise at the scale of an edge and moves the smooth chest by
+/// about 0.01 mm; ten leave a thousandth of the scanner's noise.
+const WALL_SMOOTHING_STEPS: usize = 10;
 
 /// Where the clip planes go relative to the landmarks (mm).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -300,16 +303,16 @@ pub struct ClosedSurface {
     pub warnings: Vec<String>,
 }
 
-/// The clip box from the landmarks ([`ClipBox::around_breasts`]), then
-/// [`build_closed_surface_in_box`].
+/// The clip box from the landmarks and the footprints
+/// ([`ClipBox::around_breasts_and_footprints`], or the upright box without
+/// `fit_lateral_planes`), its lateral planes moved in off any graze of the torso's side
+/// ([`clear_of_grazing`]), then [`build_closed_surface_in_box`].
 ///
-/// A lateral plane that meets the side of the chest almost tangentially (below a large
-/// breast, where the surface runs nearly along the plane) can leave the shifted wall
-/// touching the band or the scan's cut curve crossing the wall's; a millimetre further
-/// in, the same surface usually closes. So if the clip or the stitch fails, the build is
-/// tried again with both lateral planes [`RETRY_STEP_MM`] further in, up to
-/// [`LATERAL_RETRIES`] times while the box keeps the breast landmarks; the error is the
-/// first attempt's.
+/// A lateral plane that meets the side of the chest almost tangentially cuts off the
+/// tip of a bump (a closed loop on the plane, which the wall's copy turns into a pocket
+/// of air) or follows the side in depth so that the wall moved back crosses the skin;
+/// a few millimetres further in, the plane crosses the side cleanly. The surface is
+/// built once: an error is the one of that box.
 pub fn build_closed_surface(
     scan: &TriMesh,
     filled_base: &TriMesh,
@@ -320,104 +323,59 @@ pub fn build_closed_surface(
     // The box follows the thorax (the body's axes), not the way she stood.
     let frame = &frame.sternal();
     let footprints = footprint_points(scan, filled_base);
-    let mut first_error = None;
-    // The fitted box if asked for, then (should it not close) the upright one.
-    let mut boxes = Vec::new();
-    if options.fit_lateral_planes {
-        match ClipBox::around_breasts_and_footprints(scan, frame, landmarks, &footprints, options) {
-            Ok(fit) => boxes.push((fit.clip_box, true)),
-            Err(error) => first_error = Some(error),
+    // The wall is a stand-in for the chest wall 15 mm behind the skin: the scanner's
+    // noise means nothing there, and at a lateral plane's grazing angle it pokes
+    // through the plane in loops that the wall would cap around air.
+    let mut filled_base = filled_base.clone();
+    smooth_inside_borders(&mut filled_base, WALL_SMOOTHING_STEPS);
+    let filled_base = &filled_base;
+    let fitted = if options.fit_lateral_planes {
+        ClipBox::around_breasts_and_footprints(scan, frame, landmarks, &footprints, options)?
+            .clip_box
+    } else {
+        upright_box(scan, frame, landmarks, options)?
+    };
+    let (clip_box, moved_mm) = clear_of_grazing(
+        fitted,
+        scan,
+        filled_base,
+        frame,
+        landmarks,
+        options.rear_wall_offset_mm,
+    );
+    let mut surface = build_closed_surface_in_box(
+        scan,
+        filled_base,
+        frame,
+        &clip_box,
+        options.rear_wall_offset_mm,
+    )?;
+    let keep: Vec<DVec3> = footprints.iter().map(|&p| frame.to_local(p)).collect();
+    let room = lateral_room(&clip_box, &keep, frame, landmarks);
+    surface.lateral_room_mm = Some(room);
+    for (k, side) in ["right", "left"].into_iter().enumerate() {
+        if moved_mm[k] > 0.0 {
+            surface.warnings.push(format!(
+                "the {side} clip plane was moved {:.1} mm inwards, off a graze of the side of \
+                 the torso where the scan and the chest wall rebuilt behind it could not be \
+                 joined",
+                moved_mm[k]
+            ));
+        }
+        if room[k] < LANDMARK_MARGIN_MM {
+            surface.warnings.push(format!(
+                "the {side} clip plane lies {:.1} mm beyond the {side} breast's footprint \
+                 (wanted {LANDMARK_MARGIN_MM} mm){}: the scan ends close beyond the breast",
+                room[k],
+                if room[k] < 0.0 {
+                    ", so it cuts off part of it"
+                } else {
+                    ""
+                }
+            ));
         }
     }
-    match upright_box(scan, frame, landmarks, options) {
-        Ok(upright) => boxes.push((upright, false)),
-        Err(error) => {
-            if boxes.is_empty() {
-                return Err(first_error.unwrap_or(error));
-            }
-        }
-    }
-    for (start, fitted) in boxes {
-        let mut clip_box = start;
-        // The fitted box may cut a footprint where the fill-in bows out of the body;
-        // it gets more and larger steps inwards before the upright box is tried.
-        let (retries, step) = if fitted {
-            (FITTED_RETRIES, FITTED_RETRY_STEP_MM)
-        } else {
-            (LATERAL_RETRIES, RETRY_STEP_MM)
-        };
-        for _ in 0..=retries {
-            let error =
-                match build_closed_surface_in_box(
-                    scan,
-                    filled_base,
-                    frame,
-                    &clip_box,
-                    options.rear_wall_offset_mm,
-                ) {
-                    Ok(mut surface) => {
-                        let keep: Vec<DVec3> =
-                            footprints.iter().map(|&p| frame.to_local(p)).collect();
-                        let room = lateral_room(&clip_box, &keep, frame, landmarks);
-                        surface.lateral_room_mm = Some(room);
-                        for (k, side) in ["right", "left"].into_iter().enumerate() {
-                            if room[k] < LANDMARK_MARGIN_MM {
-                                surface.warnings.push(format!(
-                                "the {side} clip plane lies {:.1} mm beyond the {side} breast's \
-                                 footprint (wanted {LANDMARK_MARGIN_MM} mm){}: the scan ends \
-                                 close beyond the breast",
-                                room[k],
-                                if room[k] < 0.0 { ", so it cuts off part of it" } else { "" }
-                            ));
-                            }
-                        }
-                        let moved = clip_box.x_min_mm - start.x_min_mm;
-                        if fitted && moved > 0.0 {
-                            surface.warnings.push(format!(
-                                "the lateral clip planes were moved {moved:.0} mm inwards for the \
-                             surface to close; they now lie {:.1} and {:.1} mm beyond the \
-                             right and left footprints",
-                                room[0], room[1]
-                            ));
-                        }
-                        if !fitted && options.fit_lateral_planes {
-                            surface.warnings.push(format!(
-                                "the clip box fitted to the breasts could not be closed ({}); \
-                             used the upright box, which lies {:.1} and {:.1} mm beyond the \
-                             right and left footprints",
-                                first_error
-                                    .as_ref()
-                                    .map_or(String::new(), |e| format!("{e}")),
-                                room[0],
-                                room[1]
-                            ));
-                        }
-                        return Ok(surface);
-                    }
-                    Err(error) => error,
-                };
-            let retry = matches!(
-                error,
-                ClosedSurfaceError::RunsOffBorder { .. }
-                    | ClosedSurfaceError::MissingCorners { .. }
-                    | ClosedSurfaceError::Stitch(_)
-                    | ClosedSurfaceError::NotWatertight(_)
-                    | ClosedSurfaceError::SelfIntersecting { .. }
-            );
-            if first_error.is_none() {
-                first_error = Some(error);
-            }
-            if !retry {
-                break;
-            }
-            clip_box.x_min_mm += step;
-            clip_box.x_max_mm -= step;
-            if clip_box.left_out(frame, landmarks).is_some() || clip_box.check().is_err() {
-                break;
-            }
-        }
-    }
-    Err(first_error.expect("at least one attempt"))
+    Ok(surface)
 }
 
 /// The points of `filled_base` that are not points of `scan`: where the base was cut and

@@ -8,6 +8,7 @@
 //! each round) and checks again, until none is left or the rounds run out.
 
 use crate::intersect::self_intersections;
+use crate::smooth::laplacian_smooth;
 use crate::topology::Topology;
 use crate::trimesh::TriMesh;
 use glam::DVec3;
@@ -15,9 +16,8 @@ use glam::DVec3;
 /// Rounds of [`untangle`]: each smooths the region around every remaining intersection,
 /// one ring wider than the round before.
 const UNTANGLE_ROUNDS: usize = 8;
-/// Laplacian steps per round, each moving a vertex half way to its neighbours' mean.
+/// Laplacian steps per round ([`laplacian_smooth`]).
 const STEPS_PER_ROUND: usize = 3;
-const STEP_FRACTION: f64 = 0.5;
 
 /// What [`untangle`] did.
 #[derive(Debug, Clone, PartialEq)]
@@ -89,23 +89,9 @@ pub fn untangle(
         if vertices.is_empty() {
             break;
         }
-        for _ in 0..STEPS_PER_ROUND {
-            let targets: Vec<DVec3> = vertices
-                .iter()
-                .map(|&v| {
-                    let neighbours = topology.vertex_neighbors(mesh, v);
-                    let mean = neighbours
-                        .iter()
-                        .map(|&n| mesh.positions[n as usize])
-                        .sum::<DVec3>()
-                        / neighbours.len().max(1) as f64;
-                    mesh.positions[v].lerp(mean, STEP_FRACTION)
-                })
-                .collect();
-            for (&v, target) in vertices.iter().zip(targets) {
-                mesh.positions[v] = target;
-                moved[v] = true;
-            }
+        laplacian_smooth(mesh, &topology, &vertices, STEPS_PER_ROUND);
+        for &v in &vertices {
+            moved[v] = true;
         }
         pairs = self_intersections(mesh);
     }

@@ -435,8 +435,8 @@ fn landmark_box(
         ..ClipBox::default()
     }
 }
-/// The upright box of earlier versions, the fallback of [`build_closed_surface`] where the
-/// fitted one cannot be closed: the lateral planes `lateral_margin_mm` beyond the lateral
+/// The upright box of earlier versions, which [`build_closed_surface`] uses without
+/// `fit_lateral_planes`: the lateral planes `lateral_margin_mm` beyond the lateral
 /// fold ends, moved inwards to stay the clearance inside the scan's narrowest width over
 /// the box's heights (less where the breast landmarks need it).
 ///
