@@ -27,8 +27,9 @@
 //!    The border must then be a single loop lying on the planes, with one corner vertex on
 //!    each of the four plane intersections; a loop off the planes means the box reaches
 //!    beyond the surface's border, a further loop a hole inside the box.
-//! 3. The clipped base, smoothed first (ten Laplacian steps inside its border: the
-//!    scanner's noise means nothing on a stand-in for the chest wall), is translated by
+//! 3. The clipped base (in [`build_closed_surface`], smoothed first by ten Laplacian
+//!    steps inside its border: the scanner's noise means nothing on a stand-in for the
+//!    chest wall; [`build_closed_surface_in_box`] takes it as given) is translated by
 //!    the rear-wall offset along the posterior axis
 //!    (`-z` of the frame), the paper's "shifted towards the back"; a translation keeps
 //!    its border on the same four planes. Where the scan runs almost parallel to that
@@ -50,9 +51,14 @@
 //!    first, [`mesh::untangle`], with a warning), and a positive volume
 //!    (else the wall lies in front of the scan).
 //! 6. Before all this, [`build_closed_surface`] moves each lateral plane inwards, by at
-//!    most 10 mm, off any graze of the torso's side: to where the smoothed base's
-//!    section on it has no closed loop and does not run front to back along an overhang
-//!    (`lateral_section.rs`). The surface is then built once; an error is that box's.
+//!    most 10 mm and never past a breast landmark, off any graze of the torso's side: to
+//!    where, on the plane and a step either side, the smoothed base's section has no
+//!    closed loop and does not run front to back along an overhang, and the base's and
+//!    the scan's sections cross the top and bottom heights once
+//!    (`lateral_section.rs`). The surface is then built once; an error is that box's
+//!    (with the plane's remaining defects, if it could not be cleared). The box is the
+//!    fitted one or, without `fit_lateral_planes`, the upright one; if the fit itself
+//!    fails (a breast landmark outside what the scan allows), that is the error.
 //!
 //! The result is in the scan's (file) coordinates.
 //!
@@ -63,11 +69,12 @@
 //!   offset of the scan, so where the chest is steep (the lateral planes) its distance
 //!   from the scan along the normal is less than the offset.
 //! - The lateral planes are planes (straight lines in the coronal plane) and stay inside
-//!   the scan at every height of the box. The default upright box, held inside the
-//!   waist, cuts 19 to 25 mm off the lateral edge of each footprint on every shared
-//!   scan; the fitted, leaning planes 7 to 16 mm, but the simulation does not yet
-//!   converge reliably against them (`docs/dev/model-on-every-body.md`). A curved
-//!   lateral boundary following the outline would keep more.
+//!   the scan at every height of the box. The upright box (without
+//!   `fit_lateral_planes`), held inside the waist, cuts 19 to 25 mm off the lateral
+//!   edge of each footprint on every shared scan; the fitted, leaning planes (the
+//!   default), moved in off grazes, about 8 to 18 mm on the zoo
+//!   (`docs/dev/model-on-every-body.md`). A curved lateral boundary following the
+//!   outline, meeting the side at a steeper angle, would keep more.
 //!
 //! # Files
 //! - `clip_box.rs`: the clip box ([`ClipBox`]): its planes, fitted or upright.
@@ -123,8 +130,8 @@ const MAX_UNTANGLE_MM: f64 = 1.5;
 const WALL_CLEARANCE_FRACTION: f64 = 0.2;
 
 /// Laplacian steps ([`mesh::laplacian_smooth`]) on the filled base before it becomes
-/// the wall: each halves noise at the scale of an edge and moves the smooth chest by
-/// about 0.01 mm; ten leave a thousandth of the scanner's noise.
+/// the wall: ten take a one-vertex spike of noise down to about 6% and independent
+/// per-vertex noise to about a sixth, and move the smooth chest by about 0.1 mm.
 const WALL_SMOOTHING_STEPS: usize = 10;
 
 /// Where the clip planes go relative to the landmarks (mm).
@@ -254,6 +261,19 @@ pub enum ClosedSurfaceError {
         what: &'static str,
         near_mm: [f64; 3],
     },
+    #[error(
+        "{source} (the {side} clip plane, moved {moved_mm:.1} mm inwards as far as the \
+         landmarks allow, still grazes the side of the torso: {defects} loops or stray \
+         corners in its section, which runs {excess_fold_mm:.1} mm further front to back \
+         than it should; check the scan's side there)"
+    )]
+    OnGrazingPlane {
+        side: &'static str,
+        moved_mm: f64,
+        defects: usize,
+        excess_fold_mm: f64,
+        source: Box<ClosedSurfaceError>,
+    },
 }
 
 impl ClosedSurfaceError {
@@ -271,6 +291,7 @@ impl ClosedSurfaceError {
             | ClosedSurfaceError::Stitch(_)
             | ClosedSurfaceError::NotWatertight(_)
             | ClosedSurfaceError::WallInFront { .. } => None,
+            ClosedSurfaceError::OnGrazingPlane { source, .. } => source.place(),
         }
     }
 }
@@ -284,8 +305,8 @@ pub struct ClosedSurface {
     pub volume_ml: f64,
     /// Triangles of the clipped scan.
     pub front: Range<usize>,
-    /// Triangles of the clipped, shifted filled base (facing posteriorly): the wall the
-    /// implant sits on.
+    /// Triangles of the clipped, shifted filled base (facing posteriorly; smoothed by
+    /// [`build_closed_surface`]): the wall the implant sits on.
     pub back_wall: Range<usize>,
     /// Triangles of the band joining the two.
     pub band: Range<usize>,
@@ -322,6 +343,7 @@ pub fn build_closed_surface(
 ) -> Result<ClosedSurface, ClosedSurfaceError> {
     // The box follows the thorax (the body's axes), not the way she stood.
     let frame = &frame.sternal();
+    check_rear_wall_offset(options.rear_wall_offset_mm)?;
     let footprints = footprint_points(scan, filled_base);
     // The wall is a stand-in for the chest wall 15 mm behind the skin: the scanner's
     // noise means nothing there, and at a lateral plane's grazing angle it pokes
@@ -335,7 +357,7 @@ pub fn build_closed_surface(
     } else {
         upright_box(scan, frame, landmarks, options)?
     };
-    let (clip_box, moved_mm) = clear_of_grazing(
+    let (clip_box, moves) = clear_of_grazing(
         fitted,
         scan,
         filled_base,
@@ -343,23 +365,42 @@ pub fn build_closed_surface(
         landmarks,
         options.rear_wall_offset_mm,
     );
+    const SIDES: [&str; 2] = ["right", "left"];
     let mut surface = build_closed_surface_in_box(
         scan,
         filled_base,
         frame,
         &clip_box,
         options.rear_wall_offset_mm,
-    )?;
+    )
+    .map_err(|error| match (0..2).find(|&k| !moves[k].is_clean()) {
+        Some(k) => ClosedSurfaceError::OnGrazingPlane {
+            side: SIDES[k],
+            moved_mm: moves[k].moved_mm,
+            defects: moves[k].defects,
+            excess_fold_mm: moves[k].excess_fold_mm,
+            source: Box::new(error),
+        },
+        None => error,
+    })?;
     let keep: Vec<DVec3> = footprints.iter().map(|&p| frame.to_local(p)).collect();
     let room = lateral_room(&clip_box, &keep, frame, landmarks);
     surface.lateral_room_mm = Some(room);
-    for (k, side) in ["right", "left"].into_iter().enumerate() {
-        if moved_mm[k] > 0.0 {
+    for (k, side) in SIDES.into_iter().enumerate() {
+        let plane = moves[k];
+        if !plane.is_clean() {
+            surface.warnings.push(format!(
+                "the {side} clip plane still grazes the side of the torso {:.1} mm in from \
+                 where it was fitted ({} loops or stray corners in its section, which runs \
+                 {:.1} mm further front to back than it should); the surface closed anyway",
+                plane.moved_mm, plane.defects, plane.excess_fold_mm
+            ));
+        } else if plane.moved_mm > 0.0 {
             surface.warnings.push(format!(
                 "the {side} clip plane was moved {:.1} mm inwards, off a graze of the side of \
-                 the torso where the scan and the chest wall rebuilt behind it could not be \
-                 joined",
-                moved_mm[k]
+                 the torso (a bump, an overhang or a corner of the section there would have \
+                 kept the scan and the chest wall rebuilt behind it from being joined)",
+                plane.moved_mm
             ));
         }
         if room[k] < LANDMARK_MARGIN_MM {
@@ -376,6 +417,19 @@ pub fn build_closed_surface(
         }
     }
     Ok(surface)
+}
+
+/// An error unless the offset lies in (0, [`MAX_REAR_WALL_OFFSET_MM`]] (NaN included).
+fn check_rear_wall_offset(rear_wall_offset_mm: f64) -> Result<(), ClosedSurfaceError> {
+    if rear_wall_offset_mm > 0.0 && rear_wall_offset_mm <= MAX_REAR_WALL_OFFSET_MM {
+        Ok(())
+    } else {
+        Err(ClosedSurfaceError::InvalidInput(format!(
+            "the rear-wall offset must lie between 0 and {MAX_REAR_WALL_OFFSET_MM} mm (the \
+             chest wall lies some 10 to 30 mm behind the breast's base), got \
+             {rear_wall_offset_mm}"
+        )))
+    }
 }
 
 /// The points of `filled_base` that are not points of `scan`: where the base was cut and
@@ -408,13 +462,7 @@ pub fn build_closed_surface_in_box(
     rear_wall_offset_mm: f64,
 ) -> Result<ClosedSurface, ClosedSurfaceError> {
     clip_box.check()?;
-    if !(rear_wall_offset_mm > 0.0 && rear_wall_offset_mm <= MAX_REAR_WALL_OFFSET_MM) {
-        return Err(ClosedSurfaceError::InvalidInput(format!(
-            "the rear-wall offset must lie between 0 and {MAX_REAR_WALL_OFFSET_MM} mm (the \
-             chest wall lies some 10 to 30 mm behind the breast's base), got \
-             {rear_wall_offset_mm}"
-        )));
-    }
+    check_rear_wall_offset(rear_wall_offset_mm)?;
     let mut front = ClippedPart::new(scan, SurfaceRole::Scan, frame, clip_box)?;
     let mut back = ClippedPart::new(filled_base, SurfaceRole::FilledBase, frame, clip_box)?;
     for p in &mut back.positions {

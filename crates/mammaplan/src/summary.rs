@@ -139,7 +139,7 @@ fn model_figures(report: &ModelReport) -> String {
     let counts = &report.counts;
     let _ = writeln!(
         out,
-        "closed surface: {:.1} ml, {} triangles, rear wall = filled base shifted {:.1} mm back\n\
+        "closed surface: {:.1} ml, {} triangles, rear wall = filled base smoothed and shifted {:.1} mm back\n\
          scan holes closed: {}; built in {:.0} ms (breast model {:.0} ms, closed surface {:.0} ms, \
          tetrahedra {:.0} ms)",
         report.closed_surface_volume_ml,

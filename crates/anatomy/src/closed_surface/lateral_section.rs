@@ -9,9 +9,10 @@
 //! section runs front to back along an overhang, so the wall (the base's section moved
 //! back) crosses the scan's or touches the plane along edges. [`LateralSection`]
 //! measures both on a candidate plane; [`clear_of_grazing`] moves each plane inwards
-//! until they are gone. Only the filled base is measured: the scan differs from it
-//! inside the cut curves, where a breast's lateral side crossing the plane is a bump of
-//! material that clipping caps.
+//! until they are gone. Loops and spread are measured on the filled base only: the scan
+//! differs from it inside the cut curves, where a breast's lateral side crossing the
+//! plane is a bump of material that clipping caps. The corners, where each section
+//! crosses the box's top and bottom heights, are counted on both.
 
 use super::clip_box::ClipBox;
 use crate::frame::AnatomicalFrame;
@@ -33,16 +34,34 @@ const MAX_INWARD_MM: f64 = 10.0;
 /// mm; docs/dev/model-on-every-body.md).
 const MAX_FOLD_FRACTION: f64 = 0.4;
 
+/// Where [`clear_of_grazing`] left one lateral plane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct PlaneMove {
+    /// How far the plane moved inwards (mm).
+    pub(super) moved_mm: f64,
+    /// Closed loops and extra or missing corners left in the sections there; 0 on a
+    /// clean plane.
+    pub(super) defects: usize,
+    /// How far the depth spread there exceeds the bound (mm); 0 on a clean plane.
+    pub(super) excess_fold_mm: f64,
+}
+
+impl PlaneMove {
+    pub(super) fn is_clean(&self) -> bool {
+        self.defects == 0 && self.excess_fold_mm == 0.0
+    }
+}
+
 /// Moves each lateral plane of `clip_box` inwards by [`STEP_MM`] steps to the first
-/// position where it crosses the surfaces cleanly: the filled base's (`filled_base`,
-/// file coordinates, already smoothed) sections on the plane and a step either side
-/// have no closed loop and a depth spread of at most [`MAX_FOLD_FRACTION`] of
-/// `rear_wall_offset_mm`; and the base and `scan` each cross the top and the bottom
-/// plane's height once there, so the clipped borders have one corner at each plane
+/// position where it crosses the surfaces cleanly. On the plane and on the planes a
+/// step either side of it: the filled base's section (`filled_base`, file coordinates,
+/// already smoothed) has no closed loop and a depth spread of at most
+/// [`MAX_FOLD_FRACTION`] of `rear_wall_offset_mm`; and near the base's frontmost
+/// crossing of the top and of the bottom plane's height, the base and `scan` each
+/// cross that height once, so each clipped border has one corner at each plane
 /// intersection. A plane moves at most [`MAX_INWARD_MM`] and never past a breast
-/// landmark; with no clean position in reach it goes where the sections are least bad,
-/// and the build reports what is wrong there. Returns the box and how far each plane
-/// moved, `[right, left]` (mm).
+/// landmark; with no clean position in reach it goes where the sections are least bad
+/// and [`PlaneMove`] says what is left. Returns the box and `[right, left]`.
 pub(super) fn clear_of_grazing(
     clip_box: ClipBox,
     scan: &TriMesh,
@@ -50,16 +69,56 @@ pub(super) fn clear_of_grazing(
     frame: &AnatomicalFrame,
     landmarks: &Landmarks,
     rear_wall_offset_mm: f64,
-) -> (ClipBox, [f64; 2]) {
+) -> (ClipBox, [PlaneMove; 2]) {
     let to_local = |mesh: &TriMesh| -> Vec<DVec3> {
         mesh.positions.iter().map(|&p| frame.to_local(p)).collect()
     };
-    let (scan_local, base_local) = (to_local(scan), to_local(filled_base));
-    let max_fold_mm = MAX_FOLD_FRACTION * rear_wall_offset_mm;
-    let heights = (clip_box.y_min_mm, clip_box.y_max_mm);
-    let mut moved = [0.0; 2];
+    let surfaces = Surfaces {
+        scan_local: to_local(scan),
+        scan_triangles: &scan.triangles,
+        base_local: to_local(filled_base),
+        base_triangles: &filled_base.triangles,
+        max_fold_mm: MAX_FOLD_FRACTION * rear_wall_offset_mm,
+    };
+    let moves = [0, 1].map(|k| {
+        let shifted = |shift: f64| {
+            let mut candidate = clip_box;
+            if k == 0 {
+                candidate.x_min_mm += shift;
+            } else {
+                candidate.x_max_mm -= shift;
+            }
+            candidate
+        };
+        surfaces.search(&clip_box, k, |shift| {
+            shifted(shift).left_out(frame, landmarks).is_none()
+        })
+    });
     let mut adjusted = clip_box;
-    for (k, inwards) in [(0, 1.0), (1, -1.0)] {
+    adjusted.x_min_mm += moves[0].moved_mm;
+    adjusted.x_max_mm -= moves[1].moved_mm;
+    (adjusted, moves)
+}
+
+/// The two surfaces in frame coordinates, and the depth-spread bound.
+struct Surfaces<'a> {
+    scan_local: Vec<DVec3>,
+    scan_triangles: &'a [[u32; 3]],
+    base_local: Vec<DVec3>,
+    base_triangles: &'a [[u32; 3]],
+    max_fold_mm: f64,
+}
+
+impl Surfaces<'_> {
+    /// The search of [`clear_of_grazing`] for plane `k` (0 right, 1 left) of
+    /// `clip_box`; `keeps_landmarks(shift)` says whether the box with that plane `shift`
+    /// mm in still holds the breast landmarks.
+    fn search(
+        &self,
+        clip_box: &ClipBox,
+        k: usize,
+        keeps_landmarks: impl Fn(f64) -> bool,
+    ) -> PlaneMove {
         // The plane `shift` mm in from where the box put it.
         let plane_at = |shift: f64| {
             let (slope, at_ref) = if k == 0 {
@@ -72,92 +131,96 @@ pub(super) fn clear_of_grazing(
                 offset: at_ref - slope * clip_box.y_ref_mm,
             }
         };
+        let heights = (clip_box.y_min_mm, clip_box.y_max_mm);
         // Only the triangles the search's planes can cross.
         let reach = [plane_at(-STEP_MM), plane_at(MAX_INWARD_MM + STEP_MM)];
-        let base_near = crossing_any(&base_local, &filled_base.triangles, reach);
-        let scan_near = crossing_any(&scan_local, &scan.triangles, reach);
-        let base_at =
-            |shift: f64| LateralSection::measure(&base_local, &base_near, plane_at(shift), heights);
-        let scan_at =
-            |shift: f64| LateralSection::measure(&scan_local, &scan_near, plane_at(shift), heights);
-        let mut best: Option<((usize, f64), f64)> = None;
-        let mut window = vec![base_at(-STEP_MM), base_at(0.0)];
+        let base_near = crossing_any(&self.base_local, self.base_triangles, reach);
+        let scan_near = crossing_any(&self.scan_local, self.scan_triangles, reach);
+        let base_at = |shift: f64| {
+            LateralSection::measure(&self.base_local, &base_near, plane_at(shift), heights)
+        };
+        let scan_at = |shift: f64| {
+            LateralSection::measure(&self.scan_local, &scan_near, plane_at(shift), heights)
+        };
+        let mut best: Option<PlaneMove> = None;
+        let mut base_window = vec![base_at(-STEP_MM), base_at(0.0)];
         let mut scan_window = vec![scan_at(-STEP_MM), scan_at(0.0)];
         let steps = (MAX_INWARD_MM / STEP_MM).round() as usize;
         for step in 0..=steps {
             let shift = step as f64 * STEP_MM;
-            let mut candidate = clip_box;
-            if k == 0 {
-                candidate.x_min_mm += inwards * shift;
-            } else {
-                candidate.x_max_mm += inwards * shift;
-            }
-            if step > 0 && candidate.left_out(frame, landmarks).is_some() {
+            if step > 0 && !keeps_landmarks(shift) {
                 break;
             }
-            window.push(base_at(shift + STEP_MM));
+            base_window.push(base_at(shift + STEP_MM));
             scan_window.push(scan_at(shift + STEP_MM));
             // The slab one step either side of the plane: a bump whose tip just touches
             // the plane is a loop a step further in.
-            let slab = &window[window.len() - 3..];
-            let defects = slab.iter().map(|s| s.loops).sum::<usize>()
-                + extra_corners(slab, &scan_window[scan_window.len() - 3..]);
-            let fold = slab
-                .iter()
-                .map(|s| (s.fold_depth_mm - max_fold_mm).max(0.0))
-                .fold(0.0, f64::max);
-            // Lexicographically smaller is better.
-            let bad = (defects, fold);
-            if best.is_none_or(|(b, _)| bad < b) {
-                best = Some((bad, shift));
+            let slab = &base_window[base_window.len() - 3..];
+            let here = PlaneMove {
+                moved_mm: shift,
+                defects: slab.iter().map(|s| s.loops).sum::<usize>()
+                    + extra_corners(slab, &scan_window[scan_window.len() - 3..]),
+                excess_fold_mm: slab
+                    .iter()
+                    .map(|s| (s.fold_depth_mm - self.max_fold_mm).max(0.0))
+                    .fold(0.0, f64::max),
+            };
+            // Fewer defects first, then less excess spread.
+            let better =
+                |b: &PlaneMove| (here.defects, here.excess_fold_mm) < (b.defects, b.excess_fold_mm);
+            if best.as_ref().is_none_or(better) {
+                best = Some(here);
             }
-            if bad == (0, 0.0) {
+            if here.is_clean() {
                 break;
             }
         }
-        let shift = best.map_or(0.0, |(_, shift)| shift);
-        moved[k] = shift;
-        if k == 0 {
-            adjusted.x_min_mm = clip_box.x_min_mm + shift;
-        } else {
-            adjusted.x_max_mm = clip_box.x_max_mm - shift;
-        }
+        best.unwrap_or(PlaneMove {
+            moved_mm: 0.0,
+            defects: 0,
+            excess_fold_mm: 0.0,
+        })
     }
-    (adjusted, moved)
 }
 
-/// Crossings of the top and bottom heights beyond one each, at the worst of the heights
-/// and the planes a step either side of them: the base's own, and the scan's within
-/// [`CORNER_RADIUS_MM`] in depth of the base's (where the scan, wrapping round the side,
-/// crosses them again further back, that part is clipped off).
+/// Crossings of the top and of the bottom height other than exactly one, near the
+/// base's frontmost crossing of it (within [`CORNER_RADIUS_MM`] in depth; where the
+/// surfaces wrap round the side and cross again further back, that part is clipped
+/// off), at the worst of the heights and planes a step either side: the base's and the
+/// scan's. A height the base does not cross at all counts one.
 fn extra_corners(base: &[LateralSection], scans: &[LateralSection]) -> usize {
     let mut extra = 0;
     for end in 0..2 {
-        let worst = |sections: &[LateralSection], near: Option<f64>| {
+        let Some(front) = base[1].corner_depths_mm[end][1]
+            .iter()
+            .copied()
+            .reduce(f64::max)
+        else {
+            extra += 1;
+            continue;
+        };
+        let worst = |sections: &[LateralSection]| {
             sections
                 .iter()
                 .flat_map(|s| &s.corner_depths_mm[end])
                 .map(|depths| {
                     depths
                         .iter()
-                        .filter(|&&z| near.is_none_or(|at| (z - at).abs() < CORNER_RADIUS_MM))
+                        .filter(|&&z| (z - front).abs() < CORNER_RADIUS_MM)
                         .count()
                         .abs_diff(1)
                 })
                 .max()
                 .unwrap_or(0)
         };
-        extra += worst(base, None);
-        if let Some(&at) = base[1].corner_depths_mm[end][1].first() {
-            extra += worst(scans, Some(at));
-        }
+        extra += worst(base) + worst(scans);
     }
     extra
 }
 
-/// How far in depth from the base's corner a crossing of the scan's counts as the same
-/// corner (mm): the scan lies on the base there, give or take the smoothing of noise,
-/// and its wrap round the side lies tens of millimetres further back.
+/// How far in depth from the base's frontmost crossing of a height another crossing
+/// counts as the same corner (mm): the scan lies on the base there, give or take the
+/// smoothing of noise, and a wrap round the side lies tens of millimetres further back.
 const CORNER_RADIUS_MM: f64 = 5.0;
 
 /// The triangles of `triangles` that some plane between the two crosses.
@@ -324,19 +387,10 @@ const HEIGHT_BIN_MM: f64 = 1.0;
 
 #[cfg(test)]
 mod tests {
+    use super::super::tests::identity_frame;
     use super::*;
     use crate::landmarks::Landmarks;
-    use glam::DMat3;
     use mesh::shapes::grid;
-
-    fn identity_frame() -> AnatomicalFrame {
-        AnatomicalFrame {
-            origin: DVec3::ZERO,
-            axes: DMat3::IDENTITY,
-            sternal_axes: DMat3::IDENTITY,
-            up_source: crate::UpSource::FileVertical,
-        }
-    }
 
     /// A side wall facing -x: `x = -90 + slope_z * z - bump_mm * exp(-r² / 2σ²)`
     /// with `r` the distance from `(y, z) = (0, 10)` and σ = 4 mm, over y and z in
@@ -415,11 +469,26 @@ mod tests {
         assert_eq!(beyond.fold_depth_mm, 0.0);
     }
 
+    /// Whether the upright plane at `x` is clean by [`clear_of_grazing`]'s rule for
+    /// loops and spread (the wall's sections cross each height once, so its corners are).
+    fn clean_at(wall: &TriMesh, x: f64) -> bool {
+        [-STEP_MM, 0.0, STEP_MM].iter().all(|&d| {
+            let section = LateralSection::measure(
+                &wall.positions,
+                &wall.triangles,
+                upright_at(x + d),
+                (-30.0, 30.0),
+            );
+            section.loops == 0 && section.fold_depth_mm <= MAX_FOLD_FRACTION * 15.0
+        })
+    }
+
     #[test]
     fn a_plane_is_moved_only_off_a_graze() {
         // A wall leaning 2:1 (x = -90 + z / 2) crosses every upright plane along a
         // straight line at one depth: left where it is. With a 5 mm bump it is moved in
-        // until the slab around it crosses neither a loop nor a deep fold.
+        // to the first position (in 0.5 mm steps) where the slab around it crosses
+        // neither a loop nor a deep fold, checked here one step either side.
         let landmarks = Landmarks::new(|_| DVec3::new(0.0, 0.0, 0.0));
         let clip_box = ClipBox {
             x_min_mm: -90.2,
@@ -430,24 +499,54 @@ mod tests {
         };
         let frame = identity_frame();
         let flat = side_wall(0.5, 0.0);
-        let (_, moved) = clear_of_grazing(clip_box, &flat, &flat, &frame, &landmarks, 15.0);
-        assert_eq!(moved[0], 0.0);
+        let (_, moves) = clear_of_grazing(clip_box, &flat, &flat, &frame, &landmarks, 15.0);
+        assert_eq!(moves[0].moved_mm, 0.0);
+        assert!(moves[0].is_clean());
         let bumped = side_wall(0.5, 5.0);
-        let (cleared, moved) =
+        assert!(!clean_at(&bumped, clip_box.x_min_mm));
+        let (cleared, moves) =
             clear_of_grazing(clip_box, &bumped, &bumped, &frame, &landmarks, 15.0);
-        assert!(moved[0] > 0.0 && moved[0] <= MAX_INWARD_MM, "{moved:?}");
-        for shift in [-STEP_MM, 0.0, STEP_MM] {
-            let section = LateralSection::measure(
-                &bumped.positions,
-                &bumped.triangles,
-                upright_at(cleared.x_min_mm + shift),
-                (-30.0, 30.0),
-            );
-            assert_eq!(section.loops, 0, "{shift}");
-            assert!(
-                section.fold_depth_mm <= MAX_FOLD_FRACTION * 15.0,
-                "{section:?}"
-            );
-        }
+        assert!(moves[0].is_clean() && moves[0].moved_mm > 0.0, "{moves:?}");
+        assert!(clean_at(&bumped, cleared.x_min_mm));
+        assert!(!clean_at(&bumped, cleared.x_min_mm - STEP_MM));
+        // The left plane meets no surface: it crosses neither height, and nothing
+        // clears that.
+        assert!(!moves[1].is_clean());
+        // A breast landmark 1 mm in from the right plane stops it there, still grazing.
+        let near_plane = Landmarks::new(|_| DVec3::new(-89.2, 0.0, 0.0));
+        let (stopped, moves) =
+            clear_of_grazing(clip_box, &bumped, &bumped, &frame, &near_plane, 15.0);
+        assert!(
+            moves[0].moved_mm <= 2.0 && !moves[0].is_clean(),
+            "{moves:?}"
+        );
+        assert!(stopped.x_min_mm <= -88.0);
+    }
+
+    #[test]
+    fn corners_count_crossings_near_the_base_s_front_one() {
+        // Corner depths as `measure` gives them, at the height and a step either side.
+        let section = |bottom: Vec<f64>, top: Vec<f64>| LateralSection {
+            loops: 0,
+            fold_depth_mm: 0.0,
+            corner_depths_mm: [
+                [bottom.clone(), bottom.clone(), bottom],
+                [top.clone(), top.clone(), top],
+            ],
+        };
+        let base = vec![section(vec![-80.0], vec![-40.0]); 3];
+        let once = vec![section(vec![-79.0], vec![-41.0]); 3];
+        assert_eq!(extra_corners(&base, &once), 0);
+        // The scan crossing the top height three times within a millimetre: two extra.
+        let wiggle = vec![section(vec![-79.0], vec![-41.0, -40.5, -40.2]); 3];
+        assert_eq!(extra_corners(&base, &wiggle), 2);
+        // A second layer 30 mm further back (a wrap round the side) is not a corner;
+        // the base's frontmost crossing is the one the scan is held against.
+        let wrapped = vec![section(vec![-79.0, -110.0], vec![-41.0, -70.0]); 3];
+        let wrapped_base = vec![section(vec![-110.0, -80.0], vec![-70.0, -40.0]); 3];
+        assert_eq!(extra_corners(&wrapped_base, &wrapped), 0);
+        // A base that never reaches the bottom height: one missing corner.
+        let short = vec![section(vec![], vec![-40.0]); 3];
+        assert_eq!(extra_corners(&short, &once), 1);
     }
 }

@@ -8,7 +8,7 @@ use mesh::shapes::grid;
 const RADIUS_MM: f64 = 150.0;
 
 /// The frame equal to the file frame.
-fn identity_frame() -> AnatomicalFrame {
+pub(super) fn identity_frame() -> AnatomicalFrame {
     AnatomicalFrame {
         origin: DVec3::ZERO,
         axes: DMat3::IDENTITY,
