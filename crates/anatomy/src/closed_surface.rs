@@ -262,10 +262,11 @@ pub enum ClosedSurfaceError {
         near_mm: [f64; 3],
     },
     #[error(
-        "{source} (the {side} clip plane, moved {moved_mm:.1} mm inwards as far as the \
-         landmarks allow, still grazes the side of the torso: {defects} loops or stray \
-         corners in its section, which runs {excess_fold_mm:.1} mm further front to back \
-         than it should; check the scan's side there)"
+        "{source} (the {side} clip plane, moved {moved_mm:.1} mm inwards, the least bad \
+         position within 10 mm and short of the breast landmarks, still grazes the side of \
+         the torso: {defects} loops or stray corners in its section, which runs \
+         {excess_fold_mm:.1} mm further front to back than it should; check the scan's \
+         side there)"
     )]
     OnGrazingPlane {
         side: &'static str,
