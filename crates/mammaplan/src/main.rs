@@ -14,7 +14,7 @@ use std::process::ExitCode;
 #[derive(Parser)]
 #[command(
     name = "mammaplan",
-    version,
+    version = plan::VERSION,
     about = "Breast augmentation planning from 3D surface scans"
 )]
 struct Cli {

@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 #[test]
 fn a_textured_demo_runs_from_the_phantoms_obj_and_its_views_wear_the_photograph() {
@@ -220,8 +220,8 @@ fn check_reports(dir: &Path) {
 fn check_edited_results(dir: &Path) {
     let model = dir.join("model");
     let out = dir.join(BAD_SIMULATION);
-    let edited = |folder: &str, file: &str, edit: &dyn Fn(&mut serde_json::Value)| {
-        let copy = dir.join(format!("edited_{folder}"));
+    let edited = |folder: &str, copy: &str, file: &str, edit: &dyn Fn(&mut serde_json::Value)| {
+        let copy = dir.join(copy);
         std::fs::create_dir_all(&copy).unwrap();
         for entry in std::fs::read_dir(dir.join(folder)).unwrap() {
             let entry = entry.unwrap();
@@ -230,10 +230,10 @@ fn check_edited_results(dir: &Path) {
         edit_landmarks(&copy.join(file), edit);
         copy
     };
-    let edited_simulation = edited("simulation", "result.json", &|json| {
+    let edited_simulation = edited("simulation", "edited_simulation", "result.json", &|json| {
         json["implants"]["left"]["width_mm"] = (-120.0).into();
     });
-    let edited_model = edited("model", "model.json", &|json| {
+    let edited_model = edited("model", "edited_model", "model.json", &|json| {
         json["breast_volume_ml"]["right"] = 1e9.into();
     });
     for (model_dir, simulation_dir, expected) in [
@@ -265,6 +265,41 @@ fn check_edited_results(dir: &Path) {
         "model.json: breast_volume_ml.right is 1000000000 ml",
     );
     assert!(!out.exists());
+
+    // A folder from another version whose model came out differently, and landmarks
+    // moved by half a millimetre since the model was built.
+    let older = edited("model", "older_model", "model.json", &|json| {
+        json["software"] = "mammaplan 0.0.9 (commit 0123456789ab)".into();
+        let elements = json["levels"][0]["elements"].as_u64().unwrap();
+        json["levels"][0]["elements"] = (elements + 1).into();
+    });
+    let moved_landmarks = dir.join("moved_landmarks.json");
+    let moved = edited("model", "moved_model", "model.json", &|json| {
+        let recorded = PathBuf::from(json["landmarks"].as_str().unwrap());
+        std::fs::copy(recorded, &moved_landmarks).unwrap();
+        edit_landmarks(&moved_landmarks, |landmarks| {
+            let x = landmarks["landmarks"]["Pj"][0].as_f64().unwrap();
+            landmarks["landmarks"]["Pj"][0] = (x + 0.5).into();
+        });
+        json["landmarks"] = moved_landmarks.to_str().unwrap().into();
+    });
+    for (model_dir, expected) in [
+        (
+            &older,
+            "the folder was written by mammaplan 0.0.9 (commit 0123456789ab), and this \
+             mammaplan",
+        ),
+        (
+            &moved,
+            "moved_landmarks.json is not the landmark file the model in",
+        ),
+    ] {
+        assert_clean_failure(
+            &simulate_into(model_dir, "catalog:R-MOD-120", &[], &out),
+            expected,
+        );
+        assert!(!out.exists());
+    }
 }
 
 /// One bit of a tetrahedral level changed: refused before any work, naming the file.

@@ -30,6 +30,16 @@ pub use mesh::LengthUnit;
 pub use phantom::{Cup, PhantomParams};
 pub use scan::{MarkedScan, Scan, UpRecord, UpSourceName};
 
+/// This program's version and the git commit it was built from, `0.1.0 (commit
+/// 0123456789ab)` (the version alone when built outside a git checkout).
+pub const VERSION: &str = env!("MAMMAPLAN_VERSION");
+
+/// The program that writes a folder, as its records name it: `mammaplan ` and
+/// [`VERSION`].
+pub fn software() -> String {
+    format!("mammaplan {VERSION}")
+}
+
 /// Writes pretty JSON atomically (a temporary file renamed into place).
 pub fn write_json(path: &std::path::Path, value: &impl serde::Serialize) -> anyhow::Result<()> {
     mesh::io::write_atomically(path, |w| {

@@ -305,6 +305,8 @@ pub struct ModelCounts {
 /// The JSON of `model` and the content of `model.json` (GUIDE section 5).
 #[derive(Debug, Clone, Serialize)]
 pub struct ModelReport {
+    /// The program that wrote the folder ([`crate::software`]).
+    pub software: String,
     pub scan: String,
     /// The unit of the scan file's coordinates (`mm`, `cm`, `m` or `in`); everything
     /// else here is in millimetres.
@@ -356,6 +358,30 @@ pub struct ModelReport {
     /// SHA-256 of every file but `model.json`, checked when the folder is reopened
     /// ([`load_model`]).
     pub sha256: crate::checksum::Checksums,
+    /// SHA-256 of the scan and landmark files the model was built from, checked before
+    /// [`load_model`] rebuilds the model from them.
+    pub inputs_sha256: InputChecksums,
+}
+
+/// SHA-256 (lower-case hexadecimal) of the files a model folder is built from.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct InputChecksums {
+    pub scan: String,
+    pub landmarks: String,
+}
+
+impl InputChecksums {
+    /// The checksums of the files at `scan` and `landmarks`.
+    pub fn of(scan: &Path, landmarks: &Path) -> Result<InputChecksums> {
+        let sha256 = |path: &Path| {
+            crate::checksum::file_sha256(path)
+                .with_context(|| format!("reading {} again to record its checksum", path.display()))
+        };
+        Ok(InputChecksums {
+            scan: sha256(scan)?,
+            landmarks: sha256(landmarks)?,
+        })
+    }
 }
 
 /// The skin of one breast the scanner did not see, reconstructed by the fill-in.
@@ -606,6 +632,7 @@ impl PatientModel {
         out_dir: &Path,
         files: Vec<String>,
         sha256: crate::checksum::Checksums,
+        inputs_sha256: InputChecksums,
     ) -> ModelReport {
         let model = &self.breasts;
         let closed = &self.closed_surface;
@@ -617,6 +644,7 @@ impl PatientModel {
         // Absolute paths, so that the folder can be reopened from anywhere (`load_model`).
         let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
         ModelReport {
+            software: crate::software(),
             scan: absolute(&self.scan_path).display().to_string(),
             scan_units: self.scan_unit.symbol().to_string(),
             landmarks: absolute(&self.landmarks_path).display().to_string(),
@@ -697,6 +725,7 @@ impl PatientModel {
             out_dir: out_dir.to_path_buf(),
             files,
             sha256,
+            inputs_sha256,
         }
     }
 }
@@ -784,8 +813,9 @@ pub fn write_model(
     files.push("control_points.json".into());
     progress.step();
     let sha256 = staged.checksums()?;
+    let inputs_sha256 = InputChecksums::of(&model.scan_path, &model.landmarks_path)?;
     files.push("model.json".into());
-    let report = model.report(out_dir, files, sha256);
+    let report = model.report(out_dir, files, sha256, inputs_sha256);
     staged.write(&report_path, |path| crate::write_json(path, &report))?;
     staged.commit()?;
     progress.step();
@@ -815,6 +845,9 @@ pub fn write_closed_polyline(path: &Path, points: &[mesh::DVec3]) -> Result<()> 
 /// What [`load_model`] and the report read back from `model.json`.
 #[derive(Debug, Deserialize)]
 pub(crate) struct ModelRecord {
+    /// Absent in folders from before the program was recorded.
+    #[serde(default)]
+    pub software: Option<String>,
     pub scan: PathBuf,
     /// Absent in folders from before units: millimetres.
     #[serde(default)]
@@ -831,6 +864,9 @@ pub(crate) struct ModelRecord {
     /// Absent in folders from before checksums were recorded.
     #[serde(default)]
     pub sha256: crate::checksum::Checksums,
+    /// Absent in folders from before the inputs' checksums were recorded.
+    #[serde(default)]
+    pub inputs_sha256: Option<InputChecksums>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -916,6 +952,7 @@ pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedSc
         )
     })?;
     crate::checksum::verify(model_dir, &record.sha256, "model.json", "mammaplan model")?;
+    verify_inputs(&record, &report_path)?;
     let marked = MarkedScan::load_in(
         &record.scan,
         Some(record.scan_unit(&report_path)?),
@@ -931,15 +968,64 @@ pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedSc
         .iter()
         .map(|l| (l.elements, l.nodes))
         .collect();
-    anyhow::ensure!(
-        rebuilt == recorded,
-        "{}: rebuilding the model from {} gives tetrahedral levels (elements, nodes) {rebuilt:?}, \
-         but the folder has {recorded:?}: the scan or landmarks changed since; run `mammaplan \
-         model` again",
-        model_dir.display(),
-        record.scan.display()
-    );
+    if rebuilt != recorded {
+        anyhow::bail!(
+            "{}: rebuilding the model from {} gives tetrahedral levels (elements, nodes) \
+             {rebuilt:?}, but the folder has {recorded:?}: {}; run `mammaplan model` again",
+            model_dir.display(),
+            record.scan.display(),
+            why_the_rebuild_differs(&record)
+        );
+    }
     Ok((marked, model))
+}
+
+/// Refuses a scan or landmark file that is not the one the folder's model was built
+/// from (when `model.json` recorded their checksums), before any rebuilding.
+fn verify_inputs(record: &ModelRecord, report_path: &Path) -> Result<()> {
+    let Some(expected) = &record.inputs_sha256 else {
+        return Ok(());
+    };
+    let found = InputChecksums::of(&record.scan, &record.landmarks)
+        .with_context(|| format!("the files named in {}", report_path.display()))?;
+    for (what, path, found, expected) in [
+        ("scan", &record.scan, &found.scan, &expected.scan),
+        (
+            "landmark file",
+            &record.landmarks,
+            &found.landmarks,
+            &expected.landmarks,
+        ),
+    ] {
+        anyhow::ensure!(
+            found == expected,
+            "{} is not the {what} the model in {} was built from (its checksum differs from \
+             the one recorded): it was changed since; run `mammaplan model` again",
+            path.display(),
+            report_path.display()
+        );
+    }
+    Ok(())
+}
+
+/// Why a model rebuilt from a folder's recorded inputs can differ from the folder's.
+fn why_the_rebuild_differs(record: &ModelRecord) -> String {
+    let this = crate::software();
+    match (&record.inputs_sha256, &record.software) {
+        (Some(_), Some(writer)) if *writer == this => {
+            "the scan, landmarks and program are those that wrote the folder, so model.json \
+             was edited"
+                .to_string()
+        }
+        (Some(_), Some(writer)) => format!(
+            "the folder was written by {writer}, and this {this} builds a different model \
+             from the same scan, landmarks and control points"
+        ),
+        _ => format!(
+            "the scan or landmarks changed since, or the folder was written by a mammaplan \
+             older than this {this}, which builds a different model"
+        ),
+    }
 }
 
 #[cfg(test)]

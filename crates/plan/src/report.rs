@@ -512,7 +512,7 @@ fn case_info(
         .context("model.json lists no tetrahedral level")?;
     Ok(report::CaseInfo {
         created: utc_date_time(inputs.created),
-        software: format!("mammaplan {}", env!("CARGO_PKG_VERSION")),
+        software: crate::software(),
         files,
         model: report::ModelParameters {
             finest_elements: finest.elements,

@@ -709,6 +709,7 @@ pub fn write_simulation(
         (session.simulation.implant(side)).map_or(0.0, |placed| placed.fold_lowering_mm)
     };
     let report = SimulateReport {
+        software: crate::software(),
         model: model_dir.to_path_buf(),
         implant_volume_ml: session.implant_volumes_ml(),
         implants: state.implants.clone(),

@@ -168,6 +168,8 @@ impl MaterialsReport {
 /// The JSON of `simulate` and `result.json` (GUIDE section 5).
 #[derive(Debug, Clone, Serialize)]
 pub struct SimulateReport {
+    /// The program that wrote the folder ([`crate::software`]).
+    pub software: String,
     pub model: PathBuf,
     pub implants: PerSide<Option<ImplantSummary>>,
     /// Breast volumes after the simulation, measured as on a real scan (ml).
