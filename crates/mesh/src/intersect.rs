@@ -3,10 +3,11 @@
 //!
 //! # Self-intersections
 //! Broad phase: every triangle's bounding box is entered into the cells of a uniform
-//! grid (cell size twice the mean box extent); pairs in a cell whose boxes overlap are
+//! grid (cell size three times the mean box extent); pairs in a cell whose boxes overlap are
 //! tested once, in the cell that holds the lower corner of their boxes' overlap. Cells
 //! are processed in parallel. A triangle spanning very many cells (a huge triangle in
-//! an otherwise fine mesh) is instead tested against every triangle by its box.
+//! an otherwise fine mesh) is kept out of the grid and tested against the triangles in
+//! the cells under its box, and against the other huge ones.
 //!
 //! Narrow phase, with `tol` = [`RELATIVE_TOLERANCE`] × the mesh's bounding-box diagonal:
 //! - no shared vertex: two triangles meet iff an edge of one meets the other (their
@@ -31,9 +32,10 @@ use rayon::prelude::*;
 /// of the plane distances (about 1e-15 relative), far below any real feature
 /// (5e-7 mm on a 500 mm scan).
 pub const RELATIVE_TOLERANCE: f64 = 1e-9;
-/// Broad-phase cell size as a multiple of the mean triangle bounding-box extent: each
-/// triangle then falls into one to eight cells.
-const CELL_SIZE_FACTOR: f64 = 2.0;
+/// Broad-phase cell size as a multiple of the mean triangle bounding-box extent: a
+/// triangle of mean size falls into one to eight cells. Two and four were slower on a
+/// model's closed surface (docs/dev/model-on-every-body.md, session 29).
+const CELL_SIZE_FACTOR: f64 = 3.0;
 /// Grid cells per axis at most: a key packs three 21-bit cell coordinates into a `u64`.
 const MAX_CELLS_PER_AXIS: u64 = (1 << 21) - 1;
 /// A triangle covering more cells than this is tested against all others by its box
@@ -265,32 +267,90 @@ pub fn self_intersections(mesh: &TriMesh) -> Vec<(usize, usize)> {
         .par_iter()
         .flat_map_iter(|group| {
             let cell_key = group[0].0;
-            group.iter().enumerate().flat_map(move |(n, &(_, i))| {
-                group[n + 1..].iter().filter_map(move |&(_, j)| {
-                    let (a, b) = (get(i)?, get(j)?);
+            // The group's triangles side by side: the pair loop reads them k² times.
+            let members: Vec<(u32, &Prepared)> = group
+                .iter()
+                .filter_map(|&(_, t)| Some((t, get(t)?)))
+                .collect();
+            let mut found = Vec::new();
+            for (n, &(i, a)) in members.iter().enumerate() {
+                for &(j, b) in &members[n + 1..] {
                     // Test each pair once: in the cell of its boxes' overlap's lower corner.
-                    (key(cell_of(a.lo.max(b.lo) - tol)) == cell_key)
-                        .then(|| test(i, j))
-                        .flatten()
-                })
-            })
+                    if a.boxes_overlap(b, tol)
+                        && key(cell_of(a.lo.max(b.lo) - tol)) == cell_key
+                        && triangles_intersect(a, b, tol)
+                    {
+                        found.push((i.min(j) as usize, i.max(j) as usize));
+                    }
+                }
+            }
+            found
         })
         .collect();
+    // A large triangle meets the gridded ones through the grid's cells under its box
+    // (one run of sorted keys per column of cells), and the other large ones directly.
     let large = &large;
+    let entries = &entries;
     pairs.extend(
         large
             .par_iter()
-            .flat_map_iter(|&i| {
-                valid
-                    .iter()
-                    // Two large triangles are tested once, from the smaller index.
-                    .filter(move |&&j| j != i && (large.binary_search(&j).is_err() || j > i))
-                    .filter_map(move |&j| test(i, j))
+            .enumerate()
+            .flat_map_iter(|(n, &i)| {
+                let mut candidates: Vec<u32> = match get(i) {
+                    Some(p) => {
+                        gridded_under(entries, cell_of(p.lo - tol), cell_of(p.hi + tol), key)
+                            .unwrap_or_else(|| {
+                                valid
+                                    .iter()
+                                    .copied()
+                                    .filter(|j| large.binary_search(j).is_err())
+                                    .collect()
+                            })
+                    }
+                    None => Vec::new(),
+                };
+                candidates.sort_unstable();
+                candidates.dedup();
+                candidates.extend_from_slice(&large[n + 1..]);
+                candidates.into_iter().filter_map(move |j| test(i, j))
             })
             .collect::<Vec<_>>(),
     );
     pairs.sort_unstable();
     pairs
+}
+
+/// The triangles entered in the cells from `c0` to `c1` (with repeats), read from
+/// `entries` sorted by `key`: one binary search per column of cells along z. `None` when
+/// the box has more columns than there are entries (a scan of every triangle is then
+/// cheaper).
+fn gridded_under(
+    entries: &[(u64, u32)],
+    c0: glam::U64Vec3,
+    c1: glam::U64Vec3,
+    key: impl Fn(glam::U64Vec3) -> u64,
+) -> Option<Vec<u32>> {
+    let columns = (c1.x - c0.x + 1).saturating_mul(c1.y - c0.y + 1);
+    if columns > entries.len() as u64 {
+        return None;
+    }
+    let mut found = Vec::new();
+    for x in c0.x..=c1.x {
+        for y in c0.y..=c1.y {
+            let (first, last) = (
+                key(glam::U64Vec3::new(x, y, c0.z)),
+                key(glam::U64Vec3::new(x, y, c1.z)),
+            );
+            let start = entries.partition_point(|e| e.0 < first);
+            found.extend(
+                entries[start..]
+                    .iter()
+                    .take_while(|e| e.0 <= last)
+                    .map(|e| e.1),
+            );
+        }
+    }
+    Some(found)
 }
 
 /// How far a mesh is from a watertight, 2-manifold, consistently oriented surface.
@@ -493,6 +553,68 @@ mod tests {
         let pairs = self_intersections(&m);
         assert!(!pairs.is_empty());
         assert!(pairs.iter().all(|&(_, j)| j == m.triangles.len() - 1));
+    }
+
+    /// Every pair tested by the narrow phase alone: the reference for the broad phase.
+    fn every_pair(mesh: &TriMesh) -> Vec<(usize, usize)> {
+        let (lo, hi) = mesh.bounding_box();
+        let tol = RELATIVE_TOLERANCE * (hi - lo).length();
+        let prepared: Vec<_> = mesh
+            .triangles
+            .iter()
+            .map(|&t| Prepared::new(mesh, t, tol))
+            .collect();
+        let mut pairs = Vec::new();
+        for (i, a) in prepared.iter().enumerate() {
+            for (j, b) in prepared.iter().enumerate().skip(i + 1) {
+                if let (Some(a), Some(b)) = (a, b)
+                    && triangles_intersect(a, b, tol)
+                {
+                    pairs.push((i, j));
+                }
+            }
+        }
+        pairs
+    }
+
+    /// The grid finds exactly the pairs that testing every pair finds: two crumpled
+    /// sheets through each other, first alone, then with huge triangles through both (the
+    /// path for triangles kept out of the grid, among them and against the grid).
+    #[test]
+    fn the_grid_finds_what_testing_every_pair_finds() {
+        // A fixed pseudo-random height in [-1, 1] per vertex.
+        let height = |k: usize| ((k as f64 * 12.9898).sin() * 43_758.545).fract() * 2.0 - 1.0;
+        let mut sheets = grid(20, 20, 1.0);
+        let count = sheets.positions.len();
+        for (k, p) in sheets.positions.iter_mut().enumerate() {
+            p.z = 0.6 * height(k);
+        }
+        let second: Vec<DVec3> = (0..count)
+            .map(|k| sheets.positions[k] + DVec3::new(0.37, 0.21, 0.6 * height(k + count)))
+            .collect();
+        sheets.positions.extend(second);
+        let first_sheet = sheets.triangles.clone();
+        sheets
+            .triangles
+            .extend(first_sheet.iter().map(|t| t.map(|v| v + count as u32)));
+        let crossings = self_intersections(&sheets);
+        assert!(crossings.len() > 100, "{} crossings", crossings.len());
+        assert_eq!(crossings, every_pair(&sheets));
+
+        let base = sheets.positions.len() as u32;
+        for (n, tilt) in [-0.2, 0.05, 0.3].into_iter().enumerate() {
+            sheets.positions.extend([
+                DVec3::new(-40.0, -40.0, -40.0 * tilt),
+                DVec3::new(80.0, -40.0, 80.0 * tilt),
+                DVec3::new(-40.0, 80.0 + n as f64, -40.0 * tilt),
+            ]);
+            let v = base + 3 * n as u32;
+            sheets.triangles.push([v, v + 1, v + 2]);
+        }
+        let with_huge = self_intersections(&sheets);
+        let huge = sheets.triangles.len() - 3;
+        assert!(with_huge.iter().filter(|&&(_, j)| j >= huge).count() > 10);
+        assert_eq!(with_huge, every_pair(&sheets));
     }
 
     #[test]
