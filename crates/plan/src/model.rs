@@ -643,6 +643,7 @@ impl PatientModel {
         };
         // Absolute paths, so that the folder can be reopened from anywhere (`load_model`).
         let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+        let [stitch_left, stitch_right] = model.stitch_angles();
         ModelReport {
             software: crate::software(),
             scan: absolute(&self.scan_path).display().to_string(),
@@ -664,10 +665,14 @@ impl PatientModel {
                 .iter()
                 .map(|l| l.min_dihedral_deg)
                 .fold(f64::INFINITY, f64::min),
-            max_stitch_angle_deg: PerSide::from_fn(|side| model.max_stitch_angle_deg(side)),
-            max_stitch_angle_single_triangles_deg: PerSide::from_fn(|side| {
-                model.max_stitch_angle_raw_deg(side)
-            }),
+            max_stitch_angle_deg: PerSide {
+                left: stitch_left.averaged_deg,
+                right: stitch_right.averaged_deg,
+            },
+            max_stitch_angle_single_triangles_deg: PerSide {
+                left: stitch_left.single_triangles_deg,
+                right: stitch_right.single_triangles_deg,
+            },
             cut_curve_length_mm: PerSide::from_fn(|side| model.breast(side).curve.length_mm()),
             reconstructed: PerSide::from_fn(|side| {
                 let part = &model.breast(side).reconstructed;

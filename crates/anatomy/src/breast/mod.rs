@@ -246,22 +246,33 @@ impl BreastModel {
         sides
     }
 
-    /// How smoothly the rear wall meets the base across the cut curve of `side`: the
-    /// largest angle (degrees) between the base's and the fill-in's normals, each
-    /// averaged over [`STITCH_NORMAL_RADIUS_MM`] (see [`max_stitch_angle_deg`]).
-    pub fn max_stitch_angle_deg(&self, side: Side) -> f64 {
-        max_stitch_angle_deg(
-            &self.base.mesh,
-            &self.breast(side).fill,
-            STITCH_NORMAL_RADIUS_MM,
-        )
+    /// How smoothly the rear wall meets the base across each cut curve, left then right
+    /// (the order of [`Side::BOTH`]); see [`max_stitch_angle_deg`].
+    pub fn stitch_angles(&self) -> [StitchAngles; 2] {
+        let base = &self.base.mesh;
+        let base_topology = Topology::new(base);
+        Side::BOTH.map(|side| {
+            let fill = &self.breast(side).fill;
+            let fill_topology = Topology::new(&fill.mesh);
+            let angle = |radius_mm| {
+                max_stitch_angle_deg(base, &base_topology, fill, &fill_topology, radius_mm)
+            };
+            StitchAngles {
+                averaged_deg: angle(STITCH_NORMAL_RADIUS_MM),
+                single_triangles_deg: angle(0.0),
+            }
+        })
     }
+}
 
-    /// The largest angle (degrees) between the normals of the two single triangles on
-    /// either side of the cut curve of `side`.
-    pub fn max_stitch_angle_raw_deg(&self, side: Side) -> f64 {
-        max_stitch_angle_deg(&self.base.mesh, &self.breast(side).fill, 0.0)
-    }
+/// How smoothly the rear wall meets the base across one cut curve: the largest angle
+/// between the base's and the fill-in's normals (degrees).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StitchAngles {
+    /// With each side's normals averaged over [`STITCH_NORMAL_RADIUS_MM`].
+    pub averaged_deg: f64,
+    /// Between the two single triangles on either side of each edge of the curve.
+    pub single_triangles_deg: f64,
 }
 
 /// A scanner hole inside a breast region.
@@ -722,8 +733,15 @@ pub const STITCH_NORMAL_RADIUS_MM: f64 = 3.0;
 /// edge of the fill-in, between the area-weighted mean normal of the base triangles and of
 /// the fill-in triangles within `radius_mm` of the edge's midpoint (always at least the
 /// triangle on the edge; `radius_mm = 0` compares just the two triangles on the edge).
-/// 0 if no edge has a triangle on both sides.
-pub fn max_stitch_angle_deg(base: &TriMesh, fill: &FillIn, radius_mm: f64) -> f64 {
+/// 0 if no edge has a triangle on both sides. The topologies are those of `base` and of
+/// `fill.mesh`.
+pub fn max_stitch_angle_deg(
+    base: &TriMesh,
+    base_topology: &Topology,
+    fill: &FillIn,
+    fill_topology: &Topology,
+    radius_mm: f64,
+) -> f64 {
     let boundary = &fill.boundary_to_base;
     let n = boundary.len();
     let key = |a: u32, b: u32| (a.min(b), a.max(b));
@@ -749,16 +767,15 @@ pub fn max_stitch_angle_deg(base: &TriMesh, fill: &FillIn, radius_mm: f64) -> f6
             }
         }
     }
-    let (base_topology, fill_topology) = (Topology::new(base), Topology::new(&fill.mesh));
     sides
         .iter()
         .filter_map(|(&(a, b), &[base_triangle, fill_triangle])| {
             let midpoint = 0.5 * (base.positions[a as usize] + base.positions[b as usize]);
             let base_normal =
-                mean_normal_near(base, &base_topology, base_triangle?, midpoint, radius_mm);
+                mean_normal_near(base, base_topology, base_triangle?, midpoint, radius_mm);
             let fill_normal = mean_normal_near(
                 &fill.mesh,
-                &fill_topology,
+                fill_topology,
                 fill_triangle?,
                 midpoint,
                 radius_mm,
