@@ -41,12 +41,12 @@ fn build(
 /// angle across the stitch of either fill-in (degrees).
 fn check_model(name: &str, model: &BreastModel) -> f64 {
     let mut max_stitch_angle_deg: f64 = 0.0;
-    for side in Side::BOTH {
+    for (side, angles) in Side::BOTH.into_iter().zip(model.stitch_angles()) {
         let breast = model.breast(side);
         let quadrants = breast.quadrant_volume_ml;
         let sum = quadrants.total();
-        let stitch = model.max_stitch_angle_deg(side);
-        let stitch_raw = model.max_stitch_angle_raw_deg(side);
+        let stitch = angles.averaged_deg;
+        let stitch_raw = angles.single_triangles_deg;
         println!(
             "{name} {side}: {:.1} ml; quadrants UO {:.1} UI {:.1} LI {:.1} LO {:.1} (sum off by {:.2e}); \
              curve {} points, {:.0} mm; max stitch angle {stitch:.1}° (single triangles {stitch_raw:.1}°)",
