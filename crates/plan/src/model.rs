@@ -359,8 +359,9 @@ pub struct ModelReport {
     /// ([`load_model`]).
     pub sha256: crate::checksum::Checksums,
     /// SHA-256 of the scan and landmark files the model was built from, checked before
-    /// [`load_model`] rebuilds the model from them.
-    pub inputs_sha256: InputChecksums,
+    /// [`load_model`] rebuilds the model from them; `None` when they are not files (a
+    /// phantom made in memory), which no command can reopen anyway.
+    pub inputs_sha256: Option<InputChecksums>,
 }
 
 /// SHA-256 (lower-case hexadecimal) of the files a model folder is built from.
@@ -372,14 +373,10 @@ pub struct InputChecksums {
 
 impl InputChecksums {
     /// The checksums of the files at `scan` and `landmarks`.
-    pub fn of(scan: &Path, landmarks: &Path) -> Result<InputChecksums> {
-        let sha256 = |path: &Path| {
-            crate::checksum::file_sha256(path)
-                .with_context(|| format!("reading {} again to record its checksum", path.display()))
-        };
+    pub fn of(scan: &Path, landmarks: &Path) -> std::io::Result<InputChecksums> {
         Ok(InputChecksums {
-            scan: sha256(scan)?,
-            landmarks: sha256(landmarks)?,
+            scan: crate::checksum::file_sha256(scan)?,
+            landmarks: crate::checksum::file_sha256(landmarks)?,
         })
     }
 }
@@ -632,7 +629,7 @@ impl PatientModel {
         out_dir: &Path,
         files: Vec<String>,
         sha256: crate::checksum::Checksums,
-        inputs_sha256: InputChecksums,
+        inputs_sha256: Option<InputChecksums>,
     ) -> ModelReport {
         let model = &self.breasts;
         let closed = &self.closed_surface;
@@ -818,7 +815,7 @@ pub fn write_model(
     files.push("control_points.json".into());
     progress.step();
     let sha256 = staged.checksums()?;
-    let inputs_sha256 = InputChecksums::of(&model.scan_path, &model.landmarks_path)?;
+    let inputs_sha256 = InputChecksums::of(&model.scan_path, &model.landmarks_path).ok();
     files.push("model.json".into());
     let report = model.report(out_dir, files, sha256, inputs_sha256);
     staged.write(&report_path, |path| crate::write_json(path, &report))?;
@@ -991,8 +988,12 @@ fn verify_inputs(record: &ModelRecord, report_path: &Path) -> Result<()> {
     let Some(expected) = &record.inputs_sha256 else {
         return Ok(());
     };
-    let found = InputChecksums::of(&record.scan, &record.landmarks)
-        .with_context(|| format!("the files named in {}", report_path.display()))?;
+    let found = InputChecksums::of(&record.scan, &record.landmarks).with_context(|| {
+        format!(
+            "reading the scan and landmark files named in {}",
+            report_path.display()
+        )
+    })?;
     for (what, path, found, expected) in [
         ("scan", &record.scan, &found.scan, &expected.scan),
         (
