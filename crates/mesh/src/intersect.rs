@@ -33,13 +33,13 @@ use rayon::prelude::*;
 /// (5e-7 mm on a 500 mm scan).
 pub const RELATIVE_TOLERANCE: f64 = 1e-9;
 /// Broad-phase cell size as a multiple of the mean triangle bounding-box extent: a
-/// triangle of mean size falls into one to eight cells. Two and four were slower on a
-/// model's closed surface (docs/dev/model-on-every-body.md, session 29).
+/// triangle of mean size falls into one to eight cells (the choice is measured in
+/// docs/dev/model-on-every-body.md).
 const CELL_SIZE_FACTOR: f64 = 3.0;
 /// Grid cells per axis at most: a key packs three 21-bit cell coordinates into a `u64`.
 const MAX_CELLS_PER_AXIS: u64 = (1 << 21) - 1;
-/// A triangle covering more cells than this is tested against all others by its box
-/// instead of being entered into the grid.
+/// A triangle covering more cells than this is kept out of the grid and tested against
+/// the triangles in the cells under its box.
 const MAX_CELLS_PER_TRIANGLE: u64 = 512;
 
 /// A triangle prepared for the tests.
@@ -238,13 +238,13 @@ pub fn self_intersections(mesh: &TriMesh) -> Vec<(usize, usize)> {
     let key = |c: glam::U64Vec3| (c.x << 42) | (c.y << 21) | c.z;
 
     let mut entries: Vec<(u64, u32)> = Vec::new();
-    let mut large: Vec<u32> = Vec::new();
+    let mut large: Vec<(u32, &Prepared)> = Vec::new();
     for &t in &valid {
         let Some(p) = get(t) else { continue };
         let (c0, c1) = (cell_of(p.lo - tol), cell_of(p.hi + tol));
         let span = c1 - c0 + 1;
         if span.x * span.y * span.z > MAX_CELLS_PER_TRIANGLE {
-            large.push(t);
+            large.push((t, p));
             continue;
         }
         for x in c0.x..=c1.x {
@@ -295,23 +295,19 @@ pub fn self_intersections(mesh: &TriMesh) -> Vec<(usize, usize)> {
         large
             .par_iter()
             .enumerate()
-            .flat_map_iter(|(n, &i)| {
-                let mut candidates: Vec<u32> = match get(i) {
-                    Some(p) => {
-                        gridded_under(entries, cell_of(p.lo - tol), cell_of(p.hi + tol), key)
-                            .unwrap_or_else(|| {
-                                valid
-                                    .iter()
-                                    .copied()
-                                    .filter(|j| large.binary_search(j).is_err())
-                                    .collect()
-                            })
-                    }
-                    None => Vec::new(),
-                };
+            .flat_map_iter(|(n, &(i, p))| {
+                let (c0, c1) = (cell_of(p.lo - tol), cell_of(p.hi + tol));
+                let mut candidates = gridded_under(entries, c0, c1, key, valid.len())
+                    .unwrap_or_else(|| {
+                        valid
+                            .iter()
+                            .copied()
+                            .filter(|&j| large.binary_search_by_key(&j, |&(t, _)| t).is_err())
+                            .collect()
+                    });
                 candidates.sort_unstable();
                 candidates.dedup();
-                candidates.extend_from_slice(&large[n + 1..]);
+                candidates.extend(large[n + 1..].iter().map(|&(j, _)| j));
                 candidates.into_iter().filter_map(move |j| test(i, j))
             })
             .collect::<Vec<_>>(),
@@ -322,16 +318,18 @@ pub fn self_intersections(mesh: &TriMesh) -> Vec<(usize, usize)> {
 
 /// The triangles entered in the cells from `c0` to `c1` (with repeats), read from
 /// `entries` sorted by `key`: one binary search per column of cells along z. `None` when
-/// the box has more columns than there are entries (a scan of every triangle is then
-/// cheaper).
+/// those searches would take more steps than `scan_steps` (a scan of every triangle is
+/// then cheaper).
 fn gridded_under(
     entries: &[(u64, u32)],
     c0: glam::U64Vec3,
     c1: glam::U64Vec3,
     key: impl Fn(glam::U64Vec3) -> u64,
+    scan_steps: usize,
 ) -> Option<Vec<u32>> {
     let columns = (c1.x - c0.x + 1).saturating_mul(c1.y - c0.y + 1);
-    if columns > entries.len() as u64 {
+    let steps_per_search = u64::from(usize::BITS - entries.len().leading_zeros());
+    if columns.saturating_mul(steps_per_search) > scan_steps as u64 {
         return None;
     }
     let mut found = Vec::new();
@@ -553,6 +551,7 @@ mod tests {
         let pairs = self_intersections(&m);
         assert!(!pairs.is_empty());
         assert!(pairs.iter().all(|&(_, j)| j == m.triangles.len() - 1));
+        assert_eq!(pairs, every_pair(&m));
     }
 
     /// Every pair tested by the narrow phase alone: the reference for the broad phase.
@@ -578,13 +577,15 @@ mod tests {
     }
 
     /// The grid finds exactly the pairs that testing every pair finds: two crumpled
-    /// sheets through each other, first alone, then with huge triangles through both (the
-    /// path for triangles kept out of the grid, among them and against the grid).
+    /// sheets through each other (1 mm triangles: cells of about 3.4 mm), first alone,
+    /// then with triangles kept out of the grid through both, crossing each other too:
+    /// four of about 33 mm (over 512 cells, under 81 columns: found through the grid) and
+    /// three of 120 mm and more (841 columns: found by a scan of every triangle).
     #[test]
     fn the_grid_finds_what_testing_every_pair_finds() {
         // A fixed pseudo-random height in [-1, 1] per vertex.
         let height = |k: usize| ((k as f64 * 12.9898).sin() * 43_758.545).fract() * 2.0 - 1.0;
-        let mut sheets = grid(20, 20, 1.0);
+        let mut sheets = grid(30, 30, 1.0);
         let count = sheets.positions.len();
         for (k, p) in sheets.positions.iter_mut().enumerate() {
             p.z = 0.6 * height(k);
@@ -611,10 +612,28 @@ mod tests {
             let v = base + 3 * n as u32;
             sheets.triangles.push([v, v + 1, v + 2]);
         }
-        let with_huge = self_intersections(&sheets);
         let huge = sheets.triangles.len() - 3;
-        assert!(with_huge.iter().filter(|&&(_, j)| j >= huge).count() > 10);
-        assert_eq!(with_huge, every_pair(&sheets));
+        for n in 0..4 {
+            let (x, y) = (-3.3 + 4.1 * n as f64, -2.7 + 3.9 * n as f64);
+            let v = sheets.positions.len() as u32;
+            sheets.positions.extend([
+                DVec3::new(x, y, -12.0),
+                DVec3::new(x + 33.0, y + 5.0, 0.5),
+                DVec3::new(x + 5.0, y + 33.0, 12.0),
+            ]);
+            sheets.triangles.push([v, v + 1, v + 2]);
+        }
+        let pins = huge + 3;
+        let kept_out = self_intersections(&sheets);
+        let count = |range: std::ops::Range<usize>| {
+            kept_out
+                .iter()
+                .filter(|&&(i, j)| i < huge && range.contains(&j))
+                .count()
+        };
+        assert!(count(huge..pins) > 10, "{kept_out:?}");
+        assert!(count(pins..pins + 4) >= 8, "{kept_out:?}");
+        assert_eq!(kept_out, every_pair(&sheets));
     }
 
     #[test]

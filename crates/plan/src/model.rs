@@ -372,12 +372,20 @@ pub struct InputChecksums {
 }
 
 impl InputChecksums {
-    /// The checksums of the files at `scan` and `landmarks`.
-    pub fn of(scan: &Path, landmarks: &Path) -> std::io::Result<InputChecksums> {
-        Ok(InputChecksums {
-            scan: crate::checksum::file_sha256(scan)?,
-            landmarks: crate::checksum::file_sha256(landmarks)?,
-        })
+    /// The checksums of the files at `scan` and `landmarks`; `None` if either does not
+    /// exist (a phantom made in memory). Errors name the file that cannot be read.
+    pub fn of(scan: &Path, landmarks: &Path) -> Result<Option<InputChecksums>> {
+        if !scan.exists() || !landmarks.exists() {
+            return Ok(None);
+        }
+        let sha256 = |path: &Path| {
+            crate::checksum::file_sha256(path)
+                .with_context(|| format!("reading {} for its checksum", path.display()))
+        };
+        Ok(Some(InputChecksums {
+            scan: sha256(scan)?,
+            landmarks: sha256(landmarks)?,
+        }))
     }
 }
 
@@ -815,7 +823,7 @@ pub fn write_model(
     files.push("control_points.json".into());
     progress.step();
     let sha256 = staged.checksums()?;
-    let inputs_sha256 = InputChecksums::of(&model.scan_path, &model.landmarks_path).ok();
+    let inputs_sha256 = InputChecksums::of(&model.scan_path, &model.landmarks_path)?;
     files.push("model.json".into());
     let report = model.report(out_dir, files, sha256, inputs_sha256);
     staged.write(&report_path, |path| crate::write_json(path, &report))?;
@@ -928,8 +936,9 @@ pub(crate) fn read_folder_json<T: serde::de::DeserializeOwned>(
 /// Reopens a model folder written by [`write_model`]: reads the scan and landmarks named
 /// in its `model.json` and rebuilds the model with the folder's `control_points.json` and
 /// the recorded settings (meshing is deterministic, so the result is the folder's; the
-/// level sizes are checked against `model.json`, which catches a scan changed since).
-/// The folder's files must match the checksums `model.json` recorded.
+/// level sizes are checked against `model.json`, which catches a program that builds
+/// models differently). The folder's files, and the scan and landmark files where
+/// recorded, must match the checksums `model.json` recorded.
 /// Returns the marked scan with the model.
 pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedScan, PatientModel)> {
     let report_path = model_dir.join("model.json");
@@ -976,7 +985,7 @@ pub fn load_model(model_dir: &Path, progress: &dyn Progress) -> Result<(MarkedSc
              {rebuilt:?}, but the folder has {recorded:?}: {}; run `mammaplan model` again",
             model_dir.display(),
             record.scan.display(),
-            why_the_rebuild_differs(&record)
+            why_the_rebuild_differs(&record, &crate::software())
         );
     }
     Ok((marked, model))
@@ -988,23 +997,19 @@ fn verify_inputs(record: &ModelRecord, report_path: &Path) -> Result<()> {
     let Some(expected) = &record.inputs_sha256 else {
         return Ok(());
     };
-    let found = InputChecksums::of(&record.scan, &record.landmarks).with_context(|| {
-        format!(
-            "reading the scan and landmark files named in {}",
-            report_path.display()
-        )
-    })?;
-    for (what, path, found, expected) in [
-        ("scan", &record.scan, &found.scan, &expected.scan),
-        (
-            "landmark file",
-            &record.landmarks,
-            &found.landmarks,
-            &expected.landmarks,
-        ),
+    for (what, path, expected) in [
+        ("scan", &record.scan, &expected.scan),
+        ("landmark file", &record.landmarks, &expected.landmarks),
     ] {
+        let found = crate::checksum::file_sha256(path).with_context(|| {
+            format!(
+                "reading {}, the {what} named in {}",
+                path.display(),
+                report_path.display()
+            )
+        })?;
         anyhow::ensure!(
-            found == expected,
+            &found == expected,
             "{} is not the {what} the model in {} was built from (its checksum differs from \
              the one recorded): it was changed since; run `mammaplan model` again",
             path.display(),
@@ -1014,13 +1019,14 @@ fn verify_inputs(record: &ModelRecord, report_path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Why a model rebuilt from a folder's recorded inputs can differ from the folder's.
-fn why_the_rebuild_differs(record: &ModelRecord) -> String {
-    let this = crate::software();
+/// Why a model rebuilt from a folder's recorded inputs (checked unchanged where
+/// recorded) can differ from the folder's, for a program named `this`.
+fn why_the_rebuild_differs(record: &ModelRecord, this: &str) -> String {
     match (&record.inputs_sha256, &record.software) {
-        (Some(_), Some(writer)) if *writer == this => {
-            "the scan, landmarks and program are those that wrote the folder, so model.json \
-             was edited"
+        (Some(_), Some(writer)) if writer == this => {
+            "the scan and landmarks are those the model was built from and the program has \
+             the same version and commit, so model.json was edited, or this build has changes \
+             not committed (or another platform's arithmetic)"
                 .to_string()
         }
         (Some(_), Some(writer)) => format!(
@@ -1037,6 +1043,44 @@ fn why_the_rebuild_differs(record: &ModelRecord) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each way a rebuilt model can differ is named: the same program (an edit), another
+    /// version, and a folder from before programs and inputs were recorded.
+    #[test]
+    fn a_differing_rebuild_is_explained() {
+        let record = |software: Option<&str>, inputs: bool| ModelRecord {
+            software: software.map(str::to_string),
+            scan: "scan.ply".into(),
+            scan_units: None,
+            landmarks: "landmarks.json".into(),
+            up: None,
+            elements_requested: DEFAULT_ELEMENTS,
+            rear_wall_offset_mm: 15.0,
+            refinement: None,
+            levels: Vec::new(),
+            breast_volume_ml: PerSide::from_fn(|_| 300.0),
+            quadrant_volume_ml: PerSide::from_fn(|_| QuadrantVolumes::default()),
+            sha256: Default::default(),
+            inputs_sha256: inputs.then(|| InputChecksums {
+                scan: "0".repeat(64),
+                landmarks: "1".repeat(64),
+            }),
+        };
+        let this = "mammaplan 0.2.0 (commit 0123456789ab)";
+        assert!(
+            why_the_rebuild_differs(&record(Some(this), true), this)
+                .starts_with("the scan and landmarks are those the model was built from")
+        );
+        assert!(
+            why_the_rebuild_differs(&record(Some("mammaplan 0.1.0"), true), this).starts_with(
+                "the folder was written by mammaplan 0.1.0, and this mammaplan 0.2.0 (commit"
+            )
+        );
+        assert!(
+            why_the_rebuild_differs(&record(None, false), this)
+                .starts_with("the scan or landmarks changed since, or the folder was written by")
+        );
+    }
 
     /// The defaults pass; each number out of its range is refused with its field named.
     #[test]

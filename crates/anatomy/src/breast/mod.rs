@@ -735,7 +735,7 @@ pub const STITCH_NORMAL_RADIUS_MM: f64 = 3.0;
 /// triangle on the edge; `radius_mm = 0` compares just the two triangles on the edge).
 /// 0 if no edge has a triangle on both sides. The topologies are those of `base` and of
 /// `fill.mesh`.
-pub fn max_stitch_angle_deg(
+fn max_stitch_angle_deg(
     base: &TriMesh,
     base_topology: &Topology,
     fill: &FillIn,
