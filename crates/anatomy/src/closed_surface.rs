@@ -100,7 +100,7 @@ use mesh::{
     ManifoldReport, MeshError, Topology, TriMesh, manifold_report, smooth_inside_borders, untangle,
 };
 use std::ops::Range;
-use stitch::{bands, straighten_small_folds};
+use stitch::bands;
 
 /// Default rear-wall offset (mm): skin (about 2 mm) plus pectoralis major (about 10 to
 /// 13 mm in adult women by ultrasound), the layers the paper shifts the base back by so
@@ -490,7 +490,6 @@ pub fn build_closed_surface_in_box(
     let front_range = 0..triangles.len();
     triangles.extend(back.triangles.iter().map(|t| t.map(|v| v + offset)));
     let back_range = front_range.end..triangles.len();
-    let folds_straightened = straighten_small_folds(&mut positions, &back_sides, offset);
     triangles.extend(bands(&positions, &front_sides, &back_sides, offset)?);
     let band_range = back_range.end..triangles.len();
 
@@ -524,12 +523,6 @@ pub fn build_closed_surface_in_box(
         }
     }
     let mut warnings = Vec::new();
-    if folds_straightened > 0 {
-        warnings.push(format!(
-            "the rear wall's section on the side planes folded back on itself in \
-             {folds_straightened} place(s) by less than a millimetre; straightened"
-        ));
-    }
     if too_close > 0 {
         warnings.push(format!(
             "{too_close} vertices of the rear wall stay less than {clearance_mm:.1} mm behind \

@@ -8,77 +8,6 @@ use crate::fill_in::inside_polygon;
 use glam::{DVec2, DVec3};
 use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
-/// Largest move (mm) of a wall border vertex when a fold of its chain is straightened:
-/// the wall is built, not measured, and a fold of its section this small carries no shape.
-const MAX_FOLD_STRAIGHTENING_MM: f64 = 1.0;
-/// How many chain edges apart the two crossing edges of a fold may lie.
-const MAX_FOLD_EDGES: usize = 6;
-
-/// A point on clip plane `plane` (an index into [`ClipBox::planes`]) in the plane's own
-/// coordinates: along the plane's side of the box, and anterior.
-///
-/// [`ClipBox::planes`]: super::ClipBox::planes
-fn in_plane(p: DVec3, plane: usize) -> DVec2 {
-    let along = 1 - [0, 0, 1, 1][plane];
-    DVec2::new(p[along], p.z)
-}
-
-/// Whether segments `a`-`b` and `c`-`d` cross at a point inside both.
-fn segments_cross(a: DVec2, b: DVec2, c: DVec2, d: DVec2) -> bool {
-    let turn = |p: DVec2, q: DVec2, r: DVec2| (q - p).perp_dot(r - p);
-    turn(a, b, c) * turn(a, b, d) < 0.0 && turn(c, d, a) * turn(c, d, b) < 0.0
-}
-
-/// Straightens the small folds of the wall's border chains (`sides`, vertex indices
-/// shifted by `offset` in `positions`) on the clip planes: where two edges of a chain at
-/// most [`MAX_FOLD_EDGES`] apart cross in the plane, the vertices between them are put
-/// evenly on the straight line joining the fold's outer ends (on the plane, so they stay
-/// on it), unless one would move more than [`MAX_FOLD_STRAIGHTENING_MM`]. A chain's ends
-/// (the box's corners) never move. Returns the number of folds straightened.
-pub(super) fn straighten_small_folds(
-    positions: &mut [DVec3],
-    sides: &[Side; 4],
-    offset: u32,
-) -> usize {
-    let mut straightened = 0;
-    for side in sides {
-        let chain: Vec<usize> = side.chain.iter().map(|&v| (v + offset) as usize).collect();
-        let flat = |positions: &[DVec3], k: usize| in_plane(positions[chain[k]], side.plane);
-        let mut i = 0;
-        while i + 2 < chain.len() {
-            let last = (i + MAX_FOLD_EDGES).min(chain.len() - 2);
-            let fold = (i + 2..=last).find(|&j| {
-                segments_cross(
-                    flat(positions, i),
-                    flat(positions, i + 1),
-                    flat(positions, j),
-                    flat(positions, j + 1),
-                )
-            });
-            let Some(j) = fold else {
-                i += 1;
-                continue;
-            };
-            let (start, end) = (positions[chain[i]], positions[chain[j + 1]]);
-            let steps = (j + 1 - i) as f64;
-            let line: Vec<DVec3> = (i + 1..=j)
-                .map(|k| start.lerp(end, (k - i) as f64 / steps))
-                .collect();
-            let small = (i + 1..=j)
-                .zip(&line)
-                .all(|(k, p)| positions[chain[k]].distance(*p) <= MAX_FOLD_STRAIGHTENING_MM);
-            if small {
-                for (k, p) in (i + 1..=j).zip(line) {
-                    positions[chain[k]] = p;
-                }
-                straightened += 1;
-            }
-            i = j + 1;
-        }
-    }
-    straightened
-}
-
 /// The bands between the sides of the scan's border (`front_sides`) and those of the
 /// wall's (`back_sides`, on the same planes in the same order, their vertex indices
 /// shifted by `offset` in `positions`), side by side ([`band_on_side`]); an error where
@@ -174,9 +103,14 @@ pub(super) fn triangulate_in_plane(
     plane: usize,
     polygon: &[u32],
 ) -> Result<Vec<[u32; 3]>, PolygonDefect> {
+    // In-plane coordinates: along the plane's side of the box, and anterior.
+    let along = 1 - [0, 0, 1, 1][plane];
     let flat: Vec<DVec2> = polygon
         .iter()
-        .map(|&v| in_plane(positions[v as usize], plane))
+        .map(|&v| {
+            let p = positions[v as usize];
+            DVec2::new(p[along], p.z)
+        })
         .collect();
     let n = flat.len();
     let twice_area: f64 = (0..n).map(|k| flat[k].perp_dot(flat[(k + 1) % n])).sum();
@@ -221,70 +155,4 @@ pub(super) fn triangulate_in_plane(
             })
         })
         .collect())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A chain on plane 0 (coordinates y along, z depth) at x = -90 mm through `points`.
-    fn chain_on_plane(points: &[(f64, f64)]) -> (Vec<DVec3>, [Side; 4]) {
-        let positions = points
-            .iter()
-            .map(|&(y, z)| DVec3::new(-90.0, y, z))
-            .collect();
-        let side = |plane: usize, chain: Vec<u32>| Side { plane, chain };
-        let chain = (0..points.len() as u32).collect();
-        let sides = [
-            side(0, chain),
-            side(1, vec![]),
-            side(2, vec![]),
-            side(3, vec![]),
-        ];
-        (positions, sides)
-    }
-
-    fn crossings(positions: &[DVec3]) -> usize {
-        let flat: Vec<DVec2> = positions.iter().map(|&p| in_plane(p, 0)).collect();
-        let edges = flat.len() - 1;
-        (0..edges)
-            .flat_map(|i| (i + 2..edges).map(move |j| (i, j)))
-            .filter(|&(i, j)| segments_cross(flat[i], flat[i + 1], flat[j], flat[j + 1]))
-            .count()
-    }
-
-    /// A fold of a few tenths of a millimetre (the second edge turns back and the fourth
-    /// crosses it) is straightened onto the line between its ends: no crossing is left,
-    /// the ends and the plane stay; the same fold five times larger is left alone.
-    #[test]
-    fn a_sub_millimetre_fold_is_straightened_and_a_large_one_kept() {
-        let fold = [
-            (0.0, 0.0),
-            (0.6, 0.0),
-            (0.45, 0.03),
-            (0.48, -0.03),
-            (1.2, 0.0),
-            (2.0, 0.0),
-        ];
-        let (mut positions, sides) = chain_on_plane(&fold);
-        assert_eq!(crossings(&positions), 1);
-        let before = positions.clone();
-        assert_eq!(straighten_small_folds(&mut positions, &sides, 0), 1);
-        assert_eq!(crossings(&positions), 0);
-        // The two vertices inside the fold lie a third and two thirds of the way from
-        // the first point to the fourth; the others did not move.
-        let expected = |t: f64| before[0].lerp(before[3], t);
-        assert!(positions[1].distance(expected(1.0 / 3.0)) < 1e-12);
-        assert!(positions[2].distance(expected(2.0 / 3.0)) < 1e-12);
-        for k in [0, 3, 4, 5] {
-            assert_eq!(positions[k], before[k]);
-        }
-        assert!(positions.iter().all(|p| p.x == -90.0));
-
-        let large: Vec<(f64, f64)> = fold.iter().map(|&(y, z)| (5.0 * y, 5.0 * z)).collect();
-        let (mut positions, sides) = chain_on_plane(&large);
-        let before = positions.clone();
-        assert_eq!(straighten_small_folds(&mut positions, &sides, 0), 0);
-        assert_eq!(positions, before);
-    }
 }
