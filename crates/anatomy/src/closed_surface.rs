@@ -20,8 +20,9 @@
 //!    for the planes, and the mapped-back split points lie within micrometres of the
 //!    split edges): each plane in turn splits the triangles it
 //!    crosses exactly at the plane (the split vertex gets the plane's coordinate
-//!    exactly, a vertex within a small snap distance is moved onto it, so no slivers),
-//!    keeping the inside. Only the largest connected piece is kept (drops specks).
+//!    exactly; a vertex whose edge crosses within a small snap distance is moved along
+//!    that edge onto the crossing, so no slivers and the border stays on the exact
+//!    section), keeping the inside. Only the largest connected piece is kept (drops specks).
 //!    Where a plane grazes a bump (a breast's lateral side), the bump's cut-off tip
 //!    leaves a small border cycle entirely on that plane; it is closed by a flat cap.
 //!    The border must then be a single loop lying on the planes, with one corner vertex on

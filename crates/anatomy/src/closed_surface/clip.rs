@@ -1,7 +1,7 @@
 //! Clipping a surface to the box: triangles split exactly at the planes, the largest
 //! piece kept, and its border loop split into the four sides.
 
-use super::clip_box::{ClipBox, ClipPlane, PLANE_NAMES};
+use super::clip_box::{ClipBox, ClipPlane, PLANE_NAMES, planes_through};
 use super::stitch::triangulate_in_plane;
 use super::{ClosedSurfaceError, MIN_CLIPPED_TRIANGLES, SurfaceRole};
 use crate::frame::AnatomicalFrame;
@@ -10,9 +10,9 @@ use glam::DVec3;
 use mesh::{Topology, TriMesh};
 use std::collections::HashMap;
 
-/// Vertices closer to a clip plane than this fraction of the mean edge length are moved
-/// onto it (at most 2% of an edge, about 0.05 mm on a scan), so clipping leaves no
-/// sliver triangles.
+/// A vertex whose edge crosses a clip plane within this fraction of the mean edge length
+/// of it (2% of an edge, about 0.05 mm on a scan) is moved along that edge onto the
+/// crossing, so clipping leaves no sliver triangles.
 const SNAP_FRACTION: f64 = 0.02;
 
 /// One side of a clipped border: the plane index into [`ClipBox::planes`] and the
@@ -53,8 +53,9 @@ impl ClippedPart {
         let mut triangles = surface.triangles.clone();
         let snap = SNAP_FRACTION * surface.mean_edge_length();
         let planes = clip_box.planes();
-        for plane in &planes {
-            triangles = clip_by_plane(&mut positions, &triangles, plane, snap);
+        for (k, plane) in planes.iter().enumerate() {
+            snap_onto_crossings(&mut positions, &triangles, plane, &planes[..k], snap);
+            triangles = clip_by_plane(&mut positions, &triangles, plane);
         }
         let (positions, triangles) = largest_piece(&positions, &triangles);
         if triangles.len() < MIN_CLIPPED_TRIANGLES {
@@ -111,12 +112,7 @@ impl ClippedPart {
 
     /// Bit `i` set if vertex `v` lies on plane `i`.
     fn plane_mask(&self, v: u32) -> u8 {
-        let p = self.positions[v as usize];
-        self.planes
-            .iter()
-            .enumerate()
-            .filter(|(_, plane)| p[plane.axis] == plane.value)
-            .fold(0, |mask, (i, _)| mask | (1 << i))
+        planes_through(self.positions[v as usize], &self.planes)
     }
 
     /// Closes the holes a plane leaves where it grazes the surface: where a bump (a
@@ -325,20 +321,81 @@ pub(super) fn simple_cycles(walk: &[u32]) -> Vec<Vec<u32>> {
     cycles
 }
 
-/// Triangles of `triangles` clipped to the kept side of `plane`. Vertices within `snap`
-/// of the plane are moved onto it; crossed edges are split at the plane, each edge once
-/// (new vertices are appended to `positions`), so the result stays connected.
+/// Moves each vertex of `triangles` that has an edge crossing `plane` within `snap_mm`
+/// of it to that crossing, the nearest first, so no clipped piece of an edge is shorter
+/// than `snap_mm` where it can be helped. Every point of the clipped border is then a
+/// crossing of one of the surface's edges, in order along its section by the plane:
+/// moving a vertex straight onto the plane instead would put it off the section by
+/// `snap_mm` over the tangent of the angle between surface and plane, and where they
+/// meet at a grazing angle the border would zigzag and could cross itself. A vertex on
+/// one of `earlier` planes moves only along an edge lying on that plane too, so the
+/// borders clipped so far stay on their planes; a move that would turn one of the
+/// vertex's triangles over is not made (the edge is then split a little way from it).
+fn snap_onto_crossings(
+    positions: &mut [DVec3],
+    triangles: &[[u32; 3]],
+    plane: &ClipPlane,
+    earlier: &[ClipPlane],
+    snap_mm: f64,
+) {
+    // The distance along edge (v, w) from v to where it crosses the plane, if it does
+    // within the snap and v may move along it.
+    let crossing = |positions: &[DVec3], v: u32, w: u32| {
+        let (p, q) = (positions[v as usize], positions[w as usize]);
+        let (dp, dq) = (plane.distance(p), plane.distance(q));
+        let crosses = (dp > 0.0 && dq < 0.0) || (dp < 0.0 && dq > 0.0);
+        let along_mm = dp / (dp - dq) * p.distance(q);
+        let stays_on_planes = planes_through(p, earlier) & !planes_through(q, earlier) == 0;
+        (crosses && along_mm <= snap_mm && stays_on_planes).then_some(along_mm)
+    };
+    let mut candidates: Vec<(f64, u32, u32)> = triangles
+        .iter()
+        .flat_map(|&[a, b, c]| [(a, b), (b, a), (b, c), (c, b), (c, a), (a, c)])
+        .filter(|&(v, _)| plane.distance(positions[v as usize]).abs() <= snap_mm)
+        .filter_map(|(v, w)| crossing(positions, v, w).map(|along| (along, v, w)))
+        .collect();
+    candidates.sort_by(|x, y| x.0.total_cmp(&y.0).then((x.1, x.2).cmp(&(y.1, y.2))));
+    candidates.dedup_by(|x, y| (x.1, x.2) == (y.1, y.2));
+    let mut star: HashMap<u32, Vec<usize>> = HashMap::new();
+    for &(_, v, _) in &candidates {
+        star.entry(v).or_default();
+    }
+    for (t, tri) in triangles.iter().enumerate() {
+        for v in tri {
+            if let Some(around) = star.get_mut(v) {
+                around.push(t);
+            }
+        }
+    }
+    // A vertex moved onto the plane crosses it no longer, so each moves at most once and
+    // never onto the crossing a neighbour has taken.
+    for (_, v, w) in candidates {
+        if crossing(positions, v, w).is_none() {
+            continue;
+        }
+        let moved = plane.crossing(positions[v as usize], positions[w as usize]);
+        let normal_with = |positions: &[DVec3], t: usize, at: DVec3| {
+            let [a, b, c] = triangles[t].map(|u| if u == v { at } else { positions[u as usize] });
+            (b - a).cross(c - a)
+        };
+        let keeps_facing = star[&v].iter().all(|&t| {
+            let before = normal_with(positions, t, positions[v as usize]);
+            normal_with(positions, t, moved).dot(before) > 0.0
+        });
+        if keeps_facing {
+            positions[v as usize] = moved;
+        }
+    }
+}
+
+/// Triangles of `triangles` clipped to the kept side of `plane`. Crossed edges are split
+/// at the plane, each edge once (new vertices are appended to `positions`), so the
+/// result stays connected.
 fn clip_by_plane(
     positions: &mut Vec<DVec3>,
     triangles: &[[u32; 3]],
     plane: &ClipPlane,
-    snap: f64,
 ) -> Vec<[u32; 3]> {
-    for p in positions.iter_mut() {
-        if plane.distance(*p).abs() <= snap {
-            p[plane.axis] = plane.value;
-        }
-    }
     let mut split_vertices: HashMap<(u32, u32), u32> = HashMap::new();
     let mut clipped = Vec::with_capacity(triangles.len());
     for tri in triangles {
@@ -364,10 +421,7 @@ fn clip_by_plane(
                 let key = (a.min(b), a.max(b));
                 let v = *split_vertices.entry(key).or_insert_with(|| {
                     let (p, q) = (positions[key.0 as usize], positions[key.1 as usize]);
-                    let (dp, dq) = (plane.distance(p), plane.distance(q));
-                    let mut split = p + (q - p) * (dp / (dp - dq));
-                    split[plane.axis] = plane.value;
-                    positions.push(split);
+                    positions.push(plane.crossing(p, q));
                     (positions.len() - 1) as u32
                 });
                 polygon.push(v);
@@ -406,4 +460,124 @@ fn largest_piece(positions: &[DVec3], triangles: &[[u32; 3]]) -> (Vec<DVec3>, Ve
         .collect();
     let piece = TriMesh::from_used_vertices(positions, &kept);
     (piece.positions, piece.triangles)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mesh::shapes::grid;
+
+    /// A flat 40 x 40 mm sheet on a 2 mm grid, tilted 5 degrees off the plane x = 0
+    /// about the y axis (u along the grid's x): (u sin 5°, y, u cos 5°).
+    fn grazing_sheet() -> TriMesh {
+        let tilt = 5f64.to_radians();
+        let mut sheet = grid(20, 20, 2.0);
+        sheet.map_positions(|p| DVec3::new(p.x * tilt.sin(), p.y, p.x * tilt.cos()));
+        sheet
+    }
+
+    /// Clips `sheet` by `planes` in turn and returns the kept triangles.
+    fn clip_all(sheet: &TriMesh, planes: &[ClipPlane]) -> TriMesh {
+        let mut positions = sheet.positions.clone();
+        let mut triangles = sheet.triangles.clone();
+        let snap = SNAP_FRACTION * sheet.mean_edge_length();
+        for (k, plane) in planes.iter().enumerate() {
+            snap_onto_crossings(&mut positions, &triangles, plane, &planes[..k], snap);
+            triangles = clip_by_plane(&mut positions, &triangles, plane);
+        }
+        TriMesh::from_used_vertices(&positions, &triangles)
+    }
+
+    /// Clips the sheet at u = `section_u` (a plane of constant x, keeping larger u) and
+    /// returns the kept triangles' area and the vertices on the plane.
+    fn clip_sheet_at(section_u: f64) -> (f64, Vec<DVec3>) {
+        let tilt = 5f64.to_radians();
+        let sheet = grazing_sheet();
+        let plane = ClipPlane {
+            axis: 0,
+            value: section_u * tilt.sin(),
+            keep_above: true,
+        };
+        let clipped = clip_all(&sheet, &[plane]);
+        let area: f64 = (0..clipped.triangle_count())
+            .map(|t| {
+                let [a, b, c] = clipped.triangle_positions(t);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum();
+        let on_plane = clipped
+            .positions
+            .iter()
+            .filter(|p| p.x == plane.value)
+            .copied()
+            .collect();
+        (area, on_plane)
+    }
+
+    /// Where a plane meets the surface at a grazing angle, the clipped border must lie on
+    /// the surface's section. A column of vertices 0.3 mm (in u) short of the section is
+    /// within the snap distance of the plane in x (0.026 mm) but 0.3 mm from it along the
+    /// sheet: moving it straight onto the plane would leave it 0.3 mm off the section.
+    /// A column 0.03 mm short of it is moved onto the section along its nearest crossing
+    /// edges, the grid's rows (keeping its rows' heights), not the diagonals. The kept
+    /// area is that of the sheet beyond the section, 40 mm x (40 mm - u); vertices moved
+    /// within a flat sheet change no area, so the checks hold to rounding (1e-9).
+    #[test]
+    fn a_grazing_plane_leaves_the_border_on_the_exact_section() {
+        let tilt = 5f64.to_radians();
+        // The 0.3 mm case splits the 21 rows' edges and the 20 diagonals; in the 0.03 mm
+        // case the moved column is the border.
+        for (section_u, border_vertices) in [(20.3, 41), (20.03, 21)] {
+            let rows_kept = clip_sheet_at(section_u).1.iter().all(|p| p.y % 2.0 == 0.0);
+            assert_eq!(rows_kept, section_u == 20.03, "u {section_u}");
+            let (area, on_plane) = clip_sheet_at(section_u);
+            let expected = 40.0 * (40.0 - section_u);
+            assert!(
+                (area - expected).abs() < 1e-9 * expected,
+                "u {section_u}: area {area} mm², expected {expected}"
+            );
+            assert_eq!(on_plane.len(), border_vertices, "u {section_u}");
+            let section_z = section_u * tilt.cos();
+            for p in on_plane {
+                assert!(
+                    (p.z - section_z).abs() < 1e-9,
+                    "u {section_u}: border vertex at depth {} mm, the section is at {section_z}",
+                    p.z
+                );
+            }
+        }
+    }
+
+    /// A vertex on an earlier plane's border moves along that border only. On the sheet
+    /// z = 2 (y - x), clipped at x = 10.3 and then at y = 4.02, the border vertex at
+    /// y = 4 is 0.045 mm from the second plane along the border but 0.027 mm along an
+    /// inner edge; moved along the inner edge it would leave the first plane and the
+    /// corner would be lost. The one corner must lie where both planes cut the sheet.
+    #[test]
+    fn a_vertex_on_a_clipped_border_stays_on_it() {
+        let mut sheet = grid(20, 20, 2.0);
+        sheet.map_positions(|p| DVec3::new(p.x, p.y, 2.0 * (p.y - p.x)));
+        let planes = [
+            ClipPlane {
+                axis: 0,
+                value: 10.3,
+                keep_above: true,
+            },
+            ClipPlane {
+                axis: 1,
+                value: 4.02,
+                keep_above: true,
+            },
+        ];
+        let clipped = clip_all(&sheet, &planes);
+        let corners: Vec<DVec3> = clipped
+            .positions
+            .iter()
+            .filter(|p| planes_through(**p, &planes) == 0b11)
+            .copied()
+            .collect();
+        assert_eq!(corners.len(), 1, "corners {corners:?}");
+        let expected_z = 2.0 * (4.02 - 10.3);
+        assert!((corners[0].z - expected_z).abs() < 1e-9, "{}", corners[0]);
+    }
 }

@@ -319,7 +319,8 @@ impl LateralSection {
         let (y_lo, y_hi) = y_range;
         let in_band = |id: usize| (y_lo..=y_hi).contains(&edge_points[id].y);
         // Crossings of each end's height and of the heights a step either side (a chain
-        // that comes within a snap of a height crosses it twice a step away).
+        // that runs level near a height and crosses it once may cross it three times a
+        // step away; clipped, it would cross it so after a vertex moves by a snap).
         let corner_depths_mm = [y_lo, y_hi].map(|height| {
             [-STEP_MM, 0.0, STEP_MM].map(|delta| {
                 let level = height + delta;
