@@ -238,10 +238,19 @@ pub enum ClosedSurfaceError {
         near_mm: [f64; 3],
     },
     #[error(
-        "closed surface: the clipped {role}'s border meets the plane intersections in \
-         {corners} corners instead of one on each of the four"
+        "closed surface: the clipped {role}'s border meets the box's edge where its {side} \
+         and {end} planes meet {count} times instead of once, near ({:.0}, {:.0}, {:.0}) \
+         mm: the side of the torso runs along the box's {end} there; check the scan there, \
+         and the landmarks that set the {end} (the clavicles the top, the folds the bottom)",
+        near_mm[0], near_mm[1], near_mm[2]
     )]
-    MissingCorners { role: SurfaceRole, corners: usize },
+    MissingCorners {
+        role: SurfaceRole,
+        side: &'static str,
+        end: &'static str,
+        count: usize,
+        near_mm: [f64; 3],
+    },
     #[error("closed surface: the scan's and the filled base's borders cannot be stitched: {0}")]
     Stitch(String),
     #[error("closed surface: the result is not watertight and 2-manifold: {0}")]
@@ -285,11 +294,11 @@ impl ClosedSurfaceError {
         match self {
             ClosedSurfaceError::HoleInsideBox { center_mm, .. } => Some(Place::at(*center_mm)),
             ClosedSurfaceError::RunsOffBorder { near_mm, .. }
+            | ClosedSurfaceError::MissingCorners { near_mm, .. }
             | ClosedSurfaceError::SelfIntersecting { near_mm, .. } => Some(Place::at(*near_mm)),
             ClosedSurfaceError::InvalidInput(_)
             | ClosedSurfaceError::InvalidMesh { .. }
             | ClosedSurfaceError::TooFewTriangles { .. }
-            | ClosedSurfaceError::MissingCorners { .. }
             | ClosedSurfaceError::Stitch(_)
             | ClosedSurfaceError::NotWatertight(_)
             | ClosedSurfaceError::WallInFront { .. } => None,

@@ -253,14 +253,56 @@ impl ClippedPart {
             .sum()
     }
 
+    /// The error for a border without one corner on each edge of the box: the first
+    /// edge met other than once, and where (the corners there, or the border's point
+    /// nearest the edge).
+    fn corner_error(&self) -> ClosedSurfaceError {
+        // The box's edges as pairs of planes, and their names.
+        const EDGES: [(u8, &str, &str); 4] = [
+            (0b0101, "right", "bottom"),
+            (0b0110, "left", "bottom"),
+            (0b1010, "left", "top"),
+            (0b1001, "right", "top"),
+        ];
+        let on_edge = |mask: u8| -> Vec<DVec3> {
+            (self.border.iter())
+                .filter(|&&v| self.plane_mask(v) == mask)
+                .map(|&v| self.positions[v as usize])
+                .collect()
+        };
+        let (mask, side, end, corners) = EDGES
+            .iter()
+            .map(|&(mask, side, end)| (mask, side, end, on_edge(mask)))
+            .find(|edge| edge.3.len() != 1)
+            .unwrap_or_else(|| (EDGES[0].0, EDGES[0].1, EDGES[0].2, on_edge(EDGES[0].0)));
+        let near = if corners.is_empty() {
+            let off_edge = |p: DVec3| -> f64 {
+                (self.planes.iter().enumerate())
+                    .filter(|(i, _)| mask & (1 << i) != 0)
+                    .map(|(_, plane)| plane.distance(p).abs())
+                    .sum()
+            };
+            (self.border.iter())
+                .map(|&v| self.positions[v as usize])
+                .min_by(|a, b| off_edge(*a).total_cmp(&off_edge(*b)))
+                .unwrap_or_default()
+        } else {
+            corners.iter().sum::<DVec3>() / corners.len() as f64
+        };
+        ClosedSurfaceError::MissingCorners {
+            role: self.role,
+            side,
+            end,
+            count: corners.len(),
+            near_mm: self.to_file(near),
+        }
+    }
+
     /// The border split at its four corners, in [`ClipBox::planes`] order.
     pub(super) fn sides(&self) -> Result<[Side; 4], ClosedSurfaceError> {
         let is_corner = |v: u32| self.plane_mask(v).count_ones() == 2;
         let corners = self.border.iter().filter(|&&v| is_corner(v)).count();
-        let missing = ClosedSurfaceError::MissingCorners {
-            role: self.role,
-            corners,
-        };
+        let missing = self.corner_error();
         let Some(start) = self.border.iter().position(|&v| is_corner(v)) else {
             return Err(missing);
         };
@@ -579,5 +621,59 @@ mod tests {
         assert_eq!(corners.len(), 1, "corners {corners:?}");
         let expected_z = 2.0 * (4.02 - 10.3);
         assert!((corners[0].z - expected_z).abs() < 1e-9, "{}", corners[0]);
+    }
+
+    /// A border that meets the box's left-bottom edge three times (running level with
+    /// the bottom there, as a torso's side can) is an error naming that edge, placed at
+    /// the mean of its three corners. Box 0-10 mm in x and y; the border's vertices in
+    /// order, the wiggle at x = 10, y = 0 set apart in depth.
+    #[test]
+    fn extra_corners_are_an_error_placed_at_their_edge() {
+        let clip_box = ClipBox {
+            x_min_mm: 0.0,
+            x_max_mm: 10.0,
+            y_min_mm: 0.0,
+            y_max_mm: 10.0,
+            ..ClipBox::default()
+        };
+        let positions = [
+            [0.0, 0.0, 0.0],
+            [5.0, 0.0, 0.0],
+            [10.0, 0.0, 0.0],
+            [10.0, 0.5, 1.0],
+            [10.0, 0.0, 2.0],
+            [9.0, 0.0, 3.0],
+            [10.0, 0.0, 4.0],
+            [10.0, 5.0, 4.0],
+            [10.0, 10.0, 4.0],
+            [0.0, 10.0, 4.0],
+            [0.0, 5.0, 2.0],
+        ]
+        .map(DVec3::from_array)
+        .to_vec();
+        let part = ClippedPart {
+            role: SurfaceRole::Scan,
+            planes: clip_box.planes(),
+            frame: crate::closed_surface::tests::identity_frame(),
+            clip_box,
+            border: (0..positions.len() as u32).collect(),
+            positions,
+            triangles: Vec::new(),
+        };
+        let Err(error) = part.sides() else {
+            panic!("three corners on one edge were accepted");
+        };
+        let ClosedSurfaceError::MissingCorners {
+            side,
+            end,
+            count,
+            near_mm,
+            ..
+        } = error
+        else {
+            panic!("{error}");
+        };
+        assert_eq!((side, end, count), ("left", "bottom", 3));
+        assert_eq!(near_mm, [10.0, 0.0, 2.0]);
     }
 }
