@@ -10,7 +10,9 @@
 //!    axis to the chest around the hole, and use it as the "plane": `u` runs round it,
 //!    `v` along it, `w` outwards.
 //! 2. Project the loop onto the plane (cylinder), giving 2D coordinates `(u, v)` and a
-//!    height `w` per boundary vertex; refuse a loop that is not a simple polygon there
+//!    height `w` per boundary vertex. Where the loop turns back on itself there by less
+//!    than a quarter of the lattice spacing, straighten those `(u, v)` along the chord
+//!    (the 3D loop keeps its positions); refuse a loop that is still not a simple polygon
 //!    (on the cylinder: fall back to the plane).
 //! 3. Put a regular square lattice of the given spacing into the polygon, dropping points
 //!    closer than half a spacing to the boundary (no slivers), and triangulate loop and
@@ -72,7 +74,7 @@
 //!
 //! # Limitations
 //! - The fill-in is a height field over the fitted plane: a cut curve that folds over
-//!   seen from that plane is refused, and where the base stands steeper than the slope
+//!   seen from that plane by more than a quarter of the lattice spacing is refused, and where the base stands steeper than the slope
 //!   cap the fill-in is flatter than the base.
 //! - A cubic per lattice line cannot follow curvature that changes within the hole: on a
 //!   chest-like cylinder (150 mm radius, 120 mm hole) the fill-in stays within 0.2 mm of
@@ -106,7 +108,7 @@ use frame::Frame;
 use glam::{DVec2, DVec3};
 use lattice::Lattice;
 use mesh::TriMesh;
-use polygon::check_simple;
+use polygon::straighten_small_folds;
 use smooth::smooth_heights;
 use triangulate::triangulate;
 
@@ -121,6 +123,13 @@ pub const DEFAULT_TANGENT_SIGMA_MM: f64 = 10.0;
 /// adds nothing to a rear wall but time, coarser loses its curvature.
 const MIN_DEFAULT_SPACING_MM: f64 = 2.0;
 const MAX_DEFAULT_SPACING_MM: f64 = 8.0;
+
+/// Largest move of a loop point's plane coordinates, as a fraction of the lattice
+/// spacing, when a loop that turns back on itself seen from the frame is straightened
+/// there: lattice points keep half a spacing from the loop, so a triangle joining one to
+/// a loop edge stays turned the same way whether the edge's ends lie where they were
+/// projected or where they were moved.
+const MAX_STRAIGHTENING: f64 = 0.25;
 
 /// Upper bound on the lattice points over the loop's bounding box, guarding time and
 /// memory against a spacing far too fine for the hole.
@@ -214,13 +223,13 @@ pub fn fill_hole(
         jet_radius_mm(perimeter_mm),
     );
     let project = |frame: &Frame| -> Result<Boundary, FillInError> {
-        let boundary = Boundary::project(
+        let mut boundary = Boundary::project(
             frame,
             &loop_positions,
             &base_side.normals,
             params.tangent_sigma_mm,
         );
-        check_simple(&boundary.points)?;
+        straighten_small_folds(&mut boundary.points, MAX_STRAIGHTENING * spacing)?;
         Ok(boundary)
     };
     // The cylinder where it fits and the loop stays simple on it, else the plane.

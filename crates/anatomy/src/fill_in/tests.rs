@@ -1,4 +1,4 @@
-use super::polygon::orientation;
+use super::polygon::{orientation, straighten_small_folds};
 use super::*;
 use mesh::shapes::{cylinder, grid, icosphere};
 use mesh::topology::{NO_TRIANGLE, Topology};
@@ -521,6 +521,109 @@ fn orientation_signs_are_exact_for_nearly_collinear_points() {
     }
     assert_eq!(collinear, 64);
     assert!(plain_wrong > 0, "{plain_wrong}");
+}
+
+/// Positions `k + 1` and `k + 2` of a loop moved into a curl seen from the xy plane:
+/// the loop runs on 0.1 mm past the middle of the chord from `k` to `k + 3`, turns back
+/// 0.2 mm, 0.1 mm to one side, and crosses its own path on the way to `k + 3`. Both are
+/// lifted by `lift_mm` in z, so in 3D the loop does not meet itself. The size of the
+/// folds on s04's cut curve with landmarks moved 6 mm.
+fn curl(positions: &mut [DVec3], loop_at: impl Fn(usize) -> usize, k: usize, lift_mm: f64) {
+    let (start, end) = (positions[loop_at(k)], positions[loop_at(k + 3)]);
+    let along = (end - start).truncate();
+    let (length, direction) = (along.length(), along.normalize());
+    let side = direction.perp();
+    let place = |from_start: f64| {
+        (start.truncate() + direction * from_start + side * 0.1).extend(start.z + lift_mm)
+    };
+    positions[loop_at(k + 1)] = place(0.5 * length + 0.1);
+    positions[loop_at(k + 2)] = place(0.5 * length - 0.1);
+}
+
+/// A 100 mm circle of 200 points with a curl: the polygon is not simple, and
+/// straightening lays the curl's two points on their chord, moving them by about 0.2 mm
+/// (at most 0.3, the curl's size), and leaves every other point bit for bit. A bow tie
+/// whose fold is 100 mm wide is refused and left as it was.
+#[test]
+fn a_small_curl_of_the_projected_loop_is_straightened() {
+    let circle: Vec<DVec3> = (0..200)
+        .map(|k| {
+            let angle = k as f64 / 200.0 * std::f64::consts::TAU;
+            DVec3::new(50.0 * angle.cos(), 50.0 * angle.sin(), 0.0)
+        })
+        .collect();
+    let mut curled = circle.clone();
+    curl(&mut curled, |k| k % 200, 40, 0.0);
+    let original: Vec<DVec2> = curled.iter().map(|p| p.truncate()).collect();
+    let mut polygon = original.clone();
+    assert!(matches!(
+        straighten_small_folds(&mut polygon.clone(), 0.0),
+        Err(FillInError::NotSimple { .. })
+    ));
+    straighten_small_folds(&mut polygon, 0.5).unwrap();
+    assert!(straighten_small_folds(&mut polygon.clone(), 0.0).is_ok());
+    for (k, (after, before)) in polygon.iter().zip(&original).enumerate() {
+        let moved = after.distance(*before);
+        if k == 41 || k == 42 {
+            assert!((0.1..0.3).contains(&moved), "position {k} moved {moved}");
+        } else {
+            assert_eq!(after, before, "position {k}");
+        }
+    }
+    // The curl's points now lie on the chord from 40 to 43, in order.
+    let chord = original[43] - original[40];
+    let along = |p: DVec2| (p - original[40]).dot(chord) / chord.length_squared();
+    assert!(0.0 < along(polygon[41]) && along(polygon[41]) < along(polygon[42]));
+    assert!(along(polygon[42]) < 1.0);
+    for k in [41, 42] {
+        assert!((polygon[k] - original[40]).perp_dot(chord).abs() < 1e-9 * chord.length());
+    }
+
+    let bow_tie = [[0.0, 0.0], [100.0, 100.0], [100.0, 0.0], [0.0, 100.0]].map(DVec2::from);
+    let mut refused = bow_tie;
+    assert!(matches!(
+        straighten_small_folds(&mut refused, 1.0),
+        Err(FillInError::NotSimple { .. })
+    ));
+    assert_eq!(refused, bow_tie);
+}
+
+/// A planar hole whose cut curve curls 0.1-0.2 mm seen from its plane, as a scan's cut
+/// curve can where it grazes the frame: filled, where it used to be refused. The loop
+/// is shared bit for bit and the stitched surface is consistently oriented. The fill-in
+/// stays between the plane and the curl's 0.5 mm lift, the loop's range of heights (to
+/// 0.01 mm). Only triangles with a corner at the curl may face against the plane's normal: where the
+/// loop runs backwards, a height field over the plane must turn over.
+#[test]
+fn a_cut_curve_that_curls_seen_from_its_plane_is_filled() {
+    let (mut base, hole) = cut_hole(grid(40, 40, 3.0), DVec3::new(60.0, 60.0, 0.0), |c| {
+        c.distance(DVec3::new(60.0, 60.0, 0.0)) < 40.0
+    });
+    let n = hole.len();
+    curl(&mut base.positions, |k| hole[k % n] as usize, 10, 0.5);
+    let fill = fill_hole(&base, &hole, &FillInParams::default()).unwrap();
+    for (k, &v) in hole.iter().enumerate() {
+        assert_eq!(fill.mesh.positions[k], base.positions[v as usize]);
+    }
+    assert!(fill.mesh.validate().is_ok());
+    let seam = seam(&base, &fill);
+    assert_eq!(seam.stitch_edges, n);
+    assert_eq!(seam.topology.inconsistent_edge_count, 0);
+    assert_eq!(seam.topology.non_manifold_edge_count, 0);
+    // The rows and columns through the lifted points carry some of their height across
+    // the hole; none rises above them or sinks below the plane.
+    let heights = fill.mesh.positions[n..].iter().map(|p| p.z);
+    let (low, high) = heights.fold((0.0f64, 0.0f64), |(l, h), z| (l.min(z), h.max(z)));
+    println!("lattice heights {low:.3} to {high:.3} mm");
+    assert!(low > -0.01 && high < 0.5, "{low} {high}");
+    let curl_points = [11, 12];
+    for t in 0..fill.mesh.triangle_count() {
+        let corners = fill.mesh.triangles[t];
+        let at_curl = corners.iter().any(|&c| curl_points.contains(&(c as usize)));
+        if !at_curl {
+            assert!(fill.mesh.triangle_normal(t).z > 0.0, "triangle {t}");
+        }
+    }
 }
 
 /// A sheet that is not the base's own (an arm, a fold's far side) 8 mm in front of the

@@ -41,7 +41,7 @@ pub(super) fn triangulate(
     )
     .map_err(|error| FillInError::Triangulation(format!("invalid coordinate ({error})")))?;
     // Spade's exact predicates catch the touching edges that rounding hid from
-    // `check_simple`.
+    // `straighten_small_folds`.
     if let Some([from, to]) = conflict {
         let edge = if (from + 1) % boundary_count == to {
             from
