@@ -251,8 +251,16 @@ pub enum ClosedSurfaceError {
         count: usize,
         near_mm: [f64; 3],
     },
-    #[error("closed surface: the scan's and the filled base's borders cannot be stitched: {0}")]
-    Stitch(String),
+    #[error(
+        "closed surface: the scan's and the filled base's borders cannot be stitched: {what}{}",
+        near_mm.map_or(String::new(), |[x, y, z]| format!(" (near ({x:.0}, {y:.0}, {z:.0}) mm)"))
+    )]
+    Stitch {
+        /// What is wrong, in words.
+        what: String,
+        /// Where (mm, the scan's file coordinates), where there is one place.
+        near_mm: Option<[f64; 3]>,
+    },
     #[error("closed surface: the result is not watertight and 2-manifold: {0}")]
     NotWatertight(ManifoldReport),
     #[error(
@@ -296,10 +304,10 @@ impl ClosedSurfaceError {
             ClosedSurfaceError::RunsOffBorder { near_mm, .. }
             | ClosedSurfaceError::MissingCorners { near_mm, .. }
             | ClosedSurfaceError::SelfIntersecting { near_mm, .. } => Some(Place::at(*near_mm)),
+            ClosedSurfaceError::Stitch { near_mm, .. } => near_mm.map(Place::at),
             ClosedSurfaceError::InvalidInput(_)
             | ClosedSurfaceError::InvalidMesh { .. }
             | ClosedSurfaceError::TooFewTriangles { .. }
-            | ClosedSurfaceError::Stitch(_)
             | ClosedSurfaceError::NotWatertight(_)
             | ClosedSurfaceError::WallInFront { .. } => None,
             ClosedSurfaceError::OnGrazingPlane { source, .. } => source.place(),
@@ -500,7 +508,14 @@ pub fn build_closed_surface_in_box(
     let front_range = 0..triangles.len();
     triangles.extend(back.triangles.iter().map(|t| t.map(|v| v + offset)));
     let back_range = front_range.end..triangles.len();
-    triangles.extend(bands(&positions, &front_sides, &back_sides, offset)?);
+    let to_file = |p: DVec3| frame.to_file(clip_box.box_to_local(p)).to_array();
+    triangles.extend(bands(
+        &positions,
+        &front_sides,
+        &back_sides,
+        offset,
+        to_file,
+    )?);
     let band_range = back_range.end..triangles.len();
 
     let mut mesh = TriMesh::new(

@@ -144,11 +144,14 @@ impl ClippedPart {
             let plane = on_all.trailing_zeros() as usize;
             let name = PLANE_NAMES[plane];
             let cap = triangulate_in_plane(&self.positions, plane, &island).map_err(|defect| {
-                ClosedSurfaceError::Stitch(format!(
-                    "where the {} grazes the {name} plane, its section {}",
-                    self.role,
-                    defect.describe("crosses itself", "touches itself")
-                ))
+                ClosedSurfaceError::Stitch {
+                    what: format!(
+                        "where the {} grazes the {name} plane, its section {}",
+                        self.role,
+                        defect.describe("crosses itself", "touches itself")
+                    ),
+                    near_mm: defect.at().map(|at| self.to_file(at)),
+                }
             })?;
             let clip = self.planes[plane];
             let normal: f64 = cap
@@ -166,12 +169,14 @@ impl ClippedPart {
                     .map(|&v| self.positions[v as usize])
                     .sum::<DVec3>()
                     / island.len() as f64;
-                let [x, y, z] = self.to_file(center);
-                return Err(ClosedSurfaceError::Stitch(format!(
-                    "the {} passes through the {name} plane around a pocket of air near \
-                     ({x:.1}, {y:.1}, {z:.1}) mm; move the plane",
-                    self.role
-                )));
+                return Err(ClosedSurfaceError::Stitch {
+                    what: format!(
+                        "the {} passes through the {name} plane around a pocket of air; \
+                         move the plane",
+                        self.role
+                    ),
+                    near_mm: Some(self.to_file(center)),
+                });
             }
             caps.extend(cap);
         }
@@ -214,10 +219,24 @@ impl ClippedPart {
         }
         match <[Vec<u32>; 1]>::try_from(loops) {
             Ok([border]) => Ok(border),
-            Err(loops) => Err(ClosedSurfaceError::Stitch(format!(
-                "the clipped {role} has {} border loops on the planes instead of one",
-                loops.len()
-            ))),
+            Err(loops) => {
+                // The stray loop is the shortest one (none: the part has no border).
+                let stray = loops
+                    .iter()
+                    .filter(|l| !l.is_empty())
+                    .min_by_key(|l| l.len());
+                let centre = |border: &Vec<u32>| {
+                    let sum: DVec3 = border.iter().map(|&v| self.positions[v as usize]).sum();
+                    self.to_file(sum / border.len() as f64)
+                };
+                Err(ClosedSurfaceError::Stitch {
+                    what: format!(
+                        "the clipped {role} has {} border loops on the planes instead of one",
+                        loops.len()
+                    ),
+                    near_mm: stray.map(centre),
+                })
+            }
         }
     }
 

@@ -11,12 +11,13 @@ use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 /// The bands between the sides of the scan's border (`front_sides`) and those of the
 /// wall's (`back_sides`, on the same planes in the same order, their vertex indices
 /// shifted by `offset` in `positions`), side by side ([`band_on_side`]); an error where
-/// the corners of a side differ.
+/// the corners of a side differ, placed by `to_file` (box to file coordinates).
 pub(super) fn bands(
     positions: &[DVec3],
     front_sides: &[Side; 4],
     back_sides: &[Side; 4],
     offset: u32,
+    to_file: impl Fn(DVec3) -> [f64; 3],
 ) -> Result<Vec<[u32; 3]>, ClosedSurfaceError> {
     let mut triangles = Vec::new();
     for (front_side, back_side) in front_sides.iter().zip(back_sides) {
@@ -31,16 +32,23 @@ pub(super) fn bands(
         if !same_corner(front_side.chain.first(), back_chain.first())
             || !same_corner(front_side.chain.last(), back_chain.last())
         {
-            return Err(ClosedSurfaceError::Stitch(format!(
-                "the corners of the scan's and the wall's border differ on the {} plane",
-                PLANE_NAMES[front_side.plane]
-            )));
+            return Err(ClosedSurfaceError::Stitch {
+                what: format!(
+                    "the corners of the scan's and the wall's border differ on the {} plane",
+                    PLANE_NAMES[front_side.plane]
+                ),
+                near_mm: front_side
+                    .chain
+                    .first()
+                    .map(|&v| to_file(positions[v as usize])),
+            });
         }
         triangles.extend(band_on_side(
             positions,
             front_side.plane,
             &front_side.chain,
             &back_chain,
+            &to_file,
         )?);
     }
     Ok(triangles)
@@ -58,17 +66,19 @@ fn band_on_side(
     plane: usize,
     front: &[u32],
     back: &[u32],
+    to_file: impl Fn(DVec3) -> [f64; 3],
 ) -> Result<Vec<[u32; 3]>, ClosedSurfaceError> {
     let polygon: Vec<u32> = front.iter().chain(back.iter().rev()).copied().collect();
-    triangulate_in_plane(positions, plane, &polygon).map_err(|defect| {
-        ClosedSurfaceError::Stitch(format!(
+    triangulate_in_plane(positions, plane, &polygon).map_err(|defect| ClosedSurfaceError::Stitch {
+        what: format!(
             "on the {} plane {}",
             PLANE_NAMES[plane],
             defect.describe(
                 "the scan's cut curve and the shifted wall's cross",
                 "a point of the scan's cut curve coincides with one of the wall's"
             )
-        ))
+        ),
+        near_mm: defect.at().map(to_file),
     })
 }
 
@@ -76,18 +86,26 @@ fn band_on_side(
 pub(super) enum PolygonDefect {
     /// A coordinate spade refuses.
     Invalid(String),
-    /// Two edges cross.
-    Crossing,
-    /// Two corners coincide.
-    Coincident,
+    /// Two edges cross: the middle of one of them (the coordinates of `positions`).
+    Crossing(DVec3),
+    /// Two corners coincide, there.
+    Coincident(DVec3),
 }
 
 impl PolygonDefect {
+    /// Where the defect lies, if it has one place.
+    pub(super) fn at(&self) -> Option<DVec3> {
+        match self {
+            PolygonDefect::Invalid(_) => None,
+            PolygonDefect::Crossing(at) | PolygonDefect::Coincident(at) => Some(*at),
+        }
+    }
+
     pub(super) fn describe(&self, crossing: &str, coincident: &str) -> String {
         match self {
             PolygonDefect::Invalid(error) => format!("has an invalid coordinate ({error})"),
-            PolygonDefect::Crossing => crossing.to_string(),
-            PolygonDefect::Coincident => coincident.to_string(),
+            PolygonDefect::Crossing(_) => crossing.to_string(),
+            PolygonDefect::Coincident(_) => coincident.to_string(),
         }
     }
 }
@@ -128,17 +146,31 @@ pub(super) fn triangulate_in_plane(
         .map(|p| Point2::new(flush(p.x), flush(p.y)))
         .collect();
     let edges = (0..n).map(|k| [k, (k + 1) % n]).collect();
-    let mut conflict = false;
-    let cdt =
-        ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(vertices, edges, |_| {
-            conflict = true
-        })
-        .map_err(|error| PolygonDefect::Invalid(error.to_string()))?;
-    if conflict {
-        return Err(PolygonDefect::Crossing);
+    let mut conflict = None;
+    let cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::try_bulk_load_cdt(
+        vertices.clone(),
+        edges,
+        |edge| conflict = conflict.or(Some(edge)),
+    )
+    .map_err(|error| PolygonDefect::Invalid(error.to_string()))?;
+    let position = |k: usize| positions[polygon[k] as usize];
+    if let Some([from, to]) = conflict {
+        return Err(PolygonDefect::Crossing(
+            0.5 * (position(from) + position(to)),
+        ));
     }
     if cdt.num_vertices() != n {
-        return Err(PolygonDefect::Coincident);
+        let mut order: Vec<usize> = (0..n).collect();
+        let key = |k: usize| (vertices[k].x, vertices[k].y);
+        order.sort_by(|&a, &b| {
+            let ((ax, ay), (bx, by)) = (key(a), key(b));
+            ax.total_cmp(&bx).then(ay.total_cmp(&by))
+        });
+        let twin = order.windows(2).find(|pair| key(pair[0]) == key(pair[1]));
+        return Err(match twin {
+            Some(pair) => PolygonDefect::Coincident(position(pair[0])),
+            None => PolygonDefect::Invalid("a corner was dropped".into()),
+        });
     }
     Ok(cdt
         .inner_faces()

@@ -1,4 +1,5 @@
 use super::clip::simple_cycles;
+use super::stitch::{PolygonDefect, triangulate_in_plane};
 use super::*;
 use glam::DMat3;
 use mesh::self_intersections;
@@ -249,4 +250,44 @@ fn a_base_in_front_of_the_scan_and_bad_options_are_errors() {
         build_closed_surface_in_box(&patch, &patch, &frame, &missing, 15.0),
         Err(ClosedSurfaceError::TooFewTriangles { .. })
     ));
+}
+
+/// A polygon on a clip plane that crosses itself, or visits a point twice, is refused
+/// with the place: the middle of an edge at the crossing (a bow tie whose edges cross at
+/// its centre), the repeated point. The stitch error carries it, in file coordinates,
+/// for the GUI's ring.
+#[test]
+fn a_section_that_crosses_itself_is_refused_where_it_does() {
+    // On plane 0 (x = const) the in-plane coordinates are y and z.
+    let on_plane = |y: f64, z: f64| DVec3::new(-100.0, y, z);
+    let bow_tie = [(0.0, 0.0), (40.0, 20.0), (40.0, 0.0), (0.0, 20.0)].map(|(y, z)| on_plane(y, z));
+    let crossing = triangulate_in_plane(&bow_tie, 0, &[0, 1, 2, 3]).unwrap_err();
+    let Some(at) = crossing.at() else {
+        panic!("a crossing has a place");
+    };
+    // Edges 0-1 and 2-3 cross, and both have their middle at the crossing.
+    assert!(at.distance(on_plane(20.0, 10.0)) < 1e-12, "{at}");
+    assert!(matches!(crossing, PolygonDefect::Crossing(_)));
+
+    let square = [
+        (0.0, 0.0),
+        (40.0, 0.0),
+        (40.0, 20.0),
+        (0.0, 20.0),
+        (40.0, 0.0),
+    ]
+    .map(|(y, z)| on_plane(y, z));
+    let twice = triangulate_in_plane(&square, 0, &[0, 1, 2, 3, 4]).unwrap_err();
+    assert!(matches!(twice, PolygonDefect::Coincident(_)));
+    assert_eq!(twice.at(), Some(on_plane(40.0, 0.0)));
+
+    let error = ClosedSurfaceError::Stitch {
+        what: "test".into(),
+        near_mm: Some([1.0, 2.0, 3.0]),
+    };
+    assert_eq!(error.place().map(|p| p.centre_mm), Some([1.0, 2.0, 3.0]));
+    assert!(
+        error.to_string().ends_with("(near (1, 2, 3) mm)"),
+        "{error}"
+    );
 }
