@@ -36,8 +36,10 @@ pub struct Untangled {
 /// `movable` is true (e.g. not on a border that must stay where it is), and only if
 /// every intersecting triangle has a movable corner and no vertex moves farther than
 /// `max_displacement_mm`: a fold of noise, not a crossing of two surfaces. Returns
-/// `None` if the mesh had none; `Some` with what moved if all were removed; the
-/// intersecting pairs (as [`self_intersections`]) with `mesh` unchanged otherwise.
+/// `None` if the mesh had none; `Some` with what moved if all were removed; otherwise,
+/// with `mesh` unchanged, the intersecting pairs (as [`self_intersections`]) that are
+/// the reason: those with a triangle it may not move, else those left after the rounds,
+/// else (all removed, but moving a vertex too far) all it found.
 pub fn untangle(
     mesh: &mut TriMesh,
     movable: impl Fn(u32) -> bool,
@@ -47,13 +49,17 @@ pub fn untangle(
     let Some(&(a, b)) = first_pairs.first() else {
         return Ok(None);
     };
-    let all_movable = first_pairs.iter().all(|&(a, b)| {
-        [a, b]
-            .iter()
-            .all(|&t| mesh.triangles[t].iter().any(|&v| movable(v)))
-    });
-    if !all_movable {
-        return Err(first_pairs);
+    let held: Vec<(usize, usize)> = first_pairs
+        .iter()
+        .copied()
+        .filter(|&(a, b)| {
+            [a, b]
+                .iter()
+                .any(|&t| !mesh.triangles[t].iter().any(|&v| movable(v)))
+        })
+        .collect();
+    if !held.is_empty() {
+        return Err(held);
     }
     let mut pairs = first_pairs.clone();
     let centre = |mesh: &TriMesh, t: usize| mesh.triangle_positions(t).iter().sum::<DVec3>() / 3.0;
@@ -101,7 +107,7 @@ pub fn untangle(
         .fold(0.0, f64::max);
     if !pairs.is_empty() || moved_by > max_displacement_mm {
         mesh.positions = original;
-        return Err(first_pairs);
+        return Err(if pairs.is_empty() { first_pairs } else { pairs });
     }
     Ok(Some(Untangled {
         pairs_found,
@@ -155,6 +161,38 @@ mod tests {
         let mut held = folded.clone();
         assert_eq!(untangle(&mut held, |_| false, 30.0), Err(pairs));
         assert_eq!(held.positions, folded.positions);
+    }
+
+    /// Two folds of the sphere, one where vertices may move and one where none may: the
+    /// error names only the pairs of the held fold, the one that blocks.
+    #[test]
+    fn the_error_names_the_fold_that_cannot_be_smoothed() {
+        let sphere = icosphere(10.0, 3);
+        let first = 0;
+        // A vertex about a quarter turn round from the first: its fold and the far side
+        // it pierces lie some 14 mm from the first fold's.
+        let second = (0..sphere.vertex_count())
+            .min_by(|&a, &b| {
+                let off = |v: usize| sphere.positions[v].dot(sphere.positions[first]).abs();
+                off(a).total_cmp(&off(b))
+            })
+            .unwrap();
+        let mut folded = sphere.clone();
+        for v in [first, second] {
+            folded.positions[v] = -1.3 * sphere.positions[v];
+        }
+        let near = |v: u32, centre: DVec3| sphere.positions[v as usize].distance(centre) < 8.0;
+        let at_first =
+            |v: u32| near(v, sphere.positions[first]) || near(v, -sphere.positions[first]);
+        let at_second = |t: usize| folded.triangles[t].iter().all(|&v| !at_first(v));
+        let expected: Vec<(usize, usize)> = self_intersections(&folded)
+            .into_iter()
+            .filter(|&(a, b)| at_second(a) || at_second(b))
+            .collect();
+        assert!(!expected.is_empty());
+        let mut mesh = folded.clone();
+        assert_eq!(untangle(&mut mesh, at_first, 30.0), Err(expected));
+        assert_eq!(mesh.positions, folded.positions);
     }
 
     #[test]
