@@ -127,7 +127,7 @@ pub(crate) fn keep_wall_clear(
                 };
             }
         }
-        without_turning_over(wall, &mut push);
+        without_turning_over(wall, fixed, &mut push);
         candidates.clear();
         for (v, p) in push.iter().enumerate() {
             if *p != DVec3::ZERO {
@@ -155,7 +155,11 @@ pub(crate) fn keep_wall_clear(
 /// normals differ across a crease (the fold under a breast, the side of the torso), so
 /// neighbouring vertices can be pushed across each other; a wall folded through itself
 /// cannot close the surface, while one left short of the clearance is only reported.
-fn without_turning_over(wall: &TriMesh, push: &mut [DVec3]) {
+/// Corners on a clip plane (any of `fixed`) are cut only where a triangle has no other
+/// pushed corner: the wall's border must stay behind the scan's, or the band between
+/// them on the plane crosses itself.
+fn without_turning_over(wall: &TriMesh, fixed: &[FixedAxes], push: &mut [DVec3]) {
+    let on_plane = |v: usize| fixed[v].x || fixed[v].y;
     let normal = |corners: [DVec3; 3]| (corners[1] - corners[0]).cross(corners[2] - corners[0]);
     let mut halvings = vec![0; push.len()];
     loop {
@@ -168,7 +172,13 @@ fn without_turning_over(wall: &TriMesh, push: &mut [DVec3]) {
             let before = normal(corners.map(|v| wall.positions[v]));
             let after = normal(corners.map(|v| wall.positions[v] + push[v]));
             if before.dot(after) < 0.0 {
-                turned.extend(corners);
+                let pushed = corners.into_iter().filter(|&v| push[v] != DVec3::ZERO);
+                let inner: Vec<usize> = pushed.clone().filter(|&v| !on_plane(v)).collect();
+                if inner.is_empty() {
+                    turned.extend(pushed);
+                } else {
+                    turned.extend(inner);
+                }
             }
         }
         if turned.is_empty() {
@@ -289,7 +299,8 @@ mod tests {
         let centre = 5 * 11 + 5;
         let mut push = vec![DVec3::ZERO; wall.vertex_count()];
         push[centre] = DVec3::new(2.5, 0.0, 0.0);
-        without_turning_over(&wall, &mut push);
+        let fixed = vec![FixedAxes::default(); wall.vertex_count()];
+        without_turning_over(&wall, &fixed, &mut push);
         assert_eq!(push[centre], DVec3::new(0.625, 0.0, 0.0));
         assert!(
             push.iter()
