@@ -74,7 +74,8 @@
 //!
 //! # Limitations
 //! - The fill-in is a height field over the fitted plane: a cut curve that folds over
-//!   seen from that plane by more than a quarter of the lattice spacing is refused, and where the base stands steeper than the slope
+//!   seen from that plane by more than a quarter of the lattice spacing is refused
+//!   (a smaller fold is straightened, and the triangles on it face backwards), and where the base stands steeper than the slope
 //!   cap the fill-in is flatter than the base.
 //! - A cubic per lattice line cannot follow curvature that changes within the hole: on a
 //!   chest-like cylinder (150 mm radius, 120 mm hole) the fill-in stays within 0.2 mm of
@@ -126,9 +127,10 @@ const MAX_DEFAULT_SPACING_MM: f64 = 8.0;
 
 /// Largest move of a loop point's plane coordinates, as a fraction of the lattice
 /// spacing, when a loop that turns back on itself seen from the frame is straightened
-/// there: lattice points keep half a spacing from the loop, so a triangle joining one to
-/// a loop edge stays turned the same way whether the edge's ends lie where they were
-/// projected or where they were moved.
+/// there (a heuristic: far below the lattice's resolution). Lattice points keep half a
+/// spacing from the straightened loop, so at least a quarter from the projected one:
+/// they lie inside the 3D loop's projection too. Triangles on the loop's backward edges
+/// themselves face backwards in the frame, as any height field must there.
 const MAX_STRAIGHTENING: f64 = 0.25;
 
 /// Upper bound on the lattice points over the loop's bounding box, guarding time and

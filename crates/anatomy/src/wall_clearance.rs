@@ -271,7 +271,7 @@ mod tests {
     /// A wall 3 mm behind a scan with a ridge along y (its flanks sloping back at 0.8
     /// mm/mm, the way skin runs into a crease): the inward normals on the two flanks
     /// point towards each other, so the pushes of neighbouring wall vertices cross. No
-    /// wall triangle turns over (without the cut-back, 120 of them did).
+    /// wall triangle turns over (with the cut-back switched off by hand, 120 did).
     #[test]
     fn pushes_from_a_crease_never_turn_the_wall_over() {
         let mut scan = grid(60, 60, 1.0);

@@ -29,18 +29,20 @@ pub(super) fn bands(
             }
             _ => false,
         };
-        if !same_corner(front_side.chain.first(), back_chain.first())
-            || !same_corner(front_side.chain.last(), back_chain.last())
-        {
+        let differing = if !same_corner(front_side.chain.first(), back_chain.first()) {
+            Some(front_side.chain.first())
+        } else if !same_corner(front_side.chain.last(), back_chain.last()) {
+            Some(front_side.chain.last())
+        } else {
+            None
+        };
+        if let Some(corner) = differing {
             return Err(ClosedSurfaceError::Stitch {
                 what: format!(
                     "the corners of the scan's and the wall's border differ on the {} plane",
                     PLANE_NAMES[front_side.plane]
                 ),
-                near_mm: front_side
-                    .chain
-                    .first()
-                    .map(|&v| to_file(positions[v as usize])),
+                near_mm: corner.map(|&v| to_file(positions[v as usize])),
             });
         }
         triangles.extend(band_on_side(

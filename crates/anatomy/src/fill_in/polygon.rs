@@ -20,7 +20,8 @@ struct Defect {
     /// The first of the edges at fault, as [`FillInError::NotSimple`] names it.
     edge: usize,
     /// The shorter stretch of the loop holding the fault: the positions strictly after
-    /// `from` and before `from + inner + 1` (modulo the length), the ends kept.
+    /// `from` and before `from + inner + 1` (modulo the length), the ends kept. `inner`
+    /// zero: a zero-length edge, which laying points on a chord cannot mend.
     from: usize,
     inner: usize,
 }
@@ -34,11 +35,10 @@ fn first_defect(polygon: &[DVec2]) -> Option<Defect> {
     for k in 0..n {
         let ((a, b), c) = (edge(k), polygon[(k + 2) % n]);
         if a == b {
-            let from = (k + n - 1) % n;
             return Some(Defect {
                 edge: k,
-                from,
-                inner: 2,
+                from: k,
+                inner: 0,
             });
         }
         if orientation(a, b, c) == 0.0 && (a - b).dot(c - b) > 0.0 {
@@ -109,6 +109,9 @@ pub(super) fn straighten_small_folds(
     let error = FillInError::NotSimple { edge: first.edge };
     let mut defect = first;
     for _ in 0..MAX_STRAIGHTENED {
+        if defect.inner == 0 {
+            return refuse(polygon, error);
+        }
         let stretch: Vec<usize> = (0..defect.inner + 2)
             .map(|k| (defect.from + k) % n)
             .collect();

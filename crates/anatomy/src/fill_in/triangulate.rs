@@ -40,8 +40,7 @@ pub(super) fn triangulate(
         |edge| conflict = Some(edge),
     )
     .map_err(|error| FillInError::Triangulation(format!("invalid coordinate ({error})")))?;
-    // Spade's exact predicates catch the touching edges that rounding hid from
-    // `straighten_small_folds`.
+    // Spade's own check of the constraints, behind `straighten_small_folds`'s.
     if let Some([from, to]) = conflict {
         let edge = if (from + 1) % boundary_count == to {
             from
