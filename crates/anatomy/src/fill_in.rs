@@ -11,7 +11,7 @@
 //!    `v` along it, `w` outwards.
 //! 2. Project the loop onto the plane (cylinder), giving 2D coordinates `(u, v)` and a
 //!    height `w` per boundary vertex. Where the loop turns back on itself there by less
-//!    than a quarter of the lattice spacing, straighten those `(u, v)` along the chord
+//!    than 0.45 lattice spacings (within the lattice's clearance), straighten those `(u, v)` along the chord
 //!    (the 3D loop keeps its positions); refuse a loop that is still not a simple polygon
 //!    (on the cylinder: fall back to the plane).
 //! 3. Put a regular square lattice of the given spacing into the polygon, dropping points
@@ -74,7 +74,7 @@
 //!
 //! # Limitations
 //! - The fill-in is a height field over the fitted plane: a cut curve that folds over
-//!   seen from that plane by more than a quarter of the lattice spacing is refused
+//!   seen from that plane by more than 0.45 lattice spacings is refused
 //!   (a smaller fold is straightened, and the triangles on it face backwards), and where the base stands steeper than the slope
 //!   cap the fill-in is flatter than the base.
 //! - A cubic per lattice line cannot follow curvature that changes within the hole: on a
@@ -127,11 +127,13 @@ const MAX_DEFAULT_SPACING_MM: f64 = 8.0;
 
 /// Largest move of a loop point's plane coordinates, as a fraction of the lattice
 /// spacing, when a loop that turns back on itself seen from the frame is straightened
-/// there (a heuristic: far below the lattice's resolution). Lattice points keep half a
-/// spacing from the straightened loop, so at least a quarter from the projected one:
-/// they lie inside the 3D loop's projection too. Triangles on the loop's backward edges
-/// themselves face backwards in the frame, as any height field must there.
-const MAX_STRAIGHTENING: f64 = 0.25;
+/// there. Below the lattice points' clearance from the straightened loop
+/// ([`lattice::MIN_BOUNDARY_CLEARANCE`]), moving the loop back to its projection sweeps
+/// over no lattice point, so every lattice point lies inside the 3D loop's projection as
+/// well (winding number one); a tenth of the clearance is kept in hand. Triangles on the
+/// loop's backward edges themselves face backwards in the frame, as any height field
+/// must there.
+const MAX_STRAIGHTENING: f64 = 0.9 * lattice::MIN_BOUNDARY_CLEARANCE;
 
 /// Upper bound on the lattice points over the loop's bounding box, guarding time and
 /// memory against a spacing far too fine for the hole.

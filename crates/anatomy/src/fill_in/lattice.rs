@@ -8,7 +8,7 @@ use std::ops::Range;
 
 /// Lattice points closer to the boundary than this fraction of the spacing are dropped,
 /// so that no sliver triangles form between them and the boundary.
-const MIN_BOUNDARY_CLEARANCE: f64 = 0.5;
+pub(super) const MIN_BOUNDARY_CLEARANCE: f64 = 0.5;
 
 /// A square lattice of points `origin + spacing * (i, j)`, `i < size[0]`, `j < size[1]`,
 /// at integer multiples of the spacing in the plane frame.

@@ -524,21 +524,40 @@ fn orientation_signs_are_exact_for_nearly_collinear_points() {
 }
 
 /// Positions `k + 1` and `k + 2` of a loop moved into a curl seen from the xy plane:
-/// the loop runs on 0.1 mm past the middle of the chord from `k` to `k + 3`, turns back
-/// 0.2 mm, 0.1 mm to one side, and crosses its own path on the way to `k + 3`. Both are
-/// lifted by `lift_mm` in z, so in 3D the loop does not meet itself. The size of the
-/// folds on s04's cut curve with landmarks moved 6 mm.
-fn curl(positions: &mut [DVec3], loop_at: impl Fn(usize) -> usize, k: usize, lift_mm: f64) {
+/// the loop runs on `size.past_mm` past the middle of the chord from `k` to `k + 3`,
+/// turns back twice that, `size.side_mm` to one side, and crosses its own path on the
+/// way to `k + 3`. Both are lifted by `lift_mm` in z, so in 3D the loop does not meet
+/// itself.
+fn curl(
+    positions: &mut [DVec3],
+    loop_at: impl Fn(usize) -> usize,
+    k: usize,
+    size: CurlSize,
+    lift_mm: f64,
+) {
     let (start, end) = (positions[loop_at(k)], positions[loop_at(k + 3)]);
     let along = (end - start).truncate();
     let (length, direction) = (along.length(), along.normalize());
     let side = direction.perp();
     let place = |from_start: f64| {
-        (start.truncate() + direction * from_start + side * 0.1).extend(start.z + lift_mm)
+        (start.truncate() + direction * from_start + side * size.side_mm).extend(start.z + lift_mm)
     };
-    positions[loop_at(k + 1)] = place(0.5 * length + 0.1);
-    positions[loop_at(k + 2)] = place(0.5 * length - 0.1);
+    positions[loop_at(k + 1)] = place(0.5 * length + size.past_mm);
+    positions[loop_at(k + 2)] = place(0.5 * length - size.past_mm);
 }
+
+/// How far a [`curl`] reaches (mm).
+#[derive(Clone, Copy)]
+struct CurlSize {
+    past_mm: f64,
+    side_mm: f64,
+}
+
+/// The size of the folds on s04's cut curve with landmarks moved 6 mm.
+const S04_CURL: CurlSize = CurlSize {
+    past_mm: 0.1,
+    side_mm: 0.1,
+};
 
 /// A 100 mm circle of 200 points with a curl: the polygon is not simple, and
 /// straightening lays the curl's two points on their chord, moving them by about 0.2 mm
@@ -553,7 +572,7 @@ fn a_small_curl_of_the_projected_loop_is_straightened() {
         })
         .collect();
     let mut curled = circle.clone();
-    curl(&mut curled, |k| k % 200, 40, 0.0);
+    curl(&mut curled, |k| k % 200, 40, S04_CURL, 0.0);
     let original: Vec<DVec2> = curled.iter().map(|p| p.truncate()).collect();
     let mut polygon = original.clone();
     assert!(matches!(
@@ -600,7 +619,13 @@ fn a_cut_curve_that_curls_seen_from_its_plane_is_filled() {
         c.distance(DVec3::new(60.0, 60.0, 0.0)) < 40.0
     });
     let n = hole.len();
-    curl(&mut base.positions, |k| hole[k % n] as usize, 10, 0.5);
+    curl(
+        &mut base.positions,
+        |k| hole[k % n] as usize,
+        10,
+        S04_CURL,
+        0.5,
+    );
     let fill = fill_hole(&base, &hole, &FillInParams::default()).unwrap();
     for (k, &v) in hole.iter().enumerate() {
         assert_eq!(fill.mesh.positions[k], base.positions[v as usize]);
@@ -623,6 +648,62 @@ fn a_cut_curve_that_curls_seen_from_its_plane_is_filled() {
         if !at_curl {
             assert!(fill.mesh.triangle_normal(t).z > 0.0, "triangle {t}");
         }
+    }
+}
+
+/// A planar hole on a 3 mm grid (lattice spacing 3.2 mm, the loop's mean edge) whose
+/// loop zigzags 1 mm back and 0.6 mm aside, as a noisy scan's cut curve does where it
+/// climbs the fold (s11 with landmarks moved 10 mm along the skin): straightening moves
+/// the two points by about 1.1 mm, more than a quarter of the spacing (0.8 mm, refused)
+/// and less than the lattice's clearance (1.6 mm). Filled, and every lattice point lies inside the
+/// projected 3D loop: its winding number about the unstraightened loop, summed here
+/// from the angles, is one to 1e-9 (rounding of the angle sum), and it keeps more than
+/// the clearance's unused tenth (0.15 mm) from that loop.
+#[test]
+fn a_zigzag_within_the_lattice_clearance_is_filled_inside_the_loop() {
+    let (mut base, hole) = cut_hole(grid(40, 40, 3.0), DVec3::new(60.0, 60.0, 0.0), |c| {
+        c.distance(DVec3::new(60.0, 60.0, 0.0)) < 40.0
+    });
+    let n = hole.len();
+    let zigzag = CurlSize {
+        past_mm: 0.5,
+        side_mm: 0.6,
+    };
+    curl(
+        &mut base.positions,
+        |k| hole[k % n] as usize,
+        10,
+        zigzag,
+        0.0,
+    );
+    let projected: Vec<DVec2> = (hole.iter())
+        .map(|&v| base.positions[v as usize].truncate())
+        .collect();
+    let spacing = FillInParams::default().lattice_spacing(&loop_positions(&base, &hole).unwrap());
+    assert!((3.0..3.5).contains(&spacing), "{spacing}");
+    assert!(matches!(
+        straighten_small_folds(&mut projected.clone(), 0.25 * spacing),
+        Err(FillInError::NotSimple { .. })
+    ));
+    let fill = fill_hole(&base, &hole, &FillInParams::default()).unwrap();
+    assert!(fill.mesh.validate().is_ok());
+    assert_eq!(seam(&base, &fill).topology.inconsistent_edge_count, 0);
+    let interior = &fill.mesh.positions[n..];
+    assert!(interior.len() > 400, "{}", interior.len());
+    for p in interior {
+        let p = p.truncate();
+        let turns: f64 = (0..n)
+            .map(|k| {
+                let (a, b) = (projected[k] - p, projected[(k + 1) % n] - p);
+                a.perp_dot(b).atan2(a.dot(b))
+            })
+            .sum::<f64>()
+            / std::f64::consts::TAU;
+        assert!((turns.abs() - 1.0).abs() < 1e-9, "{p}: winding {turns}");
+        let clearance = (0..n)
+            .map(|k| polygon::distance_to_segment(p, projected[k], projected[(k + 1) % n]))
+            .fold(f64::INFINITY, f64::min);
+        assert!(clearance > 0.15, "{p}: {clearance} mm from the loop");
     }
 }
 
