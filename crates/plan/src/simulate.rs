@@ -162,13 +162,14 @@ pub struct SimulatedMeasurements {
 pub struct SimulatedBreasts {
     /// The model's breast volumes (ml).
     pub volume_before_ml: PerSide<f64>,
-    /// Measured on the simulated scan as on a real one (ml).
+    /// Over the chest wall, as [`simulation::BreastVolume::volume_ml`] (ml).
     pub volume_ml: PerSide<f64>,
     /// The quadrants of `volume_ml` (ml; `None` where undefined).
     pub quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,
-    /// Where `volume_ml` stands on the pre-operative fill-in joined to the moved cut
-    /// curve, because no fill-in could be rebuilt on it.
-    pub on_preoperative_fill: PerSide<bool>,
+    /// Over a fill-in rebuilt on the moved cut curve, as a post-operative scan modelled
+    /// along the carried curve measures (ml; `None` where none can be rebuilt; see
+    /// [`simulation::BreastVolume::volume_rebuilt_fill_ml`]).
+    pub volume_rebuilt_fill_ml: PerSide<Option<f64>>,
 }
 
 /// One clinical distance before and after (mm).
@@ -388,7 +389,9 @@ impl Session {
     pub fn breast_volumes(&mut self) -> SimulatedBreasts {
         let volumes = self.simulation.breast_volumes();
         SimulatedBreasts {
-            on_preoperative_fill: PerSide::from_fn(|side| !volumes[side as usize].rebuilt_fill),
+            volume_rebuilt_fill_ml: PerSide::from_fn(|side| {
+                volumes[side as usize].volume_rebuilt_fill_ml
+            }),
             volume_before_ml: PerSide::from_fn(|side| volumes[side as usize].volume_before_ml),
             volume_ml: PerSide::from_fn(|side| volumes[side as usize].volume_ml),
             quadrant_volume_ml: PerSide::from_fn(|side| volumes[side as usize].quadrant_volume_ml),
@@ -656,13 +659,6 @@ pub fn write_simulation(
 ) -> Result<SimulateReport> {
     let breasts = session.breast_volumes();
     for side in Side::BOTH {
-        if *breasts.on_preoperative_fill.get(side) {
-            progress.warn(&format!(
-                "{side} breast: the implant reaches beyond the native breast (it lies in the \
-                 pocket, or the moved cut curve folds), so its volume is measured over the \
-                 pre-operative fill-in joined to the moved curve, not over a rebuilt one"
-            ));
-        }
         if breasts.quadrant_volume_ml.get(side).is_none() {
             progress.warn(&format!(
                 "{side} breast: no quadrant volumes on the simulated scan: the moved lines from \
@@ -715,7 +711,7 @@ pub fn write_simulation(
         implants: state.implants.clone(),
         breast_volume_ml: breasts.volume_ml,
         breast_volume_before_ml: breasts.volume_before_ml,
-        breast_volume_on_preoperative_fill: breasts.on_preoperative_fill,
+        breast_volume_rebuilt_fill_ml: breasts.volume_rebuilt_fill_ml,
         quadrant_volume_ml: breasts.quadrant_volume_ml,
         distances,
         solver: state.solver.clone(),

@@ -235,14 +235,17 @@ pub struct RunReport {
 pub struct BreastVolume {
     /// Before (the breast model's figure, ml).
     pub volume_before_ml: f64,
-    /// After: the moved breast patch closed by a fill-in rebuilt on the moved base with
-    /// the model's fill-in method (ml): the same measurement as on a real post-operative
-    /// scan.
+    /// After: the moved breast patch over the chest wall (ml), that is the
+    /// pre-operative fill-in, which the implant does not move, joined to the moved cut
+    /// curve by a strip. An implant lies in front of that wall whatever the curve does,
+    /// so the breast gains the implant's volume less what it pushes beyond the curve.
     pub volume_ml: f64,
-    /// Whether `volume_ml` stands on a rebuilt fill-in; `false`: on the pre-operative
-    /// fill-in joined to the moved cut curve by a strip (the curve folded seen from
-    /// every projection the fill-in method tries).
-    pub rebuilt_fill: bool,
+    /// After, closed by a fill-in rebuilt on the moved cut curve with the model's
+    /// method (ml): what a post-operative scan gives when modelled along the cut curve
+    /// carried with the tissue. Where the implant pushes the curve itself forwards, the
+    /// rebuilt fill-in rises with it and takes the implant's volume out of the breast.
+    /// `None` where no fill-in can be rebuilt on the moved curve.
+    pub volume_rebuilt_fill_ml: Option<f64>,
     /// After, closed by the fill-in moved with the tissue instead (ml). The fill-in lies
     /// in front of the bed, so the implant pushes it forwards with the breast: this
     /// volume barely grows (a diagnostic, not the clinical figure).

@@ -172,13 +172,16 @@ pub struct SimulateReport {
     pub software: String,
     pub model: PathBuf,
     pub implants: PerSide<Option<ImplantSummary>>,
-    /// Breast volumes after the simulation, measured as on a real scan (ml).
+    /// Breast volumes after the simulation, over the chest wall (the pre-operative
+    /// fill-in joined to the moved cut curve; ml).
     pub breast_volume_ml: PerSide<f64>,
     /// Breast volumes of the model before (ml).
     pub breast_volume_before_ml: PerSide<f64>,
-    /// Per side: `breast_volume_ml` stands on the pre-operative fill-in joined to the
-    /// moved cut curve (no fill-in could be rebuilt on it), not on a rebuilt one.
-    pub breast_volume_on_preoperative_fill: PerSide<bool>,
+    /// Breast volumes after the simulation over a fill-in rebuilt on the moved cut
+    /// curve, as `model` measures the simulated scan along `simulated_control_points.json`
+    /// (ml; `null` where none can be rebuilt). Lower than `breast_volume_ml` where the
+    /// implant pushes the cut curve forwards.
+    pub breast_volume_rebuilt_fill_ml: PerSide<Option<f64>>,
     /// Quadrant volumes of the simulated breasts (ml; `null` where the moved landmarks
     /// no longer bound quadrants).
     pub quadrant_volume_ml: PerSide<Option<QuadrantVolumes>>,

@@ -300,23 +300,13 @@ impl Simulation {
             let s = side as usize;
             let data = &self.sides[s];
             let patch = moved(&data.patch, &maps.patches[s]);
-            // An implant in the pocket lies partly beyond the native breast and pushes the
-            // cut curve itself forward: a fill-in rebuilt on it would rise with it (or
-            // the curve folds seen from every plane and cylinder). There, and wherever
-            // the rebuild fails, the pre-operative fill-in, which the implant does not
-            // move (the chest wall), joined to the moved curve by a strip.
             let moved_loop: Vec<DVec3> = (data.base_loop.iter())
                 .map(|&v| base.positions[v as usize])
                 .collect();
-            let over_chest_wall = || (with_rim(&data.fill, &moved_loop), false);
-            let (fill, rebuilt_fill) = if self.pocket_bounds[s].is_some() {
-                over_chest_wall()
-            } else {
-                match fill_hole(&base, &data.base_loop, &params) {
-                    Ok(fill) => (fill.mesh, true),
-                    Err(_) => over_chest_wall(),
-                }
-            };
+            let fill = with_rim(&data.fill, &moved_loop);
+            let volume_rebuilt_fill_ml = fill_hole(&base, &data.base_loop, &params)
+                .ok()
+                .map(|rebuilt| closed_volume(&patch, &rebuilt.mesh).0);
             let (volume_ml, centre_mm) = closed_volume(&patch, &fill);
             let quadrant_volume_ml = quadrant_volumes_ml(
                 &closed_soup(&patch, &fill),
@@ -329,7 +319,7 @@ impl Simulation {
             out.push(BreastVolume {
                 volume_before_ml: data.volume_before_ml,
                 volume_ml,
-                rebuilt_fill,
+                volume_rebuilt_fill_ml,
                 volume_moved_fill_ml,
                 centre_before_mm: data.centre_before_mm,
                 centre_mm,

@@ -4,7 +4,7 @@
 
 use anatomy::breast::Side;
 use anatomy::{AnatomicalFrame, Landmarks};
-use phantom::PhantomParams;
+use phantom::{Cup, PhantomParams};
 use plan::model::{ModelOptions, PatientModel, build_model};
 use plan::{MarkedScan, Scan, Silent};
 use simulation::{PatientInput, Simulation, SimulationOptions};
@@ -51,6 +51,13 @@ pub fn phantom() -> &'static Patient {
     PATIENT.get_or_init(|| patient("phantom", &default_model_options()).unwrap())
 }
 
+/// The symmetric phantom with large cups (about 560 ml): a 115 mm implant lies on its
+/// native fill-in, with no pocket beyond it and no fold lowering.
+pub fn large_phantom() -> &'static Patient {
+    static PATIENT: OnceLock<Patient> = OnceLock::new();
+    PATIENT.get_or_init(|| patient("phantom-large", &default_model_options()).unwrap())
+}
+
 /// `model`'s options with the tests' element count.
 pub fn default_model_options() -> ModelOptions {
     ModelOptions {
@@ -59,11 +66,20 @@ pub fn default_model_options() -> ModelOptions {
     }
 }
 
-/// The model of a body with `options`: `phantom` (the symmetric default phantom), a shared
-/// scan, or a zoo body (`s01`..), if present (see [`shared_scan`]).
+/// The model of a body with `options`: `phantom` (the symmetric default phantom),
+/// `phantom-large` (the same with large cups), a shared scan, or a zoo body (`s01`..),
+/// if present (see [`shared_scan`]).
 pub fn patient(name: &str, options: &ModelOptions) -> Option<Patient> {
-    let marked = if name == "phantom" {
-        let phantom = phantom::generate(&PhantomParams::default());
+    let phantom_cup = match name {
+        "phantom" => Some(PhantomParams::default().cup),
+        "phantom-large" => Some(Cup::Large),
+        _ => None,
+    };
+    let marked = if let Some(cup) = phantom_cup {
+        let phantom = phantom::generate(&PhantomParams {
+            cup,
+            ..PhantomParams::default()
+        });
         MarkedScan::new(
             Scan::from_mesh(phantom.scan.clone(), Path::new("phantom.ply")).unwrap(),
             phantom.landmarks.clone(),
