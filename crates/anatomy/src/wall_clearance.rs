@@ -8,8 +8,8 @@
 //! the scan's inward normal at their nearest scan point, towards the clearance behind the
 //! scan, for a bounded number of rounds (what is still too close is reported); the push
 //! is smoothed over some ten rings of the wall so it bends rather than dents, and cut back
-//! where it would turn a wall triangle over. A wall with no vertex too close stays exactly
-//! the translated copy.
+//! (or, at the clip planes, evened) where it would turn a wall triangle over. A wall with
+//! no vertex too close stays exactly the translated copy.
 
 use glam::DVec3;
 use mesh::{SurfaceIndex, Topology, TriMesh};
@@ -149,21 +149,30 @@ pub(crate) fn keep_wall_clear(
     }
 }
 
-/// `push` (per vertex of `wall`) cut back where it would turn a wall triangle over (its
-/// normal reversed): at the corners of each such triangle it is halved, up to
-/// [`MAX_HALVINGS`] times, then dropped, until none turns over. The scan's inward
-/// normals differ across a crease (the fold under a breast, the side of the torso), so
-/// neighbouring vertices can be pushed across each other; a wall folded through itself
-/// cannot close the surface, while one left short of the clearance is only reported.
-/// Corners on a clip plane (any of `fixed`) are cut only where a triangle has no other
-/// pushed corner: the wall's border must stay behind the scan's, or the band between
-/// them on the plane crosses itself.
+/// `push` (per vertex of `wall`) changed where it would turn a wall triangle over (its
+/// normal reversed), until none turns over. The scan's inward normals differ across a
+/// crease (the fold under a breast, the side of the torso), so neighbouring vertices can
+/// be pushed across each other; a wall folded through itself cannot close the surface,
+/// while one left short of the clearance is only reported.
+/// - A triangle with pushed corners off the clip planes: their push is halved, up to
+///   [`MAX_HALVINGS`] times, then dropped.
+/// - A triangle turned by its corners on a clip plane (any of `fixed`) alone: those
+///   corners first move as one, by the longest of their pushes (a short border edge
+///   across a crease then only translates); where they already do, the whole triangle
+///   does, its inner corner included (a sliver against the plane). Each vertex is
+///   evened so once; only then are border corners halved: the wall's border must stay
+///   behind the scan's, or the band between them on the plane crosses itself.
+///
+/// Terminates: each pass evens a vertex not evened before or changes a push that was
+/// halved fewer than `MAX_HALVINGS + 1` times.
 fn without_turning_over(wall: &TriMesh, fixed: &[FixedAxes], push: &mut [DVec3]) {
     let on_plane = |v: usize| fixed[v].x || fixed[v].y;
     let normal = |corners: [DVec3; 3]| (corners[1] - corners[0]).cross(corners[2] - corners[0]);
     let mut halvings = vec![0; push.len()];
+    let mut evened = vec![false; push.len()];
     loop {
         let mut turned = Vec::new();
+        let mut to_even = Vec::new();
         for triangle in &wall.triangles {
             let corners = triangle.map(|v| v as usize);
             if corners.iter().all(|&v| push[v] == DVec3::ZERO) {
@@ -172,17 +181,39 @@ fn without_turning_over(wall: &TriMesh, fixed: &[FixedAxes], push: &mut [DVec3])
             let before = normal(corners.map(|v| wall.positions[v]));
             let after = normal(corners.map(|v| wall.positions[v] + push[v]));
             if before.dot(after) < 0.0 {
-                let pushed = corners.into_iter().filter(|&v| push[v] != DVec3::ZERO);
-                let inner: Vec<usize> = pushed.clone().filter(|&v| !on_plane(v)).collect();
-                if inner.is_empty() {
-                    turned.extend(pushed);
-                } else {
+                let pushed: Vec<usize> = (corners.into_iter())
+                    .filter(|&v| push[v] != DVec3::ZERO)
+                    .collect();
+                let inner: Vec<usize> = pushed.iter().copied().filter(|&v| !on_plane(v)).collect();
+                if !inner.is_empty() {
                     turned.extend(inner);
+                } else if pushed.iter().any(|&v| !evened[v]) && !all_equal(&pushed, push) {
+                    to_even.push(pushed);
+                } else if corners.iter().any(|&v| !evened[v]) && !all_equal(&corners, push) {
+                    to_even.push(corners.to_vec());
+                } else {
+                    turned.extend(pushed);
                 }
             }
         }
-        if turned.is_empty() {
+        if turned.is_empty() && to_even.is_empty() {
             return;
+        }
+        // Corners turning a triangle by their border pushes alone move as one, by the
+        // longest of those pushes.
+        for corners in to_even {
+            let longest = (corners.iter())
+                .map(|&v| push[v])
+                .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))
+                .unwrap_or(DVec3::ZERO);
+            for v in corners {
+                push[v] = DVec3::new(
+                    if fixed[v].x { 0.0 } else { longest.x },
+                    if fixed[v].y { 0.0 } else { longest.y },
+                    longest.z,
+                );
+                evened[v] = true;
+            }
         }
         turned.sort_unstable();
         turned.dedup();
@@ -195,6 +226,13 @@ fn without_turning_over(wall: &TriMesh, fixed: &[FixedAxes], push: &mut [DVec3])
             }
         }
     }
+}
+
+/// Whether the pushes of `vertices` are all the same.
+fn all_equal(vertices: &[usize], push: &[DVec3]) -> bool {
+    vertices
+        .windows(2)
+        .all(|pair| push[pair[0]] == push[pair[1]])
 }
 
 #[cfg(test)]
@@ -314,5 +352,66 @@ mod tests {
             .map(|(p, d)| *p + *d)
             .collect();
         assert_eq!(turned_over(&wall, &moved), 0);
+    }
+
+    /// A border edge on a lateral clip plane (x fixed) shortened to 0.2 mm, its corners
+    /// pushed 0.5 and 0.1 mm along it (as across a crease): they pass each other and turn
+    /// the border triangle over. They move as one instead, by the longer push (exactly),
+    /// so the border keeps its full push away from the scan rather than halving it
+    /// towards the scan's border; nothing else moves and nothing turns over.
+    #[test]
+    fn border_corners_pushed_past_each_other_move_as_one() {
+        let mut wall = grid(10, 10, 1.0);
+        let (low, high) = (5 * 11, 6 * 11);
+        wall.positions[high].y = 5.2;
+        let fixed: Vec<FixedAxes> = (wall.positions.iter())
+            .map(|p| FixedAxes {
+                x: p.x == 0.0,
+                y: false,
+            })
+            .collect();
+        let longer = DVec3::new(0.0, 0.5, -0.5);
+        let mut push = vec![DVec3::ZERO; wall.vertex_count()];
+        push[low] = longer;
+        push[high] = DVec3::new(0.0, 0.1, -0.3);
+        assert!(turned_over(&wall, &moved(&wall, &push)) > 0);
+        without_turning_over(&wall, &fixed, &mut push);
+        assert_eq!(push[low], longer);
+        assert_eq!(push[high], longer);
+        assert!(
+            (0..push.len()).all(|v| v == low || v == high || push[v] == DVec3::ZERO),
+            "{push:?}"
+        );
+        assert_eq!(turned_over(&wall, &moved(&wall, &push)), 0);
+    }
+
+    /// A sliver against a lateral clip plane: its border corners pushed alike 0.8 mm
+    /// past its inner corner (0.5 mm from their edge) would turn it over. The inner
+    /// corner moves with them, by the same push (exactly), rather than the border being
+    /// halved back towards the scan.
+    #[test]
+    fn a_sliver_against_the_plane_moves_with_its_border_corners() {
+        let wall = TriMesh::new(
+            vec![
+                DVec3::ZERO,
+                DVec3::new(0.0, 1.0, 0.0),
+                DVec3::new(0.1, 0.5, 0.5),
+            ],
+            vec![[0, 1, 2]],
+        );
+        let on_plane = FixedAxes { x: true, y: false };
+        let fixed = [on_plane, on_plane, FixedAxes::default()];
+        let border_push = DVec3::new(0.0, 0.0, 0.8);
+        let mut push = vec![border_push, border_push, DVec3::ZERO];
+        assert_eq!(turned_over(&wall, &moved(&wall, &push)), 1);
+        without_turning_over(&wall, &fixed, &mut push);
+        assert_eq!(push, vec![border_push; 3]);
+    }
+
+    /// The wall's positions moved by `push`.
+    fn moved(wall: &TriMesh, push: &[DVec3]) -> Vec<DVec3> {
+        (wall.positions.iter().zip(push))
+            .map(|(p, d)| *p + *d)
+            .collect()
     }
 }
