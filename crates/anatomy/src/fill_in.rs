@@ -10,10 +10,11 @@
 //!    axis to the chest around the hole, and use it as the "plane": `u` runs round it,
 //!    `v` along it, `w` outwards.
 //! 2. Project the loop onto the plane (cylinder), giving 2D coordinates `(u, v)` and a
-//!    height `w` per boundary vertex. Where the loop turns back on itself there by less
-//!    than 0.45 lattice spacings (within the lattice's clearance), straighten those `(u, v)` along the chord
-//!    (the 3D loop keeps its positions); refuse a loop that is still not a simple polygon
-//!    (on the cylinder: fall back to the plane).
+//!    height `w` per boundary vertex. Where the loop turns back on itself there,
+//!    straighten those `(u, v)` along the chord, moving no point by more than 0.45
+//!    lattice spacings (within the lattice points' clearance; the 3D loop keeps its
+//!    positions); refuse a loop that is still not a simple polygon (on the cylinder:
+//!    fall back to the plane).
 //! 3. Put a regular square lattice of the given spacing into the polygon, dropping points
 //!    closer than half a spacing to the boundary (no slivers), and triangulate loop and
 //!    lattice points with a 2D constrained Delaunay triangulation (spade), the loop edges
@@ -74,9 +75,11 @@
 //!
 //! # Limitations
 //! - The fill-in is a height field over the fitted plane: a cut curve that folds over
-//!   seen from that plane by more than 0.45 lattice spacings is refused
-//!   (a smaller fold is straightened, and the triangles on it face backwards), and where the base stands steeper than the slope
-//!   cap the fill-in is flatter than the base.
+//!   seen from that plane is refused where straightening it would move a point by more
+//!   than 0.45 lattice spacings (a smaller fold is straightened, and the triangles on it
+//!   face backwards; lattice points may then lie as close as 0.05 spacings to the
+//!   projected loop), and where the base stands steeper than the slope cap the fill-in
+//!   is flatter than the base.
 //! - A cubic per lattice line cannot follow curvature that changes within the hole: on a
 //!   chest-like cylinder (150 mm radius, 120 mm hole) the fill-in stays within 0.2 mm of
 //!   it, on a 150 x 120 x 90 mm ellipsoid within 0.8 mm.

@@ -159,12 +159,14 @@ pub(crate) fn keep_wall_clear(
 /// - A triangle turned by its corners on a clip plane (any of `fixed`) alone: those
 ///   corners first move as one, by the longest of their pushes (a short border edge
 ///   across a crease then only translates); where they already do, the whole triangle
-///   does, its inner corner included (a sliver against the plane). Each vertex is
-///   evened so once; only then are border corners halved: the wall's border must stay
-///   behind the scan's, or the band between them on the plane crosses itself.
+///   does, its inner corner included (a sliver against the plane). A corner the shared
+///   push would move against its own keeps its own. Each vertex is evened so once;
+///   only then are border corners halved: the wall's border must stay behind the
+///   scan's, or the band between them on the plane crosses itself.
 ///
-/// Terminates: each pass evens a vertex not evened before or changes a push that was
-/// halved fewer than `MAX_HALVINGS + 1` times.
+/// Terminates: a pass that evens marks at least one vertex evened for the first time
+/// (at most one such pass per vertex), and between those passes every pass halves or
+/// drops a push, each push at most `MAX_HALVINGS + 1` times.
 fn without_turning_over(wall: &TriMesh, fixed: &[FixedAxes], push: &mut [DVec3]) {
     let on_plane = |v: usize| fixed[v].x || fixed[v].y;
     let normal = |corners: [DVec3; 3]| (corners[1] - corners[0]).cross(corners[2] - corners[0]);
@@ -200,24 +202,34 @@ fn without_turning_over(wall: &TriMesh, fixed: &[FixedAxes], push: &mut [DVec3])
             return;
         }
         // Corners turning a triangle by their border pushes alone move as one, by the
-        // longest of those pushes.
+        // longest of those pushes (less the coordinates a corner keeps), except a corner
+        // the shared push would move against its own push (across a crease sharper than
+        // a right angle): it keeps its own, and is halved if the triangle still turns.
+        let mut evened_now = Vec::new();
         for corners in to_even {
             let longest = (corners.iter())
                 .map(|&v| push[v])
                 .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))
                 .unwrap_or(DVec3::ZERO);
             for v in corners {
-                push[v] = DVec3::new(
+                let shared = DVec3::new(
                     if fixed[v].x { 0.0 } else { longest.x },
                     if fixed[v].y { 0.0 } else { longest.y },
                     longest.z,
                 );
+                if shared.dot(push[v]) >= 0.0 {
+                    push[v] = shared;
+                }
                 evened[v] = true;
+                evened_now.push(v);
             }
         }
         turned.sort_unstable();
         turned.dedup();
         for v in turned {
+            if evened_now.contains(&v) {
+                continue;
+            }
             if halvings[v] < MAX_HALVINGS {
                 push[v] *= 0.5;
                 halvings[v] += 1;

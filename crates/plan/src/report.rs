@@ -9,7 +9,9 @@
 //! the views; its volumes are `model.json`'s), the post-operative one with the default
 //! control points from its landmarks (its breast and quadrant volumes). The simulated
 //! breast and quadrant volumes are the simulation's (`result.json`: the pre-operative
-//! breast patch moved with the tissue, closed by a fill-in rebuilt on the moved chest);
+//! breast patch moved with the tissue, over the chest wall; the post-operative scan's
+//! own model closes its breast by a fill-in over its own cut curve, which measures less
+//! where the implant pushes the breast's border forwards);
 //! the simulated scan is cut along the model's curves carried with the tissue
 //! (`simulated_control_points.json`) for its views and the comparison: a breast model
 //! built afresh from the simulated landmarks would not measure the same breast, because

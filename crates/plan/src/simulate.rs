@@ -144,7 +144,7 @@ pub struct Advance {
 pub struct SimulatedMeasurements {
     /// The breast volumes of the model, before (ml).
     pub breast_volume_before_ml: PerSide<f64>,
-    /// The breast volumes measured on the simulated scan as on a real one (ml).
+    /// The breast volumes after the simulation, over the chest wall (ml).
     pub breast_volume_ml: PerSide<f64>,
     /// The quadrant volumes of the model's breasts, before (ml).
     pub quadrant_volume_before_ml: PerSide<QuadrantVolumes>,
@@ -384,8 +384,8 @@ impl Session {
         .context("the simulated scan")
     }
 
-    /// The breast volumes before (the model's) and after (measured on the simulated
-    /// scan as on a real one), ml.
+    /// The breast volumes before (the model's) and after (over the chest wall, and over
+    /// a fill-in rebuilt on the moved cut curve), ml.
     pub fn breast_volumes(&mut self) -> SimulatedBreasts {
         let volumes = self.simulation.breast_volumes();
         SimulatedBreasts {

@@ -202,8 +202,8 @@ fn check_volumes(
     let sum: f64 = simulated_quadrants.values_ml().iter().sum();
     assert!((sum - simulated.left.breast_ml).abs() < 1e-6 * sum, "{sum}");
     // The right breast has no implant and barely moves: the simulation's quadrants
-    // (moved patch, fill-in rebuilt on the moved chest) match the model's own (the
-    // same method on the scan as loaded) to 2%, the right breast's change here.
+    // (moved patch over the chest wall) match the model's own (the scan as loaded) to
+    // 2%, the right breast's change here.
     let (model_right, simulated_right) = (
         volumes.preoperative.right.quadrants_ml.unwrap(),
         simulated.right.quadrants_ml.unwrap(),
@@ -219,7 +219,7 @@ fn check_volumes(
     // a breast model of the simulated scan along them measures what the simulation
     // measures over a fill-in rebuilt on the moved cut curve, up to the smoothing of the
     // displacement over the scan and the spline re-projected through the carried points
-    // (-2% to -3% on pair1_pre): bound 5%.
+    // (-2% to -3.5% on the shared scans' tests): bound 5%.
     let simulated_scan = MarkedScan::load(
         &path("simulation/simulated_scan.ply"),
         &path("simulation/simulated_landmarks.json"),

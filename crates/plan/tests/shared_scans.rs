@@ -215,8 +215,8 @@ fn the_simulated_pair1_pre_has_every_surface_distance() {
 /// The session of the shared scan `name` with the implant `spec` on both sides, run to
 /// convergence as `mammaplan simulate` runs it (gravity included), at the native fold:
 /// the carried cut curve then still bounds the breast, so the simulated scan cut again
-/// along it measures the simulation's volume (below a lowered fold it would cut through
-/// the implant).
+/// along it measures the simulation's volume over a fill-in rebuilt on the moved curve
+/// (below a lowered fold it would cut through the implant).
 fn simulated(dir: &std::path::Path, name: &str, spec: &str) -> plan::simulate::Session {
     let native_fold = plan::simulate::PocketLimits {
         fold_lowering: plan::simulate::FoldLowering::Mm(0.0),
@@ -243,7 +243,8 @@ fn simulated(dir: &std::path::Path, name: &str, spec: &str) -> plan::simulate::S
 
 /// `v02_average` has a 47 mm scanner dropout under its right breast; R-MOD-110 on both
 /// sides stretches it to 63 mm with the skin, and the simulated scan is still cut into
-/// breasts along the carried curves (measured -1.2% and -1.0% against the simulation).
+/// breasts along the carried curves (measured -2.7% and -2.4% against the simulation's
+/// volume over a rebuilt fill-in, 2026-11-29).
 #[test]
 fn the_simulated_v02_average_is_cut_again_over_its_stretched_dropout() {
     let Some(dir) = shared_scans() else { return };

@@ -348,9 +348,7 @@ fn boundary_edges_much_finer_or_coarser_than_the_lattice_are_fine() {
 
 #[test]
 fn a_planar_hole_is_filled_flat() {
-    let (base, hole) = cut_hole(grid(40, 40, 3.0), DVec3::new(60.0, 60.0, 0.0), |c| {
-        c.distance(DVec3::new(60.0, 60.0, 0.0)) < 40.0
-    });
+    let (base, hole) = round_hole_in_plane();
     let fill = fill_hole(&base, &hole, &FillInParams::default()).unwrap();
     check_fill(&base, &hole, &fill, |_| DVec3::Z);
     assert!(fill.mesh.positions.iter().all(|p| p.z.abs() < 1e-9));
@@ -523,6 +521,22 @@ fn orientation_signs_are_exact_for_nearly_collinear_points() {
     assert!(plain_wrong > 0, "{plain_wrong}");
 }
 
+/// A 120 x 120 mm plane on a 3 mm grid with the triangles of a 40 mm disc round its
+/// centre removed: the base and the hole's loop.
+fn round_hole_in_plane() -> (TriMesh, Vec<u32>) {
+    cut_hole(grid(40, 40, 3.0), DVec3::new(60.0, 60.0, 0.0), |c| {
+        c.distance(DVec3::new(60.0, 60.0, 0.0)) < 40.0
+    })
+}
+
+/// [`round_hole_in_plane`] with a [`curl`] of `size` at loop position 10, in the plane.
+fn zigzagged_hole(size: CurlSize) -> (TriMesh, Vec<u32>) {
+    let (mut base, hole) = round_hole_in_plane();
+    let n = hole.len();
+    curl(&mut base.positions, |k| hole[k % n] as usize, 10, size, 0.0);
+    (base, hole)
+}
+
 /// Positions `k + 1` and `k + 2` of a loop moved into a curl seen from the xy plane:
 /// the loop runs on `size.past_mm` past the middle of the chord from `k` to `k + 3`,
 /// turns back twice that, `size.side_mm` to one side, and crosses its own path on the
@@ -615,9 +629,7 @@ fn a_small_curl_of_the_projected_loop_is_straightened() {
 /// loop runs backwards, a height field over the plane must turn over.
 #[test]
 fn a_cut_curve_that_curls_seen_from_its_plane_is_filled() {
-    let (mut base, hole) = cut_hole(grid(40, 40, 3.0), DVec3::new(60.0, 60.0, 0.0), |c| {
-        c.distance(DVec3::new(60.0, 60.0, 0.0)) < 40.0
-    });
+    let (mut base, hole) = round_hole_in_plane();
     let n = hole.len();
     curl(
         &mut base.positions,
@@ -658,24 +670,15 @@ fn a_cut_curve_that_curls_seen_from_its_plane_is_filled() {
 /// and less than the lattice's clearance (1.6 mm). Filled, and every lattice point lies inside the
 /// projected 3D loop: its winding number about the unstraightened loop, summed here
 /// from the angles, is one to 1e-9 (rounding of the angle sum), and it keeps more than
-/// the clearance's unused tenth (0.15 mm) from that loop.
+/// the clearance's unused tenth (0.15 mm) from that loop. A zigzag twice the size is
+/// refused.
 #[test]
 fn a_zigzag_within_the_lattice_clearance_is_filled_inside_the_loop() {
-    let (mut base, hole) = cut_hole(grid(40, 40, 3.0), DVec3::new(60.0, 60.0, 0.0), |c| {
-        c.distance(DVec3::new(60.0, 60.0, 0.0)) < 40.0
-    });
-    let n = hole.len();
-    let zigzag = CurlSize {
+    let (base, hole) = zigzagged_hole(CurlSize {
         past_mm: 0.5,
         side_mm: 0.6,
-    };
-    curl(
-        &mut base.positions,
-        |k| hole[k % n] as usize,
-        10,
-        zigzag,
-        0.0,
-    );
+    });
+    let n = hole.len();
     let projected: Vec<DVec2> = (hole.iter())
         .map(|&v| base.positions[v as usize].truncate())
         .collect();
@@ -705,6 +708,16 @@ fn a_zigzag_within_the_lattice_clearance_is_filled_inside_the_loop() {
             .fold(f64::INFINITY, f64::min);
         assert!(clearance > 0.15, "{p}: {clearance} mm from the loop");
     }
+    // A zigzag twice the size would move its points by some 2 mm, beyond the clearance
+    // (1.6 mm), where a lattice point could lie outside the loop: refused.
+    let (base, hole) = zigzagged_hole(CurlSize {
+        past_mm: 1.0,
+        side_mm: 1.2,
+    });
+    assert!(matches!(
+        fill_hole(&base, &hole, &FillInParams::default()),
+        Err(FillInError::NotSimple { .. })
+    ));
 }
 
 /// A sheet that is not the base's own (an arm, a fold's far side) 8 mm in front of the

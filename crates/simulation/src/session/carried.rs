@@ -1,6 +1,7 @@
 //! What the solve carries: the displacement to the scan (through the point map and its
 //! smoothing, or their composition), the landmarks and cut curves riding on the scan,
-//! and the breast volumes measured after it as on a real post-operative scan.
+//! and the breast volumes after it (over the chest wall, and over a fill-in rebuilt on
+//! the moved cut curve as on a post-operative scan cut along it).
 
 use super::*;
 
@@ -252,9 +253,10 @@ impl Simulation {
     /// derived afresh from the moved landmarks would cut the simulated breast elsewhere;
     /// and the model's own few control points, carried, would leave the spline between
     /// them to cut across the reshaped breast (on `pair1_pre` with R-MOD-90 the right
-    /// breast cut along the six carried points measured 4.8% below
-    /// [`Simulation::breast_volumes`], along points every 10 mm 2.9%, most of which is
-    /// the smoothing of the scan's displacement: 1.7% without it).
+    /// breast cut along the six carried points measured 4.8% below the simulation's
+    /// volume over a rebuilt fill-in ([`BreastVolume::volume_rebuilt_fill_ml`]), along
+    /// points every 10 mm 2.9%, most of which is the smoothing of the scan's
+    /// displacement: 1.7% without it).
     pub fn control_points_moved_by(&self, scan_displacements: &[DVec3]) -> ControlPoints {
         let [left, right] = Side::BOTH.map(|side| {
             let s = side as usize;
