@@ -245,8 +245,8 @@ struct SimulateArgs {
     /// a stiff skin layer over it.
     #[arg(long)]
     no_skin: bool,
-    /// Leave large volume loss to the corotated energy (the paper's model) instead
-    /// of resisting it beyond 10% (see docs/dev/volume-loss.md).
+    /// Leave volume loss to the corotated energy (the paper's model) instead of
+    /// resisting every loss with the first Lamé parameter (see docs/dev/volume-loss.md).
     #[arg(long)]
     no_compression_penalty: bool,
     /// A CSV catalog for catalog:ID specs instead of the built-in one.

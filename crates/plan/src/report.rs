@@ -530,9 +530,13 @@ fn case_info(
                 )
             }),
             compression_penalty: simulation.materials.compression_penalty.map(|penalty| {
+                let onset = if penalty.onset_volume_ratio >= 1.0 {
+                    "every loss".to_string()
+                } else {
+                    format!("beyond {:.0}%", 100.0 * (1.0 - penalty.onset_volume_ratio))
+                };
                 format!(
-                    "resisted beyond {:.0}% with {} times the first Lamé parameter",
-                    100.0 * (1.0 - penalty.onset_volume_ratio),
+                    "{onset} resisted with {} times the first Lamé parameter",
                     penalty.lambda_multiple
                 )
             }),

@@ -76,6 +76,7 @@ use crate::bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 use crate::carry::ScanCarry;
 use crate::error::SimulationError;
 use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap, SurfaceSmoother};
+use crate::over_implant::{swept_prisms, triangles_over_implant};
 use crate::placement::{Anchor, AnchorRule, Placement, anchor_on_floor, resolve_anchor};
 use crate::pocket::{
     FoldLowering, PocketBounds, PocketLimits, fold_lowest, native_fold_y_mm, nipple_of,
@@ -180,6 +181,8 @@ pub struct PlacedImplant {
     /// (mm; 0 on the fill-in's bed, which ends at the native fold).
     pub fold_lowering_mm: f64,
     pub template: ImplantTemplate,
+    /// The implant's thickness as the template lays it (its rim mollified).
+    pub thickness: SmoothedThickness,
     /// Skin vertices of the finest level along the planned fold, under the implant's
     /// lower half: held to the chest at every stage, as the inframammary fold's
     /// attachment (re-formed at the planned fold) holds the skin there.
@@ -239,6 +242,9 @@ pub struct BreastVolume {
     /// pre-operative fill-in, which the implant does not move, joined to the moved cut
     /// curve by a strip. An implant lies in front of that wall whatever the curve does,
     /// so the breast gains the implant's volume less what it pushes beyond the curve.
+    /// Where the implant lies in a pocket beyond the native breast (below a lowered
+    /// fold, beside a narrow breast), the chest skin over it is part of the breast after
+    /// surgery: the volume that skin sweeps is added ([`crate::over_implant`]).
     pub volume_ml: f64,
     /// After, closed by a fill-in rebuilt on the moved cut curve with the model's
     /// method (ml): what a post-operative scan gives when modelled along the cut curve

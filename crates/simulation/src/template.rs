@@ -148,7 +148,8 @@ impl SideCandidates {
 /// The displacement template of one implant.
 #[derive(Debug, Clone, Default)]
 pub struct ImplantTemplate {
-    /// Implant (front) vertices with their displacement (mm): `z'` along the bed normal.
+    /// Implant (front) vertices with their displacement (mm): `z'` along the bed normal,
+    /// all scaled by one factor so that the implant elements gain the covered volume.
     pub implant_vertices: Vec<(u32, DVec3)>,
     /// Back vertices inside the footprint, fixed.
     pub fixed_vertices: Vec<u32>,
@@ -158,7 +159,8 @@ pub struct ImplantTemplate {
     pub fill_in_elements: usize,
     /// The volume the template alone adds to the implant elements (ml): the sum over
     /// implant elements of deformed minus rest volume, with only the template's
-    /// displacements applied. Close to the implant's volume when the mesh resolves it.
+    /// displacements applied. [`ImplantTemplate::covered_volume_ml`] (within 1e-6) once
+    /// scaled; the unscaled gain where no factor reaches it.
     pub template_volume_ml: f64,
     /// The implant's volume over the part of its footprint the finest mesh reaches
     /// (ml; [`crate::template_volume`]): less than the implant's volume where the
@@ -208,6 +210,13 @@ impl SmoothedThickness {
             radius_mm: radius_mm.max(0.0),
             samples,
         }
+    }
+
+    /// How far from the implant's centre `(x', y') = 0` the mollified thickness can be
+    /// positive (mm): the footprint's half-diagonal plus the mollifying radius.
+    pub fn reach_mm(&self) -> f64 {
+        let f = self.shape.footprint();
+        f.width_mm().hypot(f.height_mm()) / 2.0 + self.radius_mm
     }
 
     /// The mollified thickness at `(x', y')` (mm).
@@ -485,14 +494,7 @@ pub fn build_template(
     let classes = classify(feet, anchor, thickness);
     let mut state = vec![0u8; classes.len()];
     let mut template = ImplantTemplate::default();
-    let (fill_in_corners, added_mm3) = mark_fill_in(
-        mesh,
-        candidates,
-        &classes,
-        hold_bed,
-        &mut state,
-        &mut template,
-    );
+    let fill_in_corners = mark_fill_in(candidates, &classes, hold_bed, &mut state, &mut template);
     // the rest of the tissue layer up to `layer_mm` over the footprint moves with it
     for (k, class) in classes.iter().enumerate() {
         if let Class::Front(z, _, h) = *class
@@ -515,10 +517,66 @@ pub fn build_template(
     if template.implant_vertices.is_empty() {
         return Err(SimulationError::EmptyTemplate { side: feet.side });
     }
-    template.template_volume_ml = added_mm3 / 1000.0;
     template.covered_volume_ml = covered_volume_ml(&fill_in_corners, feet, anchor, thickness);
+    template.template_volume_ml = scale_to_covered_volume(mesh, &mut template) / 1000.0;
     Ok(template)
 }
+
+/// Scales the template's displacements by the factor at which its implant elements
+/// gain exactly [`ImplantTemplate::covered_volume_ml`], and returns that gain (mm³).
+///
+/// Why: the thickness is laid off along the normals of a bed curved like a chest, and
+/// the implant's coordinates are a linear map of the bed's cylinder coordinates, so
+/// unscaled the template inserts 1.1-1.2 times the implant's volume (docs/dev/
+/// volume-loss.md). The gain of the elements is a cubic in the factor (each element's
+/// volume is a determinant of its displaced edges); the secant method finds its root.
+/// A template that inserts nothing, or whose gain cannot reach the target, is left as
+/// it is.
+fn scale_to_covered_volume(mesh: &TetMesh, template: &mut ImplantTemplate) -> f64 {
+    let mut displacement = vec![DVec3::ZERO; mesh.positions.len()];
+    for &(v, d) in &template.implant_vertices {
+        displacement[v as usize] = d;
+    }
+    let gain_mm3 = |factor: f64| -> f64 {
+        (template.implant_elements.iter())
+            .map(|&t| {
+                let d = mesh.tets[t as usize].map(|v| displacement[v as usize] * factor);
+                let (rest, moved) = displaced_volumes(mesh, t, d);
+                moved - rest
+            })
+            .sum()
+    };
+    let target_mm3 = template.covered_volume_ml * 1000.0;
+    let unscaled_mm3 = gain_mm3(1.0);
+    if unscaled_mm3 <= 0.0 || target_mm3 <= 0.0 {
+        return unscaled_mm3;
+    }
+    let (mut a, mut gain_a) = (1.0, unscaled_mm3);
+    let mut b = target_mm3 / unscaled_mm3;
+    let mut gain_b = gain_mm3(b);
+    for _ in 0..SCALE_ITERATIONS {
+        if (gain_b - target_mm3).abs() <= SCALE_TOLERANCE * target_mm3 || gain_b == gain_a {
+            break;
+        }
+        let next = b - (gain_b - target_mm3) * (b - a) / (gain_b - gain_a);
+        (a, gain_a) = (b, gain_b);
+        b = next;
+        gain_b = gain_mm3(b);
+    }
+    if !(b.is_finite() && b > 0.0) || (gain_b - target_mm3).abs() > SCALE_TOLERANCE * target_mm3 {
+        return unscaled_mm3;
+    }
+    for (_, d) in &mut template.implant_vertices {
+        *d *= b;
+    }
+    gain_b
+}
+
+/// Most secant steps of [`scale_to_covered_volume`].
+const SCALE_ITERATIONS: usize = 20;
+
+/// Relative tolerance of [`scale_to_covered_volume`]'s gain.
+const SCALE_TOLERANCE: f64 = 1e-6;
 
 /// A template state of a candidate vertex: displaced with the implant.
 const DISPLACED: u8 = 1;
@@ -547,18 +605,15 @@ fn classify(feet: &BedFeet, anchor: &Anchor, thickness: &SmoothedThickness) -> V
 /// Marks the corners of the fill-in elements (crossing the bed) in `state`, displaced in
 /// front of the bed over the footprint, fixed behind it (with `hold_bed` outside the
 /// footprint too), and counts them and the implant elements into `template`. Returns the
-/// fill-in elements' corners and the volume the template adds to the implant elements
-/// (mm³).
+/// fill-in elements' corners.
 fn mark_fill_in(
-    mesh: &TetMesh,
     candidates: &SideCandidates,
     classes: &[Class],
     hold_bed: bool,
     state: &mut [u8],
     template: &mut ImplantTemplate,
-) -> (Vec<[u32; 4]>, f64) {
+) -> Vec<[u32; 4]> {
     let mut fill_in_corners = Vec::new();
-    let mut added_mm3 = 0.0;
     for &(t, corners) in &candidates.tets {
         let c = corners.map(|k| classes[k as usize]);
         if c.iter().any(|x| matches!(x, Class::Off)) {
@@ -593,15 +648,9 @@ fn mark_fill_in(
         }
         if interior == 4 {
             template.implant_elements.push(t);
-            let d = corners.map(|k| match classes[k as usize] {
-                Class::Front(z, n, _) => n * z,
-                _ => DVec3::ZERO,
-            });
-            let (rest, moved) = displaced_volumes(mesh, t, d);
-            added_mm3 += moved - rest;
         }
     }
-    (fill_in_corners, added_mm3)
+    fill_in_corners
 }
 
 /// Releases, in up to [`UNFOLD_PASSES`] passes, a template corner of each fully held

@@ -68,7 +68,7 @@ fn volume_grows_by_the_implant_volume() {
             t.implant_elements.len()
         );
         assert!(
-            (added - v).abs() <= 0.15 * v,
+            (added - v).abs() <= 0.10 * v,
             "{side}: added {added:.1} ml for a {v:.1} ml implant"
         );
     }
@@ -76,9 +76,9 @@ fn volume_grows_by_the_implant_volume() {
 
 /// A 115 mm implant (222 ml) under a large cup (555 ml) lies on the native fill-in and
 /// pushes the breast's medial border forwards by up to 8 mm. The breast over the chest
-/// wall, which the implant does not move, gains the implant's volume less the little the
-/// tissue carries beyond the border and loses to compression (Poisson ratio 0.45): within
-/// 10%, the bound issue 22 holds every body to (measured 0.93). A fill-in rebuilt on the
+/// wall, which the implant does not move, gains the implant's volume less what the
+/// tissue carries beyond the border: within 10%, the bound issue 22 holds every body to
+/// (measured 0.92). A fill-in rebuilt on the
 /// moved border rises with it and takes volume out (measured 0.45 of the implant): it is
 /// reported apart, and must come out lower.
 #[test]
@@ -102,6 +102,68 @@ fn a_large_breast_gains_the_implants_volume_over_the_chest_wall() {
         assert!((gain - 1.0).abs() <= 0.10, "{side}: gain {gain:.3}");
         let rebuilt = vol.volume_rebuilt_fill_ml.unwrap();
         assert!(rebuilt < vol.volume_ml, "{side}: {rebuilt} ml");
+    }
+}
+
+/// A 115 mm implant (222 ml) under a small hanging cup lies in the pocket with the fold
+/// lowered 25-30 mm (the ICE rule), so a fifth of it lies below the native fold. The
+/// breast after surgery, measured over the native breast and the skin over the implant,
+/// gains the implant's volume within 10% (the envelope's band; Tepper et al. 2008
+/// measured 1.9% on real augmentations; measured 0.95). Measured over the native breast
+/// alone it gained 0.78 of the implant, so the check can fail. The template inserts the implant's
+/// volume over the part of the bed the mesh reaches: the implant elements' own gain,
+/// recomputed here from the template's displacements, equals it, and it lies within 2% of
+/// the implant's volume from its closed form (the whole footprint lies inside the mesh;
+/// the 2% are the bed sections' linear thickness over the 7 mm elements).
+#[test]
+fn a_lowered_fold_gains_the_implants_volume_over_the_skin_it_lies_under() {
+    let patient = common::small_hanging_phantom();
+    let mut sim = patient.session(SimulationOptions::default());
+    let shape = *Catalog::builtin().get("R-MOD-115").unwrap().shape();
+    let implant_ml = shape.volume_ml();
+    for side in Side::BOTH {
+        let placed = sim
+            .set_implant(side, shape, Placement::default())
+            .unwrap()
+            .clone();
+        assert!(
+            placed.fold_lowering_mm > 20.0,
+            "{side}: fold lowered {:.1} mm",
+            placed.fold_lowering_mm
+        );
+        let t = &placed.template;
+        let finest = sim.finest_mesh();
+        let mut moved = finest.positions.clone();
+        for &(v, d) in &t.implant_vertices {
+            moved[v as usize] += d;
+        }
+        let volume = |p: &[DVec3], e: u32| {
+            tetra::quality::signed_volume(finest.tets[e as usize].map(|v| p[v as usize]))
+        };
+        let gain_ml = (t.implant_elements.iter())
+            .map(|&e| volume(&moved, e) - volume(&finest.positions, e))
+            .sum::<f64>()
+            / 1000.0;
+        println!(
+            "{side}: fold lowered {:.1} mm; implant {implant_ml:.1} ml, covered {:.1} ml, \
+             implant elements gain {gain_ml:.1} ml",
+            placed.fold_lowering_mm, t.covered_volume_ml
+        );
+        assert!((gain_ml - t.covered_volume_ml).abs() < 1e-3, "{side}");
+        assert!(
+            (t.covered_volume_ml / implant_ml - 1.0).abs() < 0.02,
+            "{side}"
+        );
+    }
+    let report = sim.run(false).unwrap();
+    assert!(report.implant.converged, "{report:?}");
+    for (side, vol) in Side::BOTH.iter().zip(sim.breast_volumes()) {
+        let gain = (vol.volume_ml - vol.volume_before_ml) / implant_ml;
+        println!(
+            "{side}: {:.1} -> {:.1} ml, gain {gain:.3} of {implant_ml:.1} ml",
+            vol.volume_before_ml, vol.volume_ml
+        );
+        assert!((gain - 1.0).abs() <= 0.10, "{side}: gain {gain:.3}");
     }
 }
 

@@ -1,10 +1,11 @@
 //! The simulation on the shared scans (`shared/scans` beside the checkout or `$MAMMAPLAN_SCANS`;
 //! skipped when absent): both breasts with a moderate-profile round implant sized to the
-//! breast base, no gravity, then the gravity correction, on homogeneous tissue (no skin
-//! layer). Prints the volume figures;
-//! checks the volume gain against the template's volume (10%) and the implant's (25%),
-//! convergence of both stages, no inverted
-//! element, the scan's largest edge stretch (at most 3x), and the nipple's direction (forwards without gravity, down with it).
+//! breast base, no gravity, then the gravity correction, on the default model (skin
+//! layer, compression penalty). Prints the volume figures; checks the volume gain against
+//! the template's volume and the implant's (10% each: the tissue is nearly incompressible
+//! and the template inserts the implant's volume), convergence of both stages, no
+//! inverted element, the scan's largest edge stretch (at most 3x), and the nipple's
+//! direction (forwards without gravity, down with it).
 //! `cargo test --release -p simulation --test shared_scans -- --nocapture`
 
 mod common;
@@ -23,14 +24,7 @@ fn run(name: &str) {
     // largest moderate-profile round implant of the catalog below that (from 120 mm
     // down; under the catalog's 90 mm the same profile, projection 0.28 x width).
     let catalog = Catalog::builtin();
-    // the homogeneous tissue of the paper: with the skin layer the tissue squeezed
-    // between implant and skin loses volume the corotated energy does not see, and the
-    // gain no longer follows the template (docs/dev/skin.md); the envelope measures the
-    // default model
-    let mut sim = p.session(SimulationOptions {
-        skin: None,
-        ..Default::default()
-    });
+    let mut sim = p.session(SimulationOptions::default());
     let base_width_mm = Side::BOTH
         .iter()
         .map(|&side| {
@@ -100,19 +94,20 @@ fn run(name: &str) {
             (added - v) / v * 100.0,
             d.to_array()
         );
-        // The tissue (Poisson ratio 0.45 against a held wall) passes on what the
-        // template pushes in: within 10% of the template's own volume. The template
-        // realises the implant on the finest lattice, over it by up to 21% where the
-        // default placement lays it over the thin chest below the fold (pair1_pre,
-        // R-MOD-90: 128.8 ml for 106.0; the discretisation of issue 23): within 25%
-        // of the implant.
+        // The tissue (resisting volume loss, against a held wall) passes on what the
+        // template pushes in: within 10% of the template's own volume, which is the
+        // implant's over the part of its footprint the mesh covers, and so within 10%
+        // of the implant's (the envelope's band; 1-2% measured).
         let realised = template_ml[*side as usize];
         assert!(
             (added - realised).abs() <= 0.10 * realised,
             "{name} {side}: {realised}"
         );
-        assert!((added - v).abs() <= 0.25 * v, "{name} {side}");
-        assert!(d.z > 0.3 * shape.projection_mm(), "{name} {side}");
+        assert!((added - v).abs() <= 0.10 * v, "{name} {side}");
+        // forwards by a good part of the projection: on homogeneous tissue the push
+        // spreads over the breast (v02_average with R-MOD-100, 28 mm: 8.1 mm since the
+        // template inserts the implant's volume rather than 1.1-1.2 times it)
+        assert!(d.z > 0.25 * shape.projection_mm(), "{name} {side}");
     }
     assert!(report.implant.converged);
     // the issue's criterion, kept by the inversion barrier and the template's unfolding
@@ -165,14 +160,7 @@ fn pair1_pre_with_a_clinically_sized_implant() {
         return;
     };
     let shape = *Catalog::builtin().get("R-MOD-95").unwrap().shape();
-    // the homogeneous tissue of the paper: with the skin layer the tissue squeezed
-    // between implant and skin loses volume the corotated energy does not see, and the
-    // gain no longer follows the template (docs/dev/skin.md); the envelope measures the
-    // default model
-    let mut sim = p.session(SimulationOptions {
-        skin: None,
-        ..Default::default()
-    });
+    let mut sim = p.session(SimulationOptions::default());
     for side in Side::BOTH {
         sim.set_implant(side, shape, Placement::default()).unwrap();
     }

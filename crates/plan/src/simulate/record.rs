@@ -173,7 +173,8 @@ pub struct SimulateReport {
     pub model: PathBuf,
     pub implants: PerSide<Option<ImplantSummary>>,
     /// Breast volumes after the simulation, over the chest wall (the pre-operative
-    /// fill-in joined to the moved cut curve; ml).
+    /// fill-in joined to the moved cut curve; ml), with the chest skin over an implant
+    /// that lies in a pocket beyond the native breast.
     pub breast_volume_ml: PerSide<f64>,
     /// Breast volumes of the model before (ml).
     pub breast_volume_before_ml: PerSide<f64>,

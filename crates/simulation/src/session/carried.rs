@@ -118,25 +118,32 @@ fn with_rim(fill: &TriMesh, rim: &[DVec3]) -> TriMesh {
     TriMesh::new(positions, triangles)
 }
 
+/// Volume (ml) and centre (mm) of a closed outward triangle soup.
+fn soup_volume(soup: &TriMesh) -> (f64, DVec3) {
+    let n = soup.positions.len().max(1) as f64;
+    let origin = soup.positions.iter().copied().sum::<DVec3>() / n;
+    let (v, m) = volume_and_moment(soup, origin);
+    (v / 1000.0, origin + m / v)
+}
+
+/// Two triangle soups as one.
+fn joined(a: &TriMesh, b: &TriMesh) -> TriMesh {
+    let offset = a.positions.len() as u32;
+    let positions = a.positions.iter().chain(&b.positions).copied().collect();
+    let triangles = (a.triangles.iter().copied())
+        .chain(b.triangles.iter().map(|t| t.map(|v| v + offset)))
+        .collect();
+    TriMesh::new(positions, triangles)
+}
+
 /// The breast closed by a fill-in as one outward triangle soup: `patch` and the reversed
 /// `fill` (as in [`closed_volume`]); the loop vertices appear twice, which the divergence
 /// theorem does not mind.
 fn closed_soup(patch: &TriMesh, fill: &TriMesh) -> TriMesh {
-    let offset = patch.positions.len() as u32;
-    let positions = patch
-        .positions
-        .iter()
-        .chain(&fill.positions)
-        .copied()
+    let reversed = (fill.triangles.iter())
+        .map(|&[a, b, c]| [a, c, b])
         .collect();
-    let triangles = (patch.triangles.iter().copied())
-        .chain(
-            fill.triangles
-                .iter()
-                .map(|&[a, b, c]| [a, c, b].map(|v| v + offset)),
-        )
-        .collect();
-    TriMesh::new(positions, triangles)
+    joined(patch, &TriMesh::new(fill.positions.clone(), reversed))
 }
 
 impl Simulation {
@@ -309,9 +316,22 @@ impl Simulation {
             let volume_rebuilt_fill_ml = fill_hole(&base, &data.base_loop, &params)
                 .ok()
                 .map(|rebuilt| closed_volume(&patch, &rebuilt.mesh).0);
-            let (volume_ml, centre_mm) = closed_volume(&patch, &fill);
+            let mut breast = closed_soup(&patch, &fill);
+            if let (Some(implant), Some(_)) = (&self.implants[s], &self.pocket_bounds[s]) {
+                let over = triangles_over_implant(
+                    &self.base,
+                    &self.beds[s],
+                    &implant.anchor,
+                    &implant.thickness,
+                );
+                let triangles: Vec<[u32; 3]> =
+                    over.iter().map(|&t| self.base.triangles[t]).collect();
+                let swept = swept_prisms(&self.base.positions, &base.positions, &triangles);
+                breast = joined(&breast, &swept);
+            }
+            let (volume_ml, centre_mm) = soup_volume(&breast);
             let quadrant_volume_ml = quadrant_volumes_ml(
-                &closed_soup(&patch, &fill),
+                &breast,
                 &QuadrantLines::of_breast(side, &landmarks),
                 self.frame.sternal().anterior(),
             )

@@ -27,12 +27,14 @@ pub const DEFAULT_INVERSION_BARRIER: InversionBarrier = InversionBarrier {
     young_multiple: 40.0,
 };
 
-/// Default compression penalty of the finest level: beyond 10% volume loss an element
-/// resists with its own first Lamé parameter, `λ V (0.9 - J)²`, so small strains stay
-/// linear-elastic and tissue squeezed over an implant keeps its volume
-/// (docs/dev/volume-loss.md).
+/// Default compression penalty of the finest level: every element that loses volume
+/// resists with its own first Lamé parameter, `λ V (1 - J)²`. To first order that is the
+/// resistance to compression of tissue with a Poisson ratio of 0.48 (three times the
+/// paper's `λ` at 0.45) while shear stays the paper's; breast tissue is nearly
+/// incompressible, and without it the tissue squeezed between implant and skin lost
+/// 6-8% of the implant's volume (docs/dev/volume-loss.md).
 pub const DEFAULT_COMPRESSION_PENALTY: CompressionPenalty = CompressionPenalty {
-    onset_volume_ratio: 0.9,
+    onset_volume_ratio: 1.0,
     lambda_multiple: 1.0,
 };
 

@@ -214,6 +214,7 @@ impl Simulation {
             fit_shift_mm: requested.local(anchor.uv),
             fold_lowering_mm,
             template,
+            thickness,
             fold_vertices,
             setup_ms: elapsed_ms(start),
         }))

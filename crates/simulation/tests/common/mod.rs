@@ -58,6 +58,13 @@ pub fn large_phantom() -> &'static Patient {
     PATIENT.get_or_init(|| patient("phantom-large", &default_model_options()).unwrap())
 }
 
+/// The symmetric phantom with small hanging cups (ptosis 0.8, nipple 55-60 mm above the
+/// fold): a 115 mm implant needs the fold lowered by the ICE rule's 25-30 mm.
+pub fn small_hanging_phantom() -> &'static Patient {
+    static PATIENT: OnceLock<Patient> = OnceLock::new();
+    PATIENT.get_or_init(|| patient("phantom-small-hanging", &default_model_options()).unwrap())
+}
+
 /// `model`'s options with the tests' element count.
 pub fn default_model_options() -> ModelOptions {
     ModelOptions {
@@ -67,19 +74,25 @@ pub fn default_model_options() -> ModelOptions {
 }
 
 /// The model of a body with `options`: `phantom` (the symmetric default phantom),
-/// `phantom-large` (the same with large cups), a shared scan, or a zoo body (`s01`..),
+/// `phantom-large` (the same with large cups), `phantom-small-hanging` (small hanging
+/// cups), a shared scan, or a zoo body (`s01`..),
 /// if present (see [`shared_scan`]).
 pub fn patient(name: &str, options: &ModelOptions) -> Option<Patient> {
-    let phantom_cup = match name {
-        "phantom" => Some(PhantomParams::default().cup),
-        "phantom-large" => Some(Cup::Large),
+    let phantom_params = match name {
+        "phantom" => Some(PhantomParams::default()),
+        "phantom-large" => Some(PhantomParams {
+            cup: Cup::Large,
+            ..PhantomParams::default()
+        }),
+        "phantom-small-hanging" => Some(PhantomParams {
+            cup: Cup::Small,
+            ptosis: 0.8,
+            ..PhantomParams::default()
+        }),
         _ => None,
     };
-    let marked = if let Some(cup) = phantom_cup {
-        let phantom = phantom::generate(&PhantomParams {
-            cup,
-            ..PhantomParams::default()
-        });
+    let marked = if let Some(params) = phantom_params {
+        let phantom = phantom::generate(&params);
         MarkedScan::new(
             Scan::from_mesh(phantom.scan.clone(), Path::new("phantom.ply")).unwrap(),
             phantom.landmarks.clone(),
