@@ -9,7 +9,8 @@
 //! the views; its volumes are `model.json`'s), the post-operative one with the default
 //! control points from its landmarks (its breast and quadrant volumes). The simulated
 //! breast and quadrant volumes are the simulation's (`result.json`: the pre-operative
-//! breast patch moved with the tissue, over the chest wall; the post-operative scan's
+//! breast patch moved with the tissue, over the chest wall, with the chest skin over an
+//! implant that lies beyond the native breast; the post-operative scan's
 //! own model closes its breast by a fill-in over its own cut curve, which measures less
 //! where the implant pushes the breast's border forwards);
 //! the simulated scan is cut along the model's curves carried with the tissue

@@ -95,7 +95,7 @@ fn case_section(case: &CaseInfo) -> Markup {
                         td { (model.skin.as_deref().unwrap_or("not modelled (homogeneous tissue up to the surface)")) }
                     }
                     tr {
-                        th scope="row" { "Large volume loss" }
+                        th scope="row" { "Volume loss" }
                         td { (model.compression_penalty.as_deref().unwrap_or("as the corotated energy measures it (the paper's model)")) }
                     }
                     tr {

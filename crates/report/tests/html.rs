@@ -89,7 +89,7 @@ fn minimal_content() -> ReportContent {
                 },
                 skin: Some("344 kPa, 1.55 mm thick, on the outer elements".into()),
                 compression_penalty: Some(
-                    "resisted beyond 10% with the first Lamé parameter".into(),
+                    "every loss resisted with 1 times the first Lamé parameter".into(),
                 ),
                 gravity_correction: true,
                 up: "the file's +y; the sternum leans 26.8° back from it".into(),

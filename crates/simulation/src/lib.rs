@@ -33,10 +33,13 @@
 //! # Known shortfalls
 //! - The implant's coordinates are a linear map of the bed's cylinder coordinates, so
 //!   its thickness is laid off stretched where the bed slopes against the cylinder (the
-//!   lower pole); the template is scaled as a whole to the implant's volume.
+//!   lower pole); the template is scaled as a whole to the implant's volume over the
+//!   part of the bed the mesh covers.
 //! - The tissue resists volume loss through a penalty on `J = det F` beside the
 //!   corotated energy, which sees volume change only to first order; volume gain
-//!   (tension) is left to the corotated energy.
+//!   (tension) is left to the corotated energy, so the tangent stiffness jumps at
+//!   `J = 1`, and the penalty is on the finest level only (a Galerkin hierarchy carries
+//!   it down; rediscretised coarse levels, the fallback, do not).
 //! - Galerkin coarse operators of `fem` can turn singular for some constraint sets
 //!   (two levels on the phantom; three levels with both implants before the bed was
 //!   held); the session then falls back to rediscretised coarse operators.

@@ -50,10 +50,12 @@ const REACH_MARGIN_MM: f64 = 60.0;
 
 /// The closed prisms that `triangles` sweep from `rest` to `moved` (positions of the
 /// same vertices, mm) as one outward triangle soup: each triangle moved, the triangle at
-/// rest reversed, and the three quadrilaterals between its edges at rest and moved.
-/// Where two triangles share an edge their quadrilaterals cancel, so the soup's signed
-/// volume is the volume the surface sweeps forwards (along its normals), whatever the
-/// origin, and its boundary's quadrilaterals close it.
+/// rest reversed, and the three quadrilaterals between its edges at rest and moved. A
+/// quadrilateral is split along its diagonal from the edge's lower-numbered vertex at
+/// rest to the other one moved ([`swept_quad`]), so the two triangles sharing an edge
+/// cut it alike and their quadrilaterals cancel exactly: the soup's signed volume is
+/// the volume the surface sweeps forwards (along its normals), whatever the origin, and
+/// its boundary's quadrilaterals close it.
 pub fn swept_prisms(rest: &[DVec3], moved: &[DVec3], triangles: &[[u32; 3]]) -> TriMesh {
     let (compact, used) = mesh::compact(triangles.iter().copied(), rest.len());
     let n = used.len() as u32;
@@ -65,11 +67,27 @@ pub fn swept_prisms(rest: &[DVec3], moved: &[DVec3], triangles: &[[u32; 3]]) -> 
         soup.push([a + n, b + n, c + n]);
         soup.push([a, c, b]);
         for (p, q) in [(a, b), (b, c), (c, a)] {
-            soup.push([p, q, q + n]);
-            soup.push([p, q + n, p + n]);
+            // `used` keeps the first-use order; the split follows the original numbers
+            let p_first = used[p as usize] < used[q as usize];
+            soup.extend(swept_quad([p, q], [p + n, q + n], p_first));
         }
     }
     TriMesh::new(positions, soup)
+}
+
+/// The quadrilateral swept by the edge `rest[0] -> rest[1]` to `moved` (vertex indices),
+/// as two triangles facing the way a surface walking the edge that way faces once
+/// swept forwards: split along the diagonal from the first rest vertex to the second
+/// moved one where `first_is_lower`, else from the second rest vertex to the first moved
+/// one. Both walks of an edge (`p -> q` and `q -> p`) thus cut it along the same
+/// diagonal.
+pub fn swept_quad(rest: [u32; 2], moved: [u32; 2], first_is_lower: bool) -> [[u32; 3]; 2] {
+    let ([p, q], [pm, qm]) = (rest, moved);
+    if first_is_lower {
+        [[p, q, qm], [p, qm, pm]]
+    } else {
+        [[p, q, pm], [q, qm, pm]]
+    }
 }
 
 #[cfg(test)]
@@ -127,6 +145,45 @@ mod tests {
                 .collect();
             let volume = soup_volume_mm3(&swept_prisms(&rest, &moved, &triangles));
             assert!((volume - 150.0).abs() < 1e-9, "{volume} at {offset}");
+        }
+    }
+
+    /// In a twisted sweep (each corner moved a different way, also within the plane) the
+    /// quadrilaterals of the edge inside the rectangle cancel exactly, whichever way the
+    /// rectangle is cut into triangles: the soup's volume equals that of the moved
+    /// triangles, the reversed rest ones and the four boundary quadrilaterals alone,
+    /// built here by hand.
+    #[test]
+    fn a_twisted_sweep_does_not_depend_on_the_triangulation() {
+        let (rest, _) = rectangle();
+        let moved: Vec<DVec3> = (rest.iter().enumerate())
+            .map(|(k, &p)| {
+                p + DVec3::new(0.7 * k as f64, -0.4 * (k * k) as f64, 2.0 + 0.5 * k as f64)
+            })
+            .collect();
+        let cuts = [vec![[0, 1, 2], [0, 2, 3]], vec![[0, 1, 3], [1, 2, 3]]];
+        let volumes: Vec<f64> = cuts
+            .iter()
+            .map(|triangles| soup_volume_mm3(&swept_prisms(&rest, &moved, triangles)))
+            .collect();
+        let boundary_only = |triangles: &[[u32; 3]]| {
+            let mut soup = Vec::new();
+            for &[a, b, c] in triangles {
+                soup.push([a + 4, b + 4, c + 4]);
+                soup.push([a, c, b]);
+            }
+            for (p, q) in [(0u32, 1u32), (1, 2), (2, 3), (3, 0)] {
+                soup.extend(swept_quad([p, q], [p + 4, q + 4], p < q));
+            }
+            let positions = rest.iter().chain(&moved).copied().collect();
+            soup_volume_mm3(&TriMesh::new(positions, soup))
+        };
+        for (triangles, volume) in cuts.iter().zip(&volumes) {
+            let expected = boundary_only(triangles);
+            assert!(
+                (volume - expected).abs() < 1e-9,
+                "{volume} against {expected}"
+            );
         }
     }
 

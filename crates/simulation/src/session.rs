@@ -76,7 +76,7 @@ use crate::bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 use crate::carry::ScanCarry;
 use crate::error::SimulationError;
 use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap, SurfaceSmoother};
-use crate::over_implant::{swept_prisms, triangles_over_implant};
+use crate::over_implant::{swept_prisms, swept_quad, triangles_over_implant};
 use crate::placement::{Anchor, AnchorRule, Placement, anchor_on_floor, resolve_anchor};
 use crate::pocket::{
     FoldLowering, PocketBounds, PocketLimits, fold_lowest, native_fold_y_mm, nipple_of,
@@ -242,7 +242,7 @@ pub struct BreastVolume {
     /// pre-operative fill-in, which the implant does not move, joined to the moved cut
     /// curve by a strip. An implant lies in front of that wall whatever the curve does,
     /// so the breast gains the implant's volume less what it pushes beyond the curve.
-    /// Where the implant lies in a pocket beyond the native breast (below a lowered
+    /// Where the implant lies beyond the native breast (in a pocket below a lowered
     /// fold, beside a narrow breast), the chest skin over it is part of the breast after
     /// surgery: the volume that skin sweeps is added ([`crate::over_implant`]).
     pub volume_ml: f64,

@@ -149,7 +149,7 @@ impl SideCandidates {
 #[derive(Debug, Clone, Default)]
 pub struct ImplantTemplate {
     /// Implant (front) vertices with their displacement (mm): `z'` along the bed normal,
-    /// all scaled by one factor so that the implant elements gain the covered volume.
+    /// all scaled by one factor so that the fill-in elements gain the covered volume.
     pub implant_vertices: Vec<(u32, DVec3)>,
     /// Back vertices inside the footprint, fixed.
     pub fixed_vertices: Vec<u32>,
@@ -157,10 +157,10 @@ pub struct ImplantTemplate {
     pub implant_elements: Vec<u32>,
     /// Number of fill-in elements (crossing the bed).
     pub fill_in_elements: usize,
-    /// The volume the template alone adds to the implant elements (ml): the sum over
-    /// implant elements of deformed minus rest volume, with only the template's
-    /// displacements applied. [`ImplantTemplate::covered_volume_ml`] (within 1e-6) once
-    /// scaled; the unscaled gain where no factor reaches it.
+    /// The volume the template alone adds to the fill-in elements (ml): the sum over the
+    /// elements crossing the bed of deformed minus rest volume, with only the template's
+    /// displacements applied. [`ImplantTemplate::covered_volume_ml`] (within 1e-6 of it)
+    /// once scaled; less where the unscaled template already adds less.
     pub template_volume_ml: f64,
     /// The implant's volume over the part of its footprint the finest mesh reaches
     /// (ml; [`crate::template_volume`]): less than the implant's volume where the
@@ -494,7 +494,7 @@ pub fn build_template(
     let classes = classify(feet, anchor, thickness);
     let mut state = vec![0u8; classes.len()];
     let mut template = ImplantTemplate::default();
-    let fill_in_corners = mark_fill_in(candidates, &classes, hold_bed, &mut state, &mut template);
+    let fill_in = mark_fill_in(candidates, &classes, hold_bed, &mut state, &mut template);
     // the rest of the tissue layer up to `layer_mm` over the footprint moves with it
     for (k, class) in classes.iter().enumerate() {
         if let Class::Front(z, _, h) = *class
@@ -517,28 +517,37 @@ pub fn build_template(
     if template.implant_vertices.is_empty() {
         return Err(SimulationError::EmptyTemplate { side: feet.side });
     }
-    template.covered_volume_ml = covered_volume_ml(&fill_in_corners, feet, anchor, thickness);
-    template.template_volume_ml = scale_to_covered_volume(mesh, &mut template) / 1000.0;
+    template.covered_volume_ml = covered_volume_ml(&fill_in, feet, anchor, thickness);
+    let fill_in_elements: Vec<u32> = fill_in.iter().map(|&(t, _)| t).collect();
+    template.template_volume_ml =
+        scale_to_covered_volume(mesh, &fill_in_elements, &mut template) / 1000.0;
     Ok(template)
 }
 
-/// Scales the template's displacements by the factor at which its implant elements
-/// gain exactly [`ImplantTemplate::covered_volume_ml`], and returns that gain (mm³).
+/// Scales the template's displacements by the factor in (0, 1] at which the fill-in
+/// elements (`fill_in_elements`, those crossing the bed, over whose sections
+/// [`ImplantTemplate::covered_volume_ml`] integrates the implant) gain exactly the
+/// covered volume, and returns their gain (mm³).
 ///
 /// Why: the thickness is laid off along the normals of a bed curved like a chest, and
 /// the implant's coordinates are a linear map of the bed's cylinder coordinates, so
 /// unscaled the template inserts 1.1-1.2 times the implant's volume (docs/dev/
-/// volume-loss.md). The gain of the elements is a cubic in the factor (each element's
-/// volume is a determinant of its displaced edges); the secant method finds its root.
-/// A template that inserts nothing, or whose gain cannot reach the target, is left as
-/// it is.
-fn scale_to_covered_volume(mesh: &TetMesh, template: &mut ImplantTemplate) -> f64 {
+/// volume-loss.md). The gain is a cubic in the factor (each element's volume is a
+/// determinant of its displaced edges), zero at zero; the root in (0, 1] is bracketed
+/// and found by regula falsi with the Illinois modification. Where the unscaled
+/// template gains no more than the covered volume it is left as it is: the template
+/// never lays off more than the implant's thickness, which the unfolding checked.
+fn scale_to_covered_volume(
+    mesh: &TetMesh,
+    fill_in_elements: &[u32],
+    template: &mut ImplantTemplate,
+) -> f64 {
     let mut displacement = vec![DVec3::ZERO; mesh.positions.len()];
     for &(v, d) in &template.implant_vertices {
         displacement[v as usize] = d;
     }
     let gain_mm3 = |factor: f64| -> f64 {
-        (template.implant_elements.iter())
+        (fill_in_elements.iter())
             .map(|&t| {
                 let d = mesh.tets[t as usize].map(|v| displacement[v as usize] * factor);
                 let (rest, moved) = displaced_volumes(mesh, t, d);
@@ -548,32 +557,43 @@ fn scale_to_covered_volume(mesh: &TetMesh, template: &mut ImplantTemplate) -> f6
     };
     let target_mm3 = template.covered_volume_ml * 1000.0;
     let unscaled_mm3 = gain_mm3(1.0);
-    if unscaled_mm3 <= 0.0 || target_mm3 <= 0.0 {
+    if unscaled_mm3 <= target_mm3 || target_mm3 <= 0.0 {
         return unscaled_mm3;
     }
-    let (mut a, mut gain_a) = (1.0, unscaled_mm3);
-    let mut b = target_mm3 / unscaled_mm3;
-    let mut gain_b = gain_mm3(b);
+    // residuals gain - target: negative at 0, positive at 1
+    let (mut lo, mut lo_residual) = (0.0, -target_mm3);
+    let (mut hi, mut hi_residual) = (1.0, unscaled_mm3 - target_mm3);
+    let mut factor = 1.0;
+    let mut residual = hi_residual;
+    let mut last_side = 0i8;
     for _ in 0..SCALE_ITERATIONS {
-        if (gain_b - target_mm3).abs() <= SCALE_TOLERANCE * target_mm3 || gain_b == gain_a {
+        factor = (lo * hi_residual - hi * lo_residual) / (hi_residual - lo_residual);
+        residual = gain_mm3(factor) - target_mm3;
+        if residual.abs() <= SCALE_TOLERANCE * target_mm3 {
             break;
         }
-        let next = b - (gain_b - target_mm3) * (b - a) / (gain_b - gain_a);
-        (a, gain_a) = (b, gain_b);
-        b = next;
-        gain_b = gain_mm3(b);
-    }
-    if !(b.is_finite() && b > 0.0) || (gain_b - target_mm3).abs() > SCALE_TOLERANCE * target_mm3 {
-        return unscaled_mm3;
+        if residual < 0.0 {
+            (lo, lo_residual) = (factor, residual);
+            if last_side == -1 {
+                hi_residual *= 0.5;
+            }
+            last_side = -1;
+        } else {
+            (hi, hi_residual) = (factor, residual);
+            if last_side == 1 {
+                lo_residual *= 0.5;
+            }
+            last_side = 1;
+        }
     }
     for (_, d) in &mut template.implant_vertices {
-        *d *= b;
+        *d *= factor;
     }
-    gain_b
+    target_mm3 + residual
 }
 
-/// Most secant steps of [`scale_to_covered_volume`].
-const SCALE_ITERATIONS: usize = 20;
+/// Most steps of [`scale_to_covered_volume`].
+const SCALE_ITERATIONS: usize = 60;
 
 /// Relative tolerance of [`scale_to_covered_volume`]'s gain.
 const SCALE_TOLERANCE: f64 = 1e-6;
@@ -605,15 +625,15 @@ fn classify(feet: &BedFeet, anchor: &Anchor, thickness: &SmoothedThickness) -> V
 /// Marks the corners of the fill-in elements (crossing the bed) in `state`, displaced in
 /// front of the bed over the footprint, fixed behind it (with `hold_bed` outside the
 /// footprint too), and counts them and the implant elements into `template`. Returns the
-/// fill-in elements' corners.
+/// fill-in elements with their corners.
 fn mark_fill_in(
     candidates: &SideCandidates,
     classes: &[Class],
     hold_bed: bool,
     state: &mut [u8],
     template: &mut ImplantTemplate,
-) -> Vec<[u32; 4]> {
-    let mut fill_in_corners = Vec::new();
+) -> Vec<(u32, [u32; 4])> {
+    let mut fill_in = Vec::new();
     for &(t, corners) in &candidates.tets {
         let c = corners.map(|k| classes[k as usize]);
         if c.iter().any(|x| matches!(x, Class::Off)) {
@@ -624,7 +644,7 @@ fn mark_fill_in(
             continue;
         }
         template.fill_in_elements += 1;
-        fill_in_corners.push(corners);
+        fill_in.push((t, corners));
         let mut interior = 0;
         for (k, class) in corners.iter().zip(&c) {
             let s = &mut state[*k as usize];
@@ -650,7 +670,7 @@ fn mark_fill_in(
             template.implant_elements.push(t);
         }
     }
-    fill_in_corners
+    fill_in
 }
 
 /// Releases, in up to [`UNFOLD_PASSES`] passes, a template corner of each fully held
@@ -728,14 +748,14 @@ fn displaced_volumes(mesh: &TetMesh, t: u32, d: [DVec3; 4]) -> (f64, f64) {
 
 /// The implant's volume over the bed sections of the fill-in elements (ml).
 fn covered_volume_ml(
-    fill_in_corners: &[[u32; 4]],
+    fill_in: &[(u32, [u32; 4])],
     feet: &BedFeet,
     anchor: &Anchor,
     thickness: &SmoothedThickness,
 ) -> f64 {
-    fill_in_corners
+    fill_in
         .iter()
-        .filter_map(|corners: &[u32; 4]| {
+        .filter_map(|(_, corners)| {
             let feet = corners.map(|k| feet.feet[k as usize]);
             Some(bed_section_volume_mm3(
                 &[feet[0]?, feet[1]?, feet[2]?, feet[3]?],

@@ -104,10 +104,7 @@ fn run(name: &str) {
             "{name} {side}: {realised}"
         );
         assert!((added - v).abs() <= 0.10 * v, "{name} {side}");
-        // forwards by a good part of the projection: on homogeneous tissue the push
-        // spreads over the breast (v02_average with R-MOD-100, 28 mm: 8.1 mm since the
-        // template inserts the implant's volume rather than 1.1-1.2 times it)
-        assert!(d.z > 0.25 * shape.projection_mm(), "{name} {side}");
+        assert!(d.z > 0.3 * shape.projection_mm(), "{name} {side}");
     }
     assert!(report.implant.converged);
     // the criterion, kept by the inversion barrier and the template's unfolding

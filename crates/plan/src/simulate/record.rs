@@ -34,10 +34,9 @@ pub struct ImplantSummary {
     pub projection_mm: f64,
     pub volume_ml: f64,
     /// The volume the displacement template alone inserts into the finest mesh (ml: the
-    /// implant elements' growth with only the template's displacements applied), the
-    /// implant as the mesh resolves it: 0.92-1.07 times `volume_ml` on the phantom and
-    /// the shared scans with the implants of their tests, 0.89-0.91 for R-MOD-100 on
-    /// `pair1_pre`, nearly as wide as its breasts' base.
+    /// growth of the elements crossing the bed with only the template's displacements
+    /// applied): scaled to `covered_volume_ml`, less only where the unscaled template
+    /// already inserts less.
     pub template_volume_ml: f64,
     /// The implant's volume over the part of its footprint the finest mesh reaches (ml):
     /// less than `volume_ml` where the footprint lies beyond the model's side, where the
@@ -115,7 +114,7 @@ pub struct SkinReport {
     pub thickness_mm: f64,
 }
 
-/// The resistance to large volume loss ([`fem::CompressionPenalty`]).
+/// The resistance to volume loss ([`fem::CompressionPenalty`]).
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 pub struct CompressionPenaltyReport {
     pub onset_volume_ratio: f64,

@@ -98,8 +98,10 @@ pub(super) fn closed_volume(patch: &TriMesh, fill: &TriMesh) -> (f64, DVec3) {
 
 /// `fill` (its first `rim.len()` vertices its boundary loop) with a strip of triangles
 /// from that loop to `rim` (as many points, in the same order), oriented as `fill`: a
-/// surface whose boundary is `rim`.
-fn with_rim(fill: &TriMesh, rim: &[DVec3]) -> TriMesh {
+/// surface whose boundary is `rim`. `keys` number the loop's points (the base's vertex
+/// numbers): each quadrilateral of the strip is split as [`swept_quad`] splits the
+/// same edge, so it cancels exactly against the swept skin beside the loop.
+fn with_rim(fill: &TriMesh, rim: &[DVec3], keys: &[u32]) -> TriMesh {
     let n = rim.len() as u32;
     let first_rim = fill.positions.len() as u32;
     // whether the fill runs along its loop 0 -> 1 (else 1 -> 0)
@@ -110,8 +112,11 @@ fn with_rim(fill: &TriMesh, rim: &[DVec3]) -> TriMesh {
     let mut triangles = fill.triangles.clone();
     for i in 0..n {
         let j = (i + 1) % n;
-        let (o_i, o_j, m_i, m_j) = (i, j, first_rim + i, first_rim + j);
-        let quad = [[o_j, o_i, m_i], [o_j, m_i, m_j]];
+        let quad = swept_quad(
+            [j, i],
+            [first_rim + j, first_rim + i],
+            keys[j as usize] < keys[i as usize],
+        );
         triangles.extend(quad.map(|[a, b, c]| if forward { [a, b, c] } else { [a, c, b] }));
     }
     let positions = fill.positions.iter().chain(rim).copied().collect();
@@ -312,12 +317,14 @@ impl Simulation {
             let moved_loop: Vec<DVec3> = (data.base_loop.iter())
                 .map(|&v| base.positions[v as usize])
                 .collect();
-            let fill = with_rim(&data.fill, &moved_loop);
+            let fill = with_rim(&data.fill, &moved_loop, &data.base_loop);
             let volume_rebuilt_fill_ml = fill_hole(&base, &data.base_loop, &params)
                 .ok()
                 .map(|rebuilt| closed_volume(&patch, &rebuilt.mesh).0);
             let mut breast = closed_soup(&patch, &fill);
-            if let (Some(implant), Some(_)) = (&self.implants[s], &self.pocket_bounds[s]) {
+            // the chest skin over the implant beyond the native breast (none where the
+            // implant lies on the fill-in's bed, whose feet all lie inside the curve)
+            if let Some(implant) = &self.implants[s] {
                 let over = triangles_over_implant(
                     &self.base,
                     &self.beds[s],
@@ -371,7 +378,8 @@ mod tests {
         let top = corners.map(|p| p + lift);
         let patch = TriMesh::new(top.to_vec(), vec![[0, 1, 2], [0, 2, 3]]);
         let fill = TriMesh::new(corners.to_vec(), vec![[0, 1, 2], [0, 2, 3]]);
-        let (volume_ml, centre) = closed_volume(&patch, &with_rim(&fill, &top));
+        let keys = [0, 1, 2, 3];
+        let (volume_ml, centre) = closed_volume(&patch, &with_rim(&fill, &top, &keys));
         assert!((volume_ml - 1.4).abs() < 1e-12, "{volume_ml}");
         assert!(
             centre.distance(DVec3::new(10.0, 5.0, 3.5)) < 1e-9,
@@ -381,7 +389,7 @@ mod tests {
         let reversed = [corners[0], corners[3], corners[2], corners[1]];
         let fill = TriMesh::new(reversed.to_vec(), vec![[0, 2, 1], [0, 3, 2]]);
         let rim = reversed.map(|p| p + lift);
-        let (volume_ml, _) = closed_volume(&patch, &with_rim(&fill, &rim));
+        let (volume_ml, _) = closed_volume(&patch, &with_rim(&fill, &rim, &keys));
         assert!((volume_ml - 1.4).abs() < 1e-12, "{volume_ml}");
     }
 
