@@ -6,9 +6,10 @@
 //! 1. Fit the least-squares plane of the hole's boundary loop: centroid and smallest
 //!    eigenvector of the covariance, the normal turned towards the base's normals along
 //!    the loop; the in-plane `u` axis is the loop's principal direction. For a hole in a
-//!    torso (the caller gives the body's long axis) fit instead a cylinder about that
-//!    axis to the chest around the hole, and use it as the "plane": `u` runs round it,
-//!    `v` along it, `w` outwards.
+//!    torso (the caller gives the body's long axis) fit instead a cylinder to the chest
+//!    around the hole, about the chest's own axis near the body's (the direction its
+//!    normals vary least along), and use it as the "plane": `u` runs round it, `v` along
+//!    it, `w` outwards.
 //! 2. Project the loop onto the plane (cylinder), giving 2D coordinates `(u, v)` and a
 //!    height `w` per boundary vertex. Where the loop turns back on itself there,
 //!    straighten those `(u, v)` along the chord, moving no point by more than 0.45
@@ -37,6 +38,10 @@
 //!   the fill-in bulged forward (on the phantom up to 13 mm in front of the true chest
 //!   wall, the breast volume 26% low); over the fitted cylinder the same rows are gentle
 //!   (phantom: within 0.7 to 3.4 mm of the true wall, volumes within 2.3%).
+//! - The cylinder's axis is the chest's own, not the body's: about the sternum's
+//!   direction (leaning back some 25°) the axis came out through the chest below the
+//!   breast, within 0.1 to 0.4 radii of the cut curve on every realistic scan, and a
+//!   fill-in reaching it folded (docs/dev/fill-in-axis.md).
 //! - Each spline is the paper's 3D Hermite curve (in the lattice line's vertical plane,
 //!   unit base tangents scaled by the chord), but a lattice point takes the curve's height
 //!   where the curve passes over it rather than at its parameter value. Lattice points
@@ -153,8 +158,9 @@ pub struct FillInParams {
     /// along the loop; zero disables it.
     pub tangent_sigma_mm: f64,
     /// The body's long axis (any length), for holes in a torso. When set, the hole is
-    /// projected onto the cylinder about this axis that best fits the loop, rather than
-    /// onto the loop's plane; where that fit fails (a flat loop, a centre in front of the
+    /// projected onto the cylinder that best fits the chest around it, about the chest's
+    /// own axis within 45° of this one (else about this one), rather than onto the
+    /// loop's plane; where that fit fails (a flat loop, a centre in front of the
     /// surface) the plane is used.
     pub cylinder_axis: Option<DVec3>,
 }

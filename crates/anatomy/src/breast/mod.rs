@@ -492,7 +492,7 @@ pub fn build_breast_model(
 
     let base = cut_mesh.part(Region::Outside);
     let to_base = inverse_map(&base.vertex_map, cut_mesh.mesh.vertex_count());
-    // The chest wall behind a breast wraps around the body's long axis.
+    // The chest wall behind a breast wraps around an axis near the body's long axis.
     let fill_params = FillInParams {
         cylinder_axis: options.fill_in.cylinder_axis.or(Some(frame.up())),
         ..options.fill_in

@@ -48,6 +48,12 @@ const CYLINDER_BAND_MM: f64 = 40.0;
 /// not face it. Chests give 0.8 to 0.95.
 const MIN_OUTWARD_COSINE: f64 = 0.5;
 
+/// The cylinder's axis is the chest's own ([`chest_axis`]) when that lies within this
+/// angle (degrees) of the body's long axis, else the body's axis. Chests give 11 to 20°
+/// from the sternum (docs/dev/fill-in-axis.md); a direction further off is not the
+/// torso's wrap but a fold or a shoulder in the band.
+const MAX_AXIS_TILT_DEG: f64 = 45.0;
+
 impl Frame {
     /// Least-squares plane of the loop, its normal on the side of `reference_normal`.
     pub(super) fn fit(
@@ -114,29 +120,31 @@ impl Frame {
         })
     }
 
-    /// The cylinder about `axis` that the chest around the hole wraps around: an
-    /// algebraic (Kåsa) least-squares circle through the base vertices within
-    /// [`CYLINDER_BAND_MM`] of the loop's extent, seen along `axis`. The base right at
-    /// the loop is not enough: there it still curves round the breast's rim, which would
-    /// give a cylinder the size of the breast. `None` if the fit is ill-conditioned or the
-    /// base does not face away from the axis along the loop.
+    /// The cylinder the chest around the hole wraps around: its axis the chest's own
+    /// ([`chest_axis`]) near `body_axis`, its circle an algebraic (Kåsa) least-squares
+    /// circle through the base vertices within [`CYLINDER_BAND_MM`] of the loop's
+    /// extent, seen along that axis. The base right at the loop is not enough: there it
+    /// still curves round the breast's rim, which would give a cylinder the size of the
+    /// breast. `None` if the fit is ill-conditioned or the base does not face away from
+    /// the axis along the loop.
     pub(super) fn fit_cylinder(
         base: &TriMesh,
         loop_positions: &[DVec3],
         base_normals: &[DVec3],
-        axis: DVec3,
+        body_axis: DVec3,
     ) -> Option<Frame> {
-        let axis = axis.try_normalize()?;
+        let body_axis = body_axis.try_normalize()?;
         let weights = arc_length_weights(loop_positions);
         let total_weight: f64 = weights.iter().sum();
         let centroid = weighted_centroid(loop_positions, &weights)?;
-        let first = axis.any_orthonormal_vector();
-        let second = axis.cross(first);
-        let across = |p: DVec3| DVec2::new((p - centroid).dot(first), (p - centroid).dot(second));
         let loop_extent = loop_positions
             .iter()
             .map(|p| p.distance(centroid))
             .fold(0.0, f64::max);
+        let axis = chest_axis(base, centroid, loop_extent + CYLINDER_BAND_MM, body_axis);
+        let first = axis.any_orthonormal_vector();
+        let second = axis.cross(first);
+        let across = |p: DVec3| DVec2::new((p - centroid).dot(first), (p - centroid).dot(second));
         // Minimise sum (|q|² + D q.x + E q.y + F)² over (D, E, F): 3x3 normal equations.
         let (mut normal_matrix, mut right_side) = (DMat3::ZERO, DVec3::ZERO);
         let mut extent: f64 = 0.0;
@@ -243,5 +251,55 @@ impl Frame {
                 )
             }
         }
+    }
+}
+
+/// The axis the surface of `base` within `radius_mm` of `centre` wraps around: the
+/// direction its area-weighted normals vary least along, the smallest eigenvector of
+/// `sum a n nᵀ` (on a cylinder every normal is orthogonal to the axis), turned to
+/// `body_axis`'s side. The body's long axis is not the chest's: the sternum leans back
+/// some 25° from the vertical, and the ribcage narrows upwards, so a cylinder about the
+/// sternum's direction had its axis come out through the chest below the breast, where
+/// the fill-in's coordinates are singular. `body_axis` itself where the band has no
+/// triangles or its axis lies more than [`MAX_AXIS_TILT_DEG`] from `body_axis`.
+fn chest_axis(base: &TriMesh, centre: DVec3, radius_mm: f64, body_axis: DVec3) -> DVec3 {
+    let mut covariance = DMat3::ZERO;
+    // A triangle naming a vertex the base lacks gives no normal.
+    let corners = |t: &[u32; 3]| -> Option<[DVec3; 3]> {
+        let at = |v: u32| base.positions.get(v as usize).copied();
+        Some([at(t[0])?, at(t[1])?, at(t[2])?])
+    };
+    for [a, b, c] in base.triangles.iter().filter_map(corners) {
+        let in_band = (a + b + c).distance(3.0 * centre) <= 3.0 * radius_mm;
+        if !in_band {
+            continue;
+        }
+        let twice_area_normal = (b - a).cross(c - a);
+        let twice_area = twice_area_normal.length();
+        if twice_area > 0.0 && twice_area.is_finite() {
+            let n = twice_area_normal / twice_area;
+            covariance += DMat3::from_cols(n * n.x, n * n.y, n * n.z) * twice_area;
+        }
+    }
+    let matrix = Mat::<f64>::from_fn(3, 3, |i, j| covariance.col(j)[i]);
+    let Ok(eigen) = matrix.self_adjoint_eigen(Side::Lower) else {
+        return body_axis;
+    };
+    let vectors = eigen.U();
+    let smallest = DVec3::new(vectors[(0, 0)], vectors[(1, 0)], vectors[(2, 0)]);
+    let Some(axis) = smallest.try_normalize() else {
+        return body_axis;
+    };
+    let axis = if axis.dot(body_axis) < 0.0 {
+        -axis
+    } else {
+        axis
+    };
+    let has_band = covariance != DMat3::ZERO;
+    let near_body_axis = axis.dot(body_axis) >= MAX_AXIS_TILT_DEG.to_radians().cos();
+    if has_band && near_body_axis {
+        axis
+    } else {
+        body_axis
     }
 }

@@ -197,6 +197,41 @@ fn over_the_fitted_cylinder_a_chest_hole_is_filled_exactly() {
 }
 
 #[test]
+fn a_chest_leaning_away_from_the_body_axis_is_filled_about_its_own_axis() {
+    // The sternum leans back some 25° from the chest's own axis; given it as the body's
+    // axis, the fill-in must still find the chest (z) and fill it as exactly as above.
+    let lean = 25f64.to_radians();
+    let body_axis = DVec3::new(-lean.sin(), 0.0, lean.cos());
+    let (base, hole) = cut_hole(chest(), chest_centre(), |c| {
+        c.distance(chest_centre()) < 60.0
+    });
+    let loop_positions: Vec<DVec3> = hole.iter().map(|&v| base.positions[v as usize]).collect();
+    let normals: Vec<DVec3> = loop_positions
+        .iter()
+        .map(|&p| radial(p).normalize())
+        .collect();
+    let Some(Frame::Cylinder {
+        axes, radius_mm, ..
+    }) = Frame::fit_cylinder(&base, &loop_positions, &normals, body_axis)
+    else {
+        panic!("no cylinder fitted");
+    };
+    // The chest is a 256-gon: its facet normals lie exactly orthogonal to z, and the
+    // Kåsa circle through its vertices lies between the inscribed and circumscribed radii.
+    let axis_error_deg = axes.z_axis.angle_between(DVec3::Z).to_degrees();
+    assert!(axis_error_deg < 1e-6, "{axis_error_deg}");
+    assert!((radius_mm - CHEST_RADIUS_MM).abs() < 0.02, "{radius_mm}");
+    let params = FillInParams {
+        cylinder_axis: Some(body_axis),
+        ..params()
+    };
+    let fill = fill_hole(&base, &hole, &params).unwrap();
+    check_fill(&base, &hole, &fill, radial);
+    let max_deviation = max_chest_deviation(&fill);
+    assert!(max_deviation < 0.15, "{max_deviation}");
+}
+
+#[test]
 fn cylinder_coordinates_round_trip_and_give_the_surface_slopes() {
     let positions: Vec<DVec3> = (0..24)
         .map(|k| {
