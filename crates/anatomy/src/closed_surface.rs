@@ -280,7 +280,7 @@ pub enum ClosedSurfaceError {
         near_mm: [f64; 3],
     },
     #[error(
-        "{source} (the {side} clip plane, moved {moved_mm:.1} mm inwards, the least bad \
+        "{error} (the {side} clip plane, moved {moved_mm:.1} mm inwards, the least bad \
          position within 10 mm and short of the breast landmarks, still grazes the side of \
          the torso: {defects} loops or stray corners in its section, which runs \
          {excess_fold_mm:.1} mm further front to back than it should; check the scan's \
@@ -291,7 +291,9 @@ pub enum ClosedSurfaceError {
         moved_mm: f64,
         defects: usize,
         excess_fold_mm: f64,
-        source: Box<ClosedSurfaceError>,
+        /// The error of the box with that plane (its text is part of this one's, so it
+        /// is not a `source` a caller would print again).
+        error: Box<ClosedSurfaceError>,
     },
 }
 
@@ -310,7 +312,7 @@ impl ClosedSurfaceError {
             | ClosedSurfaceError::TooFewTriangles { .. }
             | ClosedSurfaceError::NotWatertight(_)
             | ClosedSurfaceError::WallInFront { .. } => None,
-            ClosedSurfaceError::OnGrazingPlane { source, .. } => source.place(),
+            ClosedSurfaceError::OnGrazingPlane { error, .. } => error.place(),
         }
     }
 }
@@ -392,15 +394,27 @@ pub fn build_closed_surface(
         &clip_box,
         options.rear_wall_offset_mm,
     )
-    .map_err(|error| match (0..2).find(|&k| !moves[k].is_clean()) {
-        Some(k) => ClosedSurfaceError::OnGrazingPlane {
-            side: SIDES[k],
-            moved_mm: moves[k].moved_mm,
-            defects: moves[k].defects,
-            excess_fold_mm: moves[k].excess_fold_mm,
-            source: Box::new(error),
-        },
-        None => error,
+    .map_err(|error| {
+        // The grazing plane is named only where it can be the cause: the plane on the
+        // error's side of the box, or either where the error has no place.
+        let on_side = |k: usize| match error.place() {
+            Some(place) => {
+                let local = frame.to_local(DVec3::from_array(place.centre_mm));
+                let middle = 0.5 * (clip_box.x_min_at(local.y) + clip_box.x_max_at(local.y));
+                (local.x < middle) == (k == 0)
+            }
+            None => true,
+        };
+        match (0..2).find(|&k| !moves[k].is_clean() && on_side(k)) {
+            Some(k) => ClosedSurfaceError::OnGrazingPlane {
+                side: SIDES[k],
+                moved_mm: moves[k].moved_mm,
+                defects: moves[k].defects,
+                excess_fold_mm: moves[k].excess_fold_mm,
+                error: Box::new(error),
+            },
+            None => error,
+        }
     })?;
     let keep: Vec<DVec3> = footprints.iter().map(|&p| frame.to_local(p)).collect();
     let room = lateral_room(&clip_box, &keep, frame, landmarks);

@@ -166,6 +166,9 @@ pub struct ImplantTemplate {
     /// (ml; [`crate::template_volume`]): less than the implant's volume where the
     /// footprint lies beyond a clip plane, where the scan ends.
     pub covered_volume_ml: f64,
+    /// The factor in (0, 1] the thicknesses along the bed's normals were scaled by to
+    /// insert the covered volume (1 where the unscaled template inserts no more).
+    pub scale: f64,
 }
 
 /// The implant's thickness mollified over a disc of radius `radius_mm` (mm): the
@@ -527,7 +530,8 @@ pub fn build_template(
 /// Scales the template's displacements by the factor in (0, 1] at which the fill-in
 /// elements (`fill_in_elements`, those crossing the bed, over whose sections
 /// [`ImplantTemplate::covered_volume_ml`] integrates the implant) gain exactly the
-/// covered volume, and returns their gain (mm³).
+/// covered volume, records the factor in [`ImplantTemplate::scale`], and returns their
+/// gain (mm³).
 ///
 /// Why: the thickness is laid off along the normals of a bed curved like a chest, and
 /// the implant's coordinates are a linear map of the bed's cylinder coordinates, so
@@ -557,6 +561,7 @@ fn scale_to_covered_volume(
     };
     let target_mm3 = template.covered_volume_ml * 1000.0;
     let unscaled_mm3 = gain_mm3(1.0);
+    template.scale = 1.0;
     if unscaled_mm3 <= target_mm3 || target_mm3 <= 0.0 {
         return unscaled_mm3;
     }
@@ -589,6 +594,7 @@ fn scale_to_covered_volume(
     for (_, d) in &mut template.implant_vertices {
         *d *= factor;
     }
+    template.scale = factor;
     target_mm3 + residual
 }
 

@@ -76,8 +76,10 @@ fn band_on_side(
             "on the {} plane {}",
             PLANE_NAMES[plane],
             defect.describe(
-                "the scan's cut curve and the shifted wall's cross",
-                "a point of the scan's cut curve coincides with one of the wall's"
+                "the skin's section and the section of the chest wall rebuilt behind it \
+                 cross (the skin there runs almost front to back, as under a hanging \
+                 breast or along the side of the torso)",
+                "a point of the skin's section coincides with one of the rebuilt chest wall's"
             )
         ),
         near_mm: defect.at().map(to_file),

@@ -38,6 +38,10 @@ pub struct ImplantSummary {
     /// applied): scaled to `covered_volume_ml`, less only where the unscaled template
     /// already inserts less.
     pub template_volume_ml: f64,
+    /// The factor in (0, 1] the template's thicknesses were scaled by to insert
+    /// `covered_volume_ml` (1: unscaled): how far the bed's curvature made the unscaled
+    /// template overshoot.
+    pub template_scale: f64,
     /// The implant's volume over the part of its footprint the finest mesh reaches (ml):
     /// less than `volume_ml` where the footprint lies beyond the model's side, where the
     /// scan ends; that part is left out of the prediction.
@@ -89,6 +93,7 @@ impl ImplantSummary {
             projection_mm: placed.shape.projection_mm(),
             volume_ml: placed.shape.volume_ml(),
             template_volume_ml: placed.template.template_volume_ml,
+            template_scale: placed.template.scale,
             covered_volume_ml: placed.template.covered_volume_ml,
             move_mm: request.move_mm.to_array(),
             rotation_deg: request.rotation_deg,
