@@ -4,11 +4,11 @@
 Usage: fill_in_axis.py MODEL_DIR LANDMARKS_JSON
 
 For each breast: the chest around the cut curve (the filled base's triangles outside
-the fill-in, within the loop's extent + 40 mm of its centroid), the axis its
+both fill-ins, within the loop's extent + 40 mm of its centroid), the axis its
 area-weighted normals vary least along, and a Kasa circle fitted about (a) the
 sternum's direction Px->Pj and (b) that axis. Prints the axis's angle from the
 sternum (its top tilted forward and outwards), and per axis the radius, the RMS
-radial residual of the band and the smallest distance of the cut curve from the axis
+radial residual of the band's vertices and the smallest distance of the cut curve from the axis
 as a fraction of the radius (near 0: the axis passes through the fill-in, whose
 cylinder coordinates are singular there). See docs/dev/fill-in-axis.md.
 """
@@ -85,15 +85,17 @@ def main(model_dir, landmarks_path):
     lateral /= np.linalg.norm(lateral)
     anterior = np.cross(lateral, sternum)
     base_v, base_f = read_ply(f"{model_dir}/filled_base.ply")
+    # The base as the fill-ins see it: the filled base without either fill-in (triangles
+    # with a corner inside a fill-in, not on its cut curve).
+    loops = {side: np.array([[float(x) for x in l.split()[1:4]]
+                             for l in open(f"{model_dir}/cut_curve_{side}.obj") if l.startswith("v ")])
+             for side in ("left", "right")}
+    in_fill = {tuple(p) for side in loops for p in read_ply(f"{model_dir}/fill_{side}.ply")[0].round(6)}
+    on_loop = {tuple(p) for side in loops for p in loops[side].round(6)}
+    interior = np.array([tuple(p) in in_fill and tuple(p) not in on_loop for p in base_v.round(6)])
+    faces = base_f[~interior[base_f].any(1)]
     for side, outwards in (("left", 1.0), ("right", -1.0)):
-        fill_v, _ = read_ply(f"{model_dir}/fill_{side}.ply")
-        loop = np.array([[float(x) for x in l.split()[1:4]]
-                         for l in open(f"{model_dir}/cut_curve_{side}.obj") if l.startswith("v ")])
-        in_fill = {tuple(p) for p in fill_v.round(6)}
-        interior = np.array([tuple(p) in in_fill for p in base_v.round(6)])
-        on_loop = {tuple(p) for p in loop.round(6)}
-        interior &= ~np.array([tuple(p) in on_loop for p in base_v.round(6)])
-        faces = base_f[~interior[base_f].any(1)]
+        loop = loops[side]
         seg = np.linalg.norm(np.roll(loop, -1, 0) - loop, axis=1)
         weights = 0.5 * (seg + np.roll(seg, 1))
         centroid = (loop * weights[:, None]).sum(0) / weights.sum()

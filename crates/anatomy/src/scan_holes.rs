@@ -3,8 +3,8 @@
 //! gap, a path on the raw mesh would have to go around it.
 //!
 //! Every boundary loop except the scan's outer border (the longest loop) is closed with
-//! a surface continuing the skin around it: the paper's fill-in over the body's cylinder
-//! or a plane ([`crate::fill_in`]; its tangents come from quadrics fitted to the rim, so
+//! a surface continuing the skin around it: the paper's fill-in over a cylinder about the
+//! chest's axis near the body's, or a plane ([`crate::fill_in`]; its tangents come from quadrics fitted to the rim, so
 //! it is the steadier on a noisy rim), or where that one refuses the loop or crosses the
 //! scan near the hole (a jagged rim), the 3D fill ([`mesh::hole_patch`]), which needs no
 //! projection and so also closes the crescent a standing scan leaves round a hanging
@@ -55,7 +55,8 @@ pub struct ClosedScan {
 /// fill-in of `params`. Give the body's long axis as `params.cylinder_axis` where it is
 /// known: the hole a standing scan leaves under a full breast is a crescent wrapped round
 /// the lower pole, whose two rims overlap seen from its own best-fit plane but not seen
-/// from the body's axis.
+/// from an axis near the body's (the surface's own where the skin around the hole
+/// determines one, else the body's: round a breast's dome it does not).
 pub fn close_scan_holes(scan: &TriMesh, topology: &Topology, params: &FillInParams) -> ClosedScan {
     let mut loops: Vec<(f64, Vec<u32>)> = topology
         .boundary_loops(scan)

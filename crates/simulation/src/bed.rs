@@ -3,10 +3,12 @@
 //! (Mercator-like) parameterisation.
 //!
 //! # Parameterisation
-//! The fill-ins were built over a cylinder about the body's long axis (anatomy's
-//! `fill_in`), and a chest is close to such a cylinder. [`ChestCylinder::fit`] fits one
-//! cylinder to both fill-ins (axis along the anatomical frame's `y`, a Kåsa least-squares
-//! circle across it). A point `p` gets cylindrical coordinates `(u, v, w)`:
+//! A chest is close to a cylinder about the body's long axis. [`ChestCylinder::fit`]
+//! fits one cylinder to both fill-ins (axis along the anatomical frame's `y`, the
+//! sternum's direction, a Kåsa least-squares circle across it). The fill-ins themselves
+//! were built over a cylinder per breast about the chest's own axis, 11 to 20° from the
+//! sternum's (anatomy's `fill_in`), so a fill-in is not exactly a graph over this one;
+//! where it folds over seen from it, the bed is fitted to that fill-in alone. A point `p` gets cylindrical coordinates `(u, v, w)`:
 //! `u = R θ` (arc length at the cylinder's radius `R`, `θ` the angle about the axis from
 //! the anterior direction, growing towards the patient's left), `v` the height along
 //! the axis, `w` the radial distance minus `R`. The bed is a graph `w = w_bed(u, v)` over

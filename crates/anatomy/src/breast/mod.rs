@@ -151,7 +151,8 @@ pub struct BreastOptions {
     /// Distance between spline samples (mm).
     pub sample_spacing_mm: f64,
     /// Parameters of the fill-ins behind the breasts. Unless `cylinder_axis` is set, the
-    /// fill-ins are built over a cylinder about the anatomical frame's `y` axis.
+    /// fill-ins are built over a cylinder about the chest's own axis near the anatomical
+    /// frame's `y` axis (the sternum's direction).
     pub fill_in: FillInParams,
     /// The user's control points; `None`: the defaults from the landmarks.
     pub control_points: Option<ControlPoints>,

@@ -20,8 +20,8 @@ pub(super) enum Frame {
         /// Columns: the `u` axis (the loop's principal direction), `v`, and the normal.
         axes: DMat3,
     },
-    /// A cylinder about the body's long axis: `u` runs around it (arc length at the
-    /// radius), `v` along it, `w` outwards from it.
+    /// A cylinder about the chest's axis (near the body's long axis): `u` runs around it
+    /// (arc length at the radius), `v` along it, `w` outwards from it.
     Cylinder {
         /// A point on the axis (mm).
         centre: DVec3,
@@ -48,11 +48,21 @@ const CYLINDER_BAND_MM: f64 = 40.0;
 /// not face it. Chests give 0.8 to 0.95.
 const MIN_OUTWARD_COSINE: f64 = 0.5;
 
-/// The cylinder's axis is the chest's own ([`chest_axis`]) when that lies within this
-/// angle (degrees) of the body's long axis, else the body's axis. Chests give 11 to 20°
-/// from the sternum (docs/dev/fill-in-axis.md); a direction further off is not the
-/// torso's wrap but a fold or a shoulder in the band.
+/// The cylinder's axis is the chest's own ([`chest_axis`]) up to this angle (degrees)
+/// from the body's long axis, turning to the body's axis from there to
+/// [`MAX_AXIS_TILT_DEG`]. Chests give 11 to 20° from the sternum
+/// (docs/dev/fill-in-axis.md); a direction further off is not the torso's wrap but a
+/// fold or a shoulder in the band.
+const FULL_AXIS_TILT_DEG: f64 = 30.0;
+/// Beyond this angle (degrees) from the body's axis the chest's own axis is not used.
 const MAX_AXIS_TILT_DEG: f64 = 45.0;
+/// The chest's axis is determined where the normals' smallest variance is well below
+/// the next, `λ₀ / λ₁` at most this (chests: 0.2 to 0.5); it gives way to the body's
+/// axis from there to [`MAX_EIGENVALUE_RATIO`], where a dome or a flat band leaves the
+/// direction free within a plane.
+const FULL_EIGENVALUE_RATIO: f64 = 0.6;
+/// At or beyond this `λ₀ / λ₁` the body's axis is used.
+const MAX_EIGENVALUE_RATIO: f64 = 0.8;
 
 impl Frame {
     /// Least-squares plane of the loop, its normal on the side of `reference_normal`.
@@ -260,9 +270,11 @@ impl Frame {
 /// `body_axis`'s side. The body's long axis is not the chest's: the sternum leans back
 /// some 25° from the vertical, and the ribcage narrows upwards, so a cylinder about the
 /// sternum's direction had its axis come out through the chest below the breast, where
-/// the fill-in's coordinates are singular. `body_axis` itself where the band has no
-/// triangles or its axis lies more than [`MAX_AXIS_TILT_DEG`] from `body_axis`.
-fn chest_axis(base: &TriMesh, centre: DVec3, radius_mm: f64, body_axis: DVec3) -> DVec3 {
+/// the fill-in's coordinates are singular. Where the direction is poorly determined
+/// ([`MAX_EIGENVALUE_RATIO`]) or far from `body_axis` ([`MAX_AXIS_TILT_DEG`]) it turns
+/// continuously into `body_axis`, so a small change of the band never flips the fill-in;
+/// `body_axis` itself where the band has no triangles.
+pub(super) fn chest_axis(base: &TriMesh, centre: DVec3, radius_mm: f64, body_axis: DVec3) -> DVec3 {
     let mut covariance = DMat3::ZERO;
     // A triangle naming a vertex the base lacks gives no normal.
     let corners = |t: &[u32; 3]| -> Option<[DVec3; 3]> {
@@ -285,6 +297,7 @@ fn chest_axis(base: &TriMesh, centre: DVec3, radius_mm: f64, body_axis: DVec3) -
     let Ok(eigen) = matrix.self_adjoint_eigen(Side::Lower) else {
         return body_axis;
     };
+    let eigenvalues = eigen.S().column_vector();
     let vectors = eigen.U();
     let smallest = DVec3::new(vectors[(0, 0)], vectors[(1, 0)], vectors[(2, 0)]);
     let Some(axis) = smallest.try_normalize() else {
@@ -295,11 +308,22 @@ fn chest_axis(base: &TriMesh, centre: DVec3, radius_mm: f64, body_axis: DVec3) -
     } else {
         axis
     };
-    let has_band = covariance != DMat3::ZERO;
-    let near_body_axis = axis.dot(body_axis) >= MAX_AXIS_TILT_DEG.to_radians().cos();
-    if has_band && near_body_axis {
-        axis
+    let tilt_deg = axis.angle_between(body_axis).to_degrees();
+    let ratio = eigenvalues[0] / eigenvalues[1];
+    let weight = falling_ramp(tilt_deg, FULL_AXIS_TILT_DEG, MAX_AXIS_TILT_DEG)
+        * falling_ramp(ratio, FULL_EIGENVALUE_RATIO, MAX_EIGENVALUE_RATIO);
+    body_axis
+        .lerp(axis, weight)
+        .try_normalize()
+        .unwrap_or(body_axis)
+}
+
+/// 1 up to `full`, 0 from `none` on, a smoothstep between; 0 for NaN.
+fn falling_ramp(x: f64, full: f64, none: f64) -> f64 {
+    let t = ((none - x) / (none - full)).clamp(0.0, 1.0);
+    if t.is_nan() {
+        0.0
     } else {
-        body_axis
+        t * t * (3.0 - 2.0 * t)
     }
 }

@@ -218,8 +218,8 @@ fn a_chest_leaning_away_from_the_body_axis_is_filled_about_its_own_axis() {
     };
     // The chest is a 256-gon: its facet normals lie exactly orthogonal to z, and the
     // Kåsa circle through its vertices lies between the inscribed and circumscribed radii.
-    let axis_error_deg = axes.z_axis.angle_between(DVec3::Z).to_degrees();
-    assert!(axis_error_deg < 1e-6, "{axis_error_deg}");
+    let axis_error = axes.z_axis.cross(DVec3::Z).length();
+    assert!(axis_error < 1e-9, "{axis_error}");
     assert!((radius_mm - CHEST_RADIUS_MM).abs() < 0.02, "{radius_mm}");
     let params = FillInParams {
         cylinder_axis: Some(body_axis),
@@ -229,6 +229,33 @@ fn a_chest_leaning_away_from_the_body_axis_is_filled_about_its_own_axis() {
     check_fill(&base, &hole, &fill, radial);
     let max_deviation = max_chest_deviation(&fill);
     assert!(max_deviation < 0.15, "{max_deviation}");
+}
+
+#[test]
+fn the_chest_axis_gives_way_to_the_body_axis_where_it_is_undetermined_or_far() {
+    use super::frame::chest_axis;
+    let turned = |mesh: TriMesh, angle_deg: f64| {
+        let rotation = glam::DQuat::from_rotation_y(angle_deg.to_radians());
+        TriMesh::new(
+            mesh.positions.iter().map(|&p| rotation * p).collect(),
+            mesh.triangles,
+        )
+    };
+    let axis_of = |mesh: &TriMesh| chest_axis(mesh, DVec3::ZERO, 1e4, DVec3::Z);
+    let off_z = |axis: DVec3| axis.cross(DVec3::Z).length();
+    // A cylinder about z turned by 20° about y: its own axis, exactly (every facet
+    // normal is orthogonal to it).
+    let tilted = axis_of(&turned(chest(), 20.0));
+    let expected = glam::DQuat::from_rotation_y(20f64.to_radians()) * DVec3::Z;
+    assert!(tilted.cross(expected).length() < 1e-9, "{tilted}");
+    // Turned by 60°, beyond the 45° limit: the body's axis.
+    assert!(off_z(axis_of(&turned(chest(), 60.0))) < 1e-12);
+    // A sphere's normals vary alike in every direction (λ₀/λ₁ near 1), a plane's not at
+    // all (both zero): no axis to fit, the body's.
+    assert!(off_z(axis_of(&icosphere(100.0, 3))) < 1e-12);
+    assert!(off_z(axis_of(&grid(6, 6, 10.0))) < 1e-12);
+    // No triangles within reach: the body's.
+    assert!(off_z(chest_axis(&chest(), DVec3::splat(1e6), 10.0, DVec3::Z)) < 1e-12);
 }
 
 #[test]
