@@ -268,9 +268,9 @@ impl Frame {
 /// direction its area-weighted normals vary least along, the smallest eigenvector of
 /// `sum a n nᵀ` (on a cylinder every normal is orthogonal to the axis), turned to
 /// `body_axis`'s side. The body's long axis is not the chest's: the sternum leans back
-/// some 25° from the vertical, and the ribcage narrows upwards, so a cylinder about the
-/// sternum's direction had its axis come out through the chest below the breast, where
-/// the fill-in's coordinates are singular. Where the direction is poorly determined
+/// some 25° from the vertical and the chest widens towards the armpits, so a cylinder
+/// about the sternum's direction had its axis come out through the chest below the
+/// breast, where the fill-in's coordinates are singular. Where the direction is poorly determined
 /// ([`MAX_EIGENVALUE_RATIO`]) or far from `body_axis` ([`MAX_AXIS_TILT_DEG`]) it turns
 /// continuously into `body_axis`, so a small change of the band never flips the fill-in;
 /// `body_axis` itself where the band has no triangles.
