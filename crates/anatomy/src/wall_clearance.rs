@@ -8,11 +8,13 @@
 //! the scan's inward normal at their nearest scan point, towards the clearance behind the
 //! scan, for a bounded number of rounds (what is still too close is reported); the push
 //! is smoothed over some ten rings of the wall so it bends rather than dents, and cut back
-//! (or, at the clip planes, evened) where it would turn a wall triangle over. A wall with
+//! (or, at the clip planes, evened) where it would turn a wall triangle over or fold the
+//! wall's border back on a clip plane. A wall with
 //! no vertex too close stays exactly the translated copy.
 
 use glam::DVec3;
 use mesh::{SurfaceIndex, Topology, TriMesh};
+use std::collections::HashMap;
 
 /// Rounds of push and check.
 const ROUNDS: usize = 8;
@@ -31,6 +33,13 @@ const MAX_HALVINGS: u32 = 6;
 pub(crate) struct FixedAxes {
     pub x: bool,
     pub y: bool,
+}
+
+impl FixedAxes {
+    /// Whether the vertex lies on a clip plane.
+    fn on_a_plane(self) -> bool {
+        self.x || self.y
+    }
 }
 
 /// What [`keep_wall_clear`] did.
@@ -127,7 +136,7 @@ pub(crate) fn keep_wall_clear(
                 };
             }
         }
-        without_turning_over(wall, fixed, &mut push);
+        without_turning_over(wall, &start, fixed, &mut push);
         candidates.clear();
         for (v, p) in push.iter().enumerate() {
             if *p != DVec3::ZERO {
@@ -163,13 +172,20 @@ pub(crate) fn keep_wall_clear(
 ///   push would move against its own keeps its own. Each vertex is evened so once;
 ///   only then are border corners halved: the wall's border must stay behind the
 ///   scan's, or the band between them on the plane crosses itself.
+/// - A border edge on a clip plane that the pushes, with those of the rounds before,
+///   reverse against its direction in `start` (the wall before any push): the wall's
+///   section on the plane folds back there, where it runs front to back and neighbouring
+///   pushes differ. Its ends are treated as the border corners of a turned triangle.
+///   Judged against `start`, not the round's positions, since rounds each turning a
+///   short edge by less than a right angle add up to a fold.
 ///
 /// Terminates: a pass that evens marks at least one vertex evened for the first time
 /// (at most one such pass per vertex), and between those passes every pass halves or
 /// drops a push, each push at most `MAX_HALVINGS + 1` times.
-fn without_turning_over(wall: &TriMesh, fixed: &[FixedAxes], push: &mut [DVec3]) {
-    let on_plane = |v: usize| fixed[v].x || fixed[v].y;
+fn without_turning_over(wall: &TriMesh, start: &[DVec3], fixed: &[FixedAxes], push: &mut [DVec3]) {
+    let on_plane = |v: usize| fixed[v].on_a_plane();
     let normal = |corners: [DVec3; 3]| (corners[1] - corners[0]).cross(corners[2] - corners[0]);
+    let border_edges = border_edges_on_planes(wall, fixed);
     let mut halvings = vec![0; push.len()];
     let mut evened = vec![false; push.len()];
     loop {
@@ -195,6 +211,25 @@ fn without_turning_over(wall: &TriMesh, fixed: &[FixedAxes], push: &mut [DVec3])
                     to_even.push(corners.to_vec());
                 } else {
                     turned.extend(pushed);
+                }
+            }
+        }
+        // A border edge on a clip plane that the pushes reverse folds the wall's section
+        // on that plane (its neighbours' pushes differ across a section running front
+        // to back, under a hanging breast), and the band stitched to it crosses itself:
+        // treated as a triangle turned by its border corners alone.
+        for &[a, b] in &border_edges {
+            if push[a] == DVec3::ZERO && push[b] == DVec3::ZERO {
+                continue;
+            }
+            let before = start[b] - start[a];
+            let after = wall.positions[b] + push[b] - wall.positions[a] - push[a];
+            if before.dot(after) < 0.0 {
+                let ends = [a, b];
+                if ends.iter().any(|&v| !evened[v]) && !all_equal(&ends, push) {
+                    to_even.push(ends.to_vec());
+                } else {
+                    turned.extend(ends.into_iter().filter(|&v| push[v] != DVec3::ZERO));
                 }
             }
         }
@@ -238,6 +273,27 @@ fn without_turning_over(wall: &TriMesh, fixed: &[FixedAxes], push: &mut [DVec3])
             }
         }
     }
+}
+
+/// The edges of `wall` on its border (in one triangle only) whose ends both lie on a
+/// clip plane (any of `fixed`).
+fn border_edges_on_planes(wall: &TriMesh, fixed: &[FixedAxes]) -> Vec<[usize; 2]> {
+    let on_plane = |v: usize| fixed[v].on_a_plane();
+    let mut uses: HashMap<[usize; 2], u32> = HashMap::new();
+    for triangle in &wall.triangles {
+        for k in 0..3 {
+            let (a, b) = (triangle[k] as usize, triangle[(k + 1) % 3] as usize);
+            *uses.entry([a.min(b), a.max(b)]).or_default() += 1;
+        }
+    }
+    let mut edges: Vec<[usize; 2]> = uses
+        .into_iter()
+        .filter(|&([a, b], count)| count == 1 && on_plane(a) && on_plane(b))
+        .map(|(edge, _)| edge)
+        .collect();
+    // The map's order is arbitrary; the evening below depends on the order it meets edges.
+    edges.sort_unstable();
+    edges
 }
 
 /// Whether the pushes of `vertices` are all the same.
@@ -350,7 +406,7 @@ mod tests {
         let mut push = vec![DVec3::ZERO; wall.vertex_count()];
         push[centre] = DVec3::new(2.5, 0.0, 0.0);
         let fixed = vec![FixedAxes::default(); wall.vertex_count()];
-        without_turning_over(&wall, &fixed, &mut push);
+        without_turning_over(&wall, &wall.positions, &fixed, &mut push);
         assert_eq!(push[centre], DVec3::new(0.625, 0.0, 0.0));
         assert!(
             push.iter()
@@ -387,7 +443,7 @@ mod tests {
         push[low] = longer;
         push[high] = DVec3::new(0.0, 0.1, -0.3);
         assert!(turned_over(&wall, &moved(&wall, &push)) > 0);
-        without_turning_over(&wall, &fixed, &mut push);
+        without_turning_over(&wall, &wall.positions, &fixed, &mut push);
         assert_eq!(push[low], longer);
         assert_eq!(push[high], longer);
         assert!(
@@ -416,8 +472,40 @@ mod tests {
         let border_push = DVec3::new(0.0, 0.0, 0.8);
         let mut push = vec![border_push, border_push, DVec3::ZERO];
         assert_eq!(turned_over(&wall, &moved(&wall, &push)), 1);
-        without_turning_over(&wall, &fixed, &mut push);
+        without_turning_over(&wall, &wall.positions, &fixed, &mut push);
         assert_eq!(push, vec![border_push; 3]);
+    }
+
+    /// A border edge on a lateral clip plane (x fixed), 1 mm long, whose first corner is
+    /// pushed 1.5 mm along it past the second: the wall's section on the plane folds
+    /// back (on s04 with jittered landmarks the band stitched to it then crossed itself)
+    /// while the inner corner's own push keeps the triangle from turning over, so only
+    /// the edge shows it. Its corners move as one, by the longer push (exactly), and the
+    /// edge keeps its direction.
+    #[test]
+    fn a_border_edge_folded_back_by_the_push_moves_as_one() {
+        let wall = TriMesh::new(
+            vec![
+                DVec3::ZERO,
+                DVec3::new(0.0, 1.0, 0.0),
+                DVec3::new(0.2, 0.5, -1.0),
+            ],
+            vec![[0, 1, 2]],
+        );
+        let on_plane = FixedAxes { x: true, y: false };
+        let fixed = [on_plane, on_plane, FixedAxes::default()];
+        let longer = DVec3::new(0.0, 1.5, 0.0);
+        let mut push = vec![longer, DVec3::ZERO, DVec3::new(0.0, 0.0, 1.2)];
+        let edge = |p: &[DVec3]| p[1] - p[0];
+        let raw = moved(&wall, &push);
+        assert_eq!(turned_over(&wall, &raw), 0);
+        assert!(edge(&raw).dot(edge(&wall.positions)) < 0.0);
+        without_turning_over(&wall, &wall.positions, &fixed, &mut push);
+        assert_eq!(push[0], longer);
+        assert_eq!(push[1], longer);
+        let after = moved(&wall, &push);
+        assert_eq!(edge(&after), edge(&wall.positions));
+        assert_eq!(turned_over(&wall, &after), 0);
     }
 
     /// The wall's positions moved by `push`.
