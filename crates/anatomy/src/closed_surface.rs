@@ -279,22 +279,42 @@ pub enum ClosedSurfaceError {
         what: &'static str,
         near_mm: [f64; 3],
     },
-    #[error(
-        "{error} (the {side} clip plane, moved {moved_mm:.1} mm inwards, the least bad \
-         position within 10 mm and short of the breast landmarks, still grazes the side of \
-         the torso: {defects} loops or stray corners in its section, which runs \
-         {excess_fold_mm:.1} mm further front to back than it should; check the scan's \
-         side there)"
-    )]
+    #[error("{error} ({})", grazing.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
     OnGrazingPlane {
-        side: &'static str,
-        moved_mm: f64,
-        defects: usize,
-        excess_fold_mm: f64,
+        /// The planes that could not be cleared and may cause `error`: the one on its
+        /// side of the box, or both where it has no place.
+        grazing: Vec<GrazingPlane>,
         /// The error of the box with that plane (its text is part of this one's, so it
         /// is not a `source` a caller would print again).
         error: Box<ClosedSurfaceError>,
     },
+}
+
+/// A lateral clip plane that [`build_closed_surface`] could not move off a graze of the
+/// torso's side.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GrazingPlane {
+    /// "right" or "left".
+    pub side: &'static str,
+    /// How far it was moved inwards (mm).
+    pub moved_mm: f64,
+    /// Loops and stray corners left in its sections.
+    pub defects: usize,
+    /// How far its section's depth spread exceeds the bound (mm).
+    pub excess_fold_mm: f64,
+}
+
+impl std::fmt::Display for GrazingPlane {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "the {} clip plane, moved {:.1} mm inwards, the least bad position within 10 mm \
+             and short of the breast landmarks, still grazes the side of the torso: {} loops \
+             or stray corners in its section, which runs {:.1} mm further front to back than \
+             it should; check the scan's side there",
+            self.side, self.moved_mm, self.defects, self.excess_fold_mm
+        )
+    }
 }
 
 impl ClosedSurfaceError {
@@ -395,8 +415,8 @@ pub fn build_closed_surface(
         options.rear_wall_offset_mm,
     )
     .map_err(|error| {
-        // The grazing plane is named only where it can be the cause: the plane on the
-        // error's side of the box, or either where the error has no place.
+        // A grazing plane is named only where it can be the cause: the plane on the
+        // error's side of the box, or both where the error has no place.
         let on_side = |k: usize| match error.place() {
             Some(place) => {
                 let local = frame.to_local(DVec3::from_array(place.centre_mm));
@@ -405,15 +425,22 @@ pub fn build_closed_surface(
             }
             None => true,
         };
-        match (0..2).find(|&k| !moves[k].is_clean() && on_side(k)) {
-            Some(k) => ClosedSurfaceError::OnGrazingPlane {
+        let grazing: Vec<GrazingPlane> = (0..2)
+            .filter(|&k| !moves[k].is_clean() && on_side(k))
+            .map(|k| GrazingPlane {
                 side: SIDES[k],
                 moved_mm: moves[k].moved_mm,
                 defects: moves[k].defects,
                 excess_fold_mm: moves[k].excess_fold_mm,
+            })
+            .collect();
+        if grazing.is_empty() {
+            error
+        } else {
+            ClosedSurfaceError::OnGrazingPlane {
+                grazing,
                 error: Box::new(error),
-            },
-            None => error,
+            }
         }
     })?;
     let keep: Vec<DVec3> = footprints.iter().map(|&p| frame.to_local(p)).collect();

@@ -19,8 +19,8 @@ pub use breast::{
     build_breast_model,
 };
 pub use closed_surface::{
-    ClipBox, ClipBoxFit, ClosedSurface, ClosedSurfaceError, ClosedSurfaceOptions, SurfaceRole,
-    build_closed_surface, build_closed_surface_in_box,
+    ClipBox, ClipBoxFit, ClosedSurface, ClosedSurfaceError, ClosedSurfaceOptions, GrazingPlane,
+    SurfaceRole, build_closed_surface, build_closed_surface_in_box,
 };
 pub use fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
 pub use frame::{AnatomicalFrame, FrameError, SideError, Up, UpSource};

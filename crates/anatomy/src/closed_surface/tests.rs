@@ -291,3 +291,28 @@ fn a_section_that_crosses_itself_is_refused_where_it_does() {
         "{error}"
     );
 }
+
+/// A box error with no place, both lateral planes left grazing: both are named, each
+/// with its own figures, and the box's error is said once.
+#[test]
+fn an_error_with_no_place_names_both_grazing_planes() {
+    let plane = |side, moved_mm| GrazingPlane {
+        side,
+        moved_mm,
+        defects: 2,
+        excess_fold_mm: 1.5,
+    };
+    let error = ClosedSurfaceError::OnGrazingPlane {
+        grazing: vec![plane("right", 10.0), plane("left", 4.5)],
+        error: Box::new(ClosedSurfaceError::WallInFront { volume_ml: -3.0 }),
+    };
+    let text = error.to_string();
+    assert!(
+        text.contains("the right clip plane, moved 10.0 mm"),
+        "{text}"
+    );
+    assert!(text.contains("the left clip plane, moved 4.5 mm"), "{text}");
+    let inner = ClosedSurfaceError::WallInFront { volume_ml: -3.0 }.to_string();
+    assert_eq!(text.matches(inner.as_str()).count(), 1, "{text}");
+    assert_eq!(error.place(), None);
+}
