@@ -186,10 +186,11 @@ pub(crate) fn keep_wall_clear(
 ///   them on the plane crosses itself.
 /// - A border edge on a clip plane that leaves a right angle or more from its direction
 ///   before any push ([`PlaneBorder`]): the wall's section on the plane folds back there,
-///   and the band stitched to it crosses itself. Its ends are treated as the border
-///   corners of a turned triangle. Triangles are judged against the round's positions,
-///   edges against the wall before any round: rounds each turning a short edge by less
-///   than a right angle add up to a fold.
+///   and the band stitched to it crosses itself. Its ends move as one, by the longer
+///   of their pushes, if neither has been evened yet; else both are halved. Triangles
+///   are judged against the round's positions, edges against the wall before any
+///   round: rounds each turning a short edge by less than a right angle add up to a
+///   fold.
 ///
 /// Terminates: a pass that evens marks at least one vertex evened for the first time
 /// (at most one such pass per vertex; it may push again a vertex evened or dropped
@@ -215,7 +216,15 @@ fn without_turning_over(
             }
             let direction = wall.positions[b] + push[b] - wall.positions[a] - push[a];
             if start_direction.dot(direction) <= 0.0 {
-                culprits.border_group(&ends, &ends, push, &evened);
+                // Evened once: evening again would carry the longest push along the
+                // border edge by edge and shear the wall beside it.
+                if ends.iter().any(|&v| evened[v]) {
+                    culprits
+                        .turned
+                        .extend(ends.into_iter().filter(|&v| push[v] != DVec3::ZERO));
+                } else {
+                    culprits.border_group(&ends, &ends, push, &evened);
+                }
             }
         }
         let Culprits { turned, to_even } = culprits;
