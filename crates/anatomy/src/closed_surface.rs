@@ -36,7 +36,9 @@
 //!    its border on the same four planes. Where the scan runs almost parallel to that
 //!    axis (the underside of a hanging breast), the translated wall stays too close to
 //!    it; there its vertices are pushed further in along the scan's inward normal until
-//!    they lie a fifth of the offset behind it (`wall_clearance.rs`). Its
+//!    they lie a fifth of the offset behind it (`wall_clearance.rs`; a push is cut
+//!    back where it would turn a wall triangle over or fold the wall's border back on
+//!    a clip plane). Its
 //!    orientation is reversed (if needed, judged by the winding of its border against
 //!    the scan's) so it faces posteriorly.
 //! 4. Stitching: both borders are split at their corners into four sides; each side of
