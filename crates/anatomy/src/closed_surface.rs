@@ -59,7 +59,7 @@
 //!    closed loop and does not run front to back along an overhang, and the base's and
 //!    the scan's sections cross the top and bottom heights once
 //!    (`lateral_section.rs`). The surface is then built once; an error is that box's
-//!    (with the plane's remaining defects, if it could not be cleared). The box is the
+//!    (with the remaining defects of each plane that could not be cleared). The box is the
 //!    fitted one or, without `fit_lateral_planes`, the upright one; if the fit itself
 //!    fails (a breast landmark outside what the scan allows), that is the error.
 //!
@@ -98,7 +98,7 @@ use crate::place::Place;
 use clip::ClippedPart;
 use clip_box::{lateral_room, upright_box};
 use glam::DVec3;
-use lateral_section::clear_of_grazing;
+use lateral_section::{MAX_INWARD_MM, clear_of_grazing};
 use mesh::{
     ManifoldReport, MeshError, Topology, TriMesh, manifold_report, smooth_inside_borders, untangle,
 };
@@ -281,10 +281,10 @@ pub enum ClosedSurfaceError {
         what: &'static str,
         near_mm: [f64; 3],
     },
-    #[error("{error} ({})", grazing.iter().map(ToString::to_string).collect::<Vec<_>>().join("; "))]
+    #[error("{error} ({})", describe_grazing(grazing))]
     OnGrazingPlane {
         /// The planes that could not be cleared and may cause `error`: the one on its
-        /// side of the box, or both where it has no place.
+        /// side of the box, or each grazing one where it has no place.
         grazing: Vec<GrazingPlane>,
         /// The error of the box with that plane (its text is part of this one's, so it
         /// is not a `source` a caller would print again).
@@ -306,17 +306,36 @@ pub struct GrazingPlane {
     pub excess_fold_mm: f64,
 }
 
-impl std::fmt::Display for GrazingPlane {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "the {} clip plane, moved {:.1} mm inwards, the least bad position within 10 mm \
-             and short of the breast landmarks, still grazes the side of the torso: {} loops \
-             or stray corners in its section, which runs {:.1} mm further front to back than \
-             it should; check the scan's side there",
-            self.side, self.moved_mm, self.defects, self.excess_fold_mm
-        )
-    }
+/// The planes of [`ClosedSurfaceError::OnGrazingPlane`] in words: what they share once,
+/// then each one's figures.
+fn describe_grazing(grazing: &[GrazingPlane]) -> String {
+    let sides: Vec<&str> = grazing.iter().map(|plane| plane.side).collect();
+    let figures: Vec<String> = grazing
+        .iter()
+        .map(|plane| {
+            format!(
+                "{}moved {:.1} mm inwards, {} loop(s) or stray corner(s) left in its section, \
+                 which runs {:.1} mm further front to back than it should",
+                if grazing.len() > 1 {
+                    format!("{}: ", plane.side)
+                } else {
+                    String::new()
+                },
+                plane.moved_mm,
+                plane.defects,
+                plane.excess_fold_mm
+            )
+        })
+        .collect();
+    format!(
+        "the {} clip plane{} still graze{} the side of the torso at the least bad position \
+         within {MAX_INWARD_MM} mm and short of the breast landmarks ({}); check the scan's \
+         side there",
+        sides.join(" and "),
+        if grazing.len() > 1 { "s" } else { "" },
+        if grazing.len() > 1 { "" } else { "s" },
+        figures.join("; ")
+    )
 }
 
 impl ClosedSurfaceError {
@@ -418,7 +437,7 @@ pub fn build_closed_surface(
     )
     .map_err(|error| {
         // A grazing plane is named only where it can be the cause: the plane on the
-        // error's side of the box, or both where the error has no place.
+        // error's side of the box, or each grazing one where the error has no place.
         let on_side = |k: usize| match error.place() {
             Some(place) => {
                 let local = frame.to_local(DVec3::from_array(place.centre_mm));

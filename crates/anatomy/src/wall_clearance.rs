@@ -22,8 +22,8 @@ const ROUNDS: usize = 8;
 /// neighbours'), spreading a local push over some ten rings of the wall.
 const SMOOTHING_PASSES: usize = 10;
 
-/// Times a push that would turn a wall triangle over is halved before it is dropped
-/// ([`without_turning_over`]).
+/// Times a push that would turn a wall triangle over or fold a border edge is halved
+/// before it is dropped ([`without_turning_over`]).
 const MAX_HALVINGS: u32 = 6;
 
 /// Which coordinates of a wall vertex must not change: a vertex on a lateral clip plane
@@ -181,21 +181,23 @@ pub(crate) fn keep_wall_clear(
 ///   does, its inner corner included (a sliver against the plane). A corner the shared
 ///   push would move against its own keeps its own. The longest push is chosen before
 ///   each corner drops the coordinates it keeps, so a corner of two planes may get less
-///   depth than its own push. Each vertex is evened so once; only then are border
-///   corners halved: the wall's border must stay behind the scan's, or the band between
-///   them on the plane crosses itself.
-/// - A border edge on a clip plane that leaves a right angle or more from its direction
-///   before any push ([`PlaneBorder`]): the wall's section on the plane folds back there,
-///   and the band stitched to it crosses itself. Its ends move as one, by the longer
-///   of their pushes, if neither has been evened yet; else both are halved. Triangles
-///   are judged against the round's positions, edges against the wall before any
-///   round: rounds each turning a short edge by less than a right angle add up to a
-///   fold.
+///   depth than its own push. Each corner is evened so once in a call; only then are
+///   a triangle's border corners halved: the wall's border must stay behind the scan's,
+///   or the band between them on the plane crosses itself.
+/// - A border edge on a clip plane that the pushes turn by a right angle or more from
+///   its direction before any push ([`PlaneBorder`]; an edge of no length there counts
+///   as turned): the wall's section on the plane folds back there, and the band
+///   stitched to it crosses itself. Its ends move as one, by the longer of their
+///   pushes, if neither has been evened yet in this call; else its pushed ends are
+///   halved, though the other end was never evened. Triangles are judged against the
+///   round's positions, edges against the wall before any round: rounds each turning a
+///   short edge by less than a right angle add up to a fold. (Evened once per call, so
+///   a longest push can still spread one edge along the border per round.)
 ///
 /// Terminates: a pass that evens marks at least one vertex evened for the first time
 /// (at most one such pass per vertex; it may push again a vertex evened or dropped
 /// before), and between those passes every pass halves or drops a push, each push at
-/// most `MAX_HALVINGS + 1` times, and halvings are never undone.
+/// most `MAX_HALVINGS + 1` times, since the count of halvings never falls.
 fn without_turning_over(
     wall: &TriMesh,
     border: &PlaneBorder,
@@ -219,9 +221,7 @@ fn without_turning_over(
                 // Evened once: evening again would carry the longest push along the
                 // border edge by edge and shear the wall beside it.
                 if ends.iter().any(|&v| evened[v]) {
-                    culprits
-                        .turned
-                        .extend(ends.into_iter().filter(|&v| push[v] != DVec3::ZERO));
+                    culprits.halve_pushed(&ends, push);
                 } else {
                     culprits.border_group(&ends, &ends, push, &evened);
                 }
@@ -231,10 +231,11 @@ fn without_turning_over(
         if turned.is_empty() && to_even.is_empty() {
             return;
         }
-        // Corners turning a triangle by their border pushes alone move as one, by the
-        // longest of those pushes (less the coordinates a corner keeps), except a corner
-        // the shared push would move against its own push (across a crease sharper than
-        // a right angle): it keeps its own, and is halved if the triangle still turns.
+        // Border corners turning a triangle, or the ends of a folded border edge, move
+        // as one, by the longest of their pushes (less the coordinates a corner keeps),
+        // except a corner the shared push would move against its own push (across a
+        // crease sharper than a right angle): it keeps its own, and is halved if the
+        // triangle or edge is still turned.
         let mut evened_now = Vec::new();
         for corners in to_even {
             let longest = (corners.iter())
@@ -318,8 +319,13 @@ impl Culprits {
         } else if due(wider) {
             self.to_even.push(wider.to_vec());
         } else {
-            self.turned.extend(pushed);
+            self.halve_pushed(group, push);
         }
+    }
+
+    /// Records the pushed vertices of `group` for halving.
+    fn halve_pushed(&mut self, group: &[usize], push: &[DVec3]) {
+        (self.turned).extend(group.iter().copied().filter(|&v| push[v] != DVec3::ZERO));
     }
 }
 
@@ -537,8 +543,9 @@ mod tests {
     /// back, while the inner corner's push across the edge's line keeps the triangle
     /// from turning over, so only the edge shows it. Its corners move as one, by the
     /// longer push (exactly), and the edge keeps its direction; the triangle, which that
-    /// turns over, is then set right by halving the inner corner's push once (to 0.6 mm
-    /// it stays turned up to 1.04 mm).
+    /// turns over, is then set right by halving the inner corner's push once, to 0.6 mm
+    /// (with its border corners moved as one it turns over for inner pushes above 1.04
+    /// mm).
     #[test]
     fn a_border_edge_folded_back_by_the_push_moves_as_one() {
         let wall = TriMesh::new(
@@ -597,6 +604,46 @@ mod tests {
         assert_eq!(push[1], second);
         let after = moved(&wall, &push);
         assert!((after[1] - after[0]).dot(start.positions[1] - start.positions[0]) > 0.0);
+    }
+
+    /// Two border edges in a row on a lateral plane, each in a triangle like the one of
+    /// `a_border_edge_folded_back_by_the_push_moves_as_one` (inner corners pushed so
+    /// the triangles alone do not turn). Evening the first edge gives the middle corner
+    /// the 1.5 mm push, which folds the second; its middle corner, evened already, is
+    /// halved instead, so the push does not run on along the border: the third corner
+    /// stays put, and nothing is folded or turned over.
+    #[test]
+    fn a_folded_edge_beside_an_evened_one_is_halved_not_evened() {
+        let wall = TriMesh::new(
+            vec![
+                DVec3::ZERO,
+                DVec3::new(0.0, 1.0, 0.0),
+                DVec3::new(0.0, 2.0, 0.0),
+                DVec3::new(0.2, 0.5, -1.0),
+                DVec3::new(0.2, 1.5, -1.0),
+            ],
+            vec![[0, 1, 3], [1, 2, 4]],
+        );
+        let on_plane = FixedAxes { x: true, y: false };
+        let inner = FixedAxes::default();
+        let fixed = [on_plane, on_plane, on_plane, inner, inner];
+        let mut push = vec![
+            DVec3::new(0.0, 1.5, 0.0),
+            DVec3::ZERO,
+            DVec3::ZERO,
+            DVec3::new(0.0, 0.0, 1.2),
+            DVec3::new(0.0, 0.0, 0.9),
+        ];
+        assert_eq!(turned_over(&wall, &moved(&wall, &push)), 0);
+        guard(&wall, &fixed, &mut push);
+        assert_eq!(push[2], DVec3::ZERO);
+        assert!(push[1].y > 0.0 && push[1].y < 1.5, "{push:?}");
+        let after = moved(&wall, &push);
+        for [a, b] in [[0, 1], [1, 2]] {
+            let start = wall.positions[b] - wall.positions[a];
+            assert!((after[b] - after[a]).dot(start) > 0.0, "{push:?}");
+        }
+        assert_eq!(turned_over(&wall, &after), 0);
     }
 
     /// [`without_turning_over`] on a wall no earlier round has pushed.

@@ -25,7 +25,7 @@ use std::collections::HashMap;
 const STEP_MM: f64 = 0.5;
 /// The farthest a lateral plane moves in from where the box put it (mm): a few scan
 /// vertex spacings past a grazed bump; beyond, the torso's side itself is to blame.
-const MAX_INWARD_MM: f64 = 10.0;
+pub(super) const MAX_INWARD_MM: f64 = 10.0;
 /// The largest depth spread of a clean section, as a fraction of the rear-wall offset.
 /// A spread near the offset lets the wall (the base moved back by it) cross the skin;
 /// well below it, a spread of more than 6 mm within a millimetre of height is the plane

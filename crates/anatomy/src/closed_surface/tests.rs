@@ -308,10 +308,11 @@ fn an_error_with_no_place_names_both_grazing_planes() {
     };
     let text = error.to_string();
     assert!(
-        text.contains("the right clip plane, moved 10.0 mm"),
+        text.contains("the right and left clip planes still graze the side of the torso"),
         "{text}"
     );
-    assert!(text.contains("the left clip plane, moved 4.5 mm"), "{text}");
+    assert!(text.contains("right: moved 10.0 mm inwards"), "{text}");
+    assert!(text.contains("left: moved 4.5 mm inwards"), "{text}");
     let inner = ClosedSurfaceError::WallInFront { volume_ml: -3.0 }.to_string();
     assert_eq!(text.matches(inner.as_str()).count(), 1, "{text}");
     assert_eq!(error.place(), None);
