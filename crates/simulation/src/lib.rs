@@ -54,6 +54,7 @@ pub mod field;
 pub mod over_implant;
 pub mod placement;
 pub mod pocket;
+pub mod resolved_length;
 pub mod session;
 pub mod skin;
 pub mod template;
@@ -63,6 +64,7 @@ pub use bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 pub use error::SimulationError;
 pub use field::{DEFAULT_FALLOFF_MM, PointMap};
 pub use placement::{Anchor, AnchorRule, ParseAnchorRuleError, Placement};
+pub use resolved_length::ResolvedLength;
 pub use session::{
     BreastVolume, CARRIED_CONTROL_POINT_SPACING_MM, CycleInfo, PatientInput, PlacedImplant,
     RunReport, Simulation, SimulationOptions, SolveReport, SolvedState, Stage,

@@ -82,6 +82,7 @@ use crate::pocket::{
     FoldLowering, PocketBounds, PocketLimits, fold_lowest, native_fold_y_mm, nipple_of,
     nipple_to_fold_mm, pocket_surface,
 };
+use crate::resolved_length::ResolvedLength;
 use crate::skin::SkinLayer;
 use crate::template::{
     BedFeet, FOOTPRINT_TOLERANCE_MM, ImplantTemplate, SideCandidates, SmoothedThickness,

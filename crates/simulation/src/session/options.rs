@@ -38,17 +38,26 @@ pub const DEFAULT_COMPRESSION_PENALTY: CompressionPenalty = CompressionPenalty {
     lambda_multiple: 1.0,
 };
 
-/// Default radius of the implant rim's mollifier in finest lattice spacings. Linear
-/// tetrahedra cannot follow a rim that rises by 10 mm within 3 mm (the square-root edge
-/// of eqs. 3 and 10); two spacings (12-14 mm) inverted the fewest elements over the rim
-/// and is about a real round implant's rounded edge (docs/dev/session-choices.md).
-pub const RIM_SMOOTHING_SPACINGS: f64 = 2.0;
+/// Default radius of the implant rim's mollifier. Linear tetrahedra cannot follow a rim
+/// that rises by 10 mm within 3 mm (the square-root edge of eqs. 3 and 10); two
+/// spacings inverted the fewest elements over the rim, and 14 mm (two spacings of the
+/// default mesh on the largest of our bodies) is about a real round implant's rounded
+/// edge (docs/dev/session-choices.md).
+pub const DEFAULT_RIM_SMOOTHING: ResolvedLength = ResolvedLength {
+    mm: 14.0,
+    min_spacings: 2.0,
+};
 
-/// Default thickness of the tissue layer that moves with the implant in finest lattice
-/// spacings. The paper's template displaces only the front vertices of the elements
-/// crossing the bed, a ragged set: free vertices at the same height between displaced
-/// ones lagged and folded their elements over (docs/dev/session-choices.md).
-pub const TEMPLATE_LAYER_SPACINGS: f64 = 1.0;
+/// Default thickness of the tissue layer that moves with the implant. The paper's
+/// template displaces only the front vertices of the elements crossing the bed, a
+/// ragged set: free vertices at the same height between displaced ones lagged and
+/// folded their elements over, so the layer is at least one spacing; 7 mm is one
+/// spacing of the default mesh on the largest of our bodies
+/// (docs/dev/session-choices.md).
+pub const DEFAULT_TEMPLATE_LAYER: ResolvedLength = ResolvedLength {
+    mm: 7.0,
+    min_spacings: 1.0,
+};
 
 /// Largest [`SimulationOptions::scan_smoothing_mm`] (mm): the smoothing is meant for
 /// the element scale, and its cost grows with the radius squared.
@@ -124,12 +133,11 @@ pub struct SimulationOptions {
     /// forwards on most bodies (docs/dev/session-choices.md).
     pub hold_sternum: bool,
     /// Radius of the kernel that mollifies the implant's thickness in the template
-    /// (mm); `None`: [`RIM_SMOOTHING_SPACINGS`] finest lattice spacings. `Some(0.0)`: no
-    /// smoothing.
+    /// (mm); `None`: [`DEFAULT_RIM_SMOOTHING`]. `Some(0.0)`: no smoothing.
     pub rim_smoothing_mm: Option<f64>,
     /// Thickness of the tissue layer over the footprint that moves with the implant
     /// (mm), besides the front vertices of the elements crossing the bed (the paper's
-    /// template); `None`: [`TEMPLATE_LAYER_SPACINGS`] finest lattice spacings.
+    /// template); `None`: [`DEFAULT_TEMPLATE_LAYER`].
     pub template_layer_mm: Option<f64>,
     /// Breast tissue.
     pub tissue: Material,

@@ -184,11 +184,11 @@ impl Simulation {
         let radius = self
             .options
             .rim_smoothing_mm
-            .unwrap_or(RIM_SMOOTHING_SPACINGS * self.spacing_mm);
+            .unwrap_or(DEFAULT_RIM_SMOOTHING.on_mesh(self.spacing_mm));
         let layer_mm = self
             .options
             .template_layer_mm
-            .unwrap_or(TEMPLATE_LAYER_SPACINGS * self.spacing_mm);
+            .unwrap_or(DEFAULT_TEMPLATE_LAYER.on_mesh(self.spacing_mm));
         let thickness = SmoothedThickness::new(shape, radius);
         let template = build_template(
             &self.finest,
