@@ -23,8 +23,9 @@ mod tests {
 
     #[test]
     fn a_resolved_length_is_fixed_in_mm_until_the_mesh_is_too_coarse() {
-        // The default mesh on every shared body has a spacing of 6.0-7.0 mm, so the
-        // default and a four times finer mesh (half the spacing) use the same lengths.
+        // The default mesh on the shared bodies has a spacing of 6.0-7.0 mm (7.04 on
+        // s12, where the floor adds 0.04 mm to the layer), and four times the elements
+        // 0.63 of it: both meshes use the same lengths.
         for spacing_mm in [3.0, 4.0, 6.0, 7.0] {
             assert_eq!(DEFAULT_RIM_SMOOTHING.on_mesh(spacing_mm), 14.0);
             assert_eq!(DEFAULT_TEMPLATE_LAYER.on_mesh(spacing_mm), 7.0);

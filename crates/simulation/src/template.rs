@@ -11,12 +11,12 @@
 //! 2. Each candidate vertex gets its *foot* on the bed (the start of the bed normal
 //!    through it, [`ImplantBed::foot`]), its height above the bed, implant
 //!    coordinates `(x', y')` of the foot and the thickness `z'(x', y')` there,
-//!    mollified over about two elements ([`SmoothedThickness`]: linear tetrahedra of
-//!    6-7 mm cannot follow the square-root rim of eqs. 3 and 10, which rises by 10 mm
+//!    mollified over 14 mm by default ([`SmoothedThickness`]: linear tetrahedra of
+//!    4-7 mm cannot follow the square-root rim of eqs. 3 and 10, which rises by 10 mm
 //!    within the outer 5% of the radius). A *front* vertex (in front of the bed) of a
 //!    fill-in element with `z' > 0` is an *implant vertex*, displaced by `z'` along the
 //!    bed's normal at its foot; so is every front vertex over the footprint within a
-//!    thin layer above the bed (one spacing by default), which smooths the ragged top
+//!    thin layer above the bed (7 mm by default), which smooths the ragged top
 //!    of the paper's set. A *back* vertex with `z' > 0` (inside the footprint) is fixed,
 //!    and by default ([`crate::SimulationOptions::hold_bed`]) every other back vertex of
 //!    a fill-in element too. Laying the thickness off along normals from the foot makes
@@ -175,7 +175,7 @@ pub struct ImplantTemplate {
 /// average of `z'` under the biweight kernel `(1 - (r/ρ)²)²`, by a polar rule of
 /// [`SMOOTHING_RINGS`] rings (1, 6, 12, ... points). Zero radius: the thickness itself.
 /// The convolution keeps the implant's volume and spreads its steep rim (the square
-/// root edge of eqs. 3 and 10) over about one element.
+/// root edge of eqs. 3 and 10) over the disc's width.
 #[derive(Debug, Clone)]
 pub struct SmoothedThickness {
     shape: ImplantShape,
