@@ -1,7 +1,8 @@
 //! Corotated linear tetrahedral finite elements for the breast simulation (paper V).
 //!
 //! - [`FemModel`]: linear tetrahedra, isotropic Hooke material per element
-//!   ([`Material`], defaults for breast tissue), per-element density, consistent gravity.
+//!   ([`Material`], defaults for breast tissue), per-element density, consistent gravity;
+//!   optional plane-stress [`Membrane`]s on faces (the skin).
 //! - [`Formulation`]: small-strain linear or corotated elasticity; element rotations from
 //!   a robust polar decomposition ([`polar_rotation`]) that handles inverted elements.
 //! - [`Constraints`] and [`ReducedSystem`]: prescribed displacements eliminated from the
@@ -46,6 +47,7 @@ pub mod direct;
 mod eigen3;
 pub mod error;
 pub mod material;
+pub mod membrane;
 pub mod model;
 pub mod multigrid;
 pub mod polar;
@@ -60,6 +62,7 @@ pub use material::{
     DEFAULT_DENSITY_KG_M3, DEFAULT_POISSON_RATIO, DEFAULT_YOUNG_KPA, Material,
     STANDARD_GRAVITY_M_S2,
 };
+pub use membrane::Membrane;
 pub use model::{
     CompressionPenalty, ElementRest, FemModel, Formulation, InversionBarrier, Tangent,
 };

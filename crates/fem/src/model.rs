@@ -9,6 +9,7 @@
 use crate::eigen3::symmetric_eigen_closed_form;
 use crate::error::FemError;
 use crate::material::Material;
+use crate::membrane::{Membrane, MembraneRest, MembraneState};
 use crate::polar::{POLAR_LANES, polar_rotation, polar_rotations};
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -31,7 +32,8 @@ pub enum Formulation {
 /// Which tangent stiffness the corotated formulation assembles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Tangent {
-    /// `R K Rᵀ` only ("stiffness warping", the paper's and the multigrid's matrix): the
+    /// `R K Rᵀ` only ("stiffness warping", the paper's and the multigrid's matrix; with
+    /// membranes, their tension across the sheet too, see [`crate::membrane`]): the
     /// derivative of the rotation is neglected. The fixed-point iteration built on it
     /// converges linearly, and diverges in the bending modes of slender parts under a
     /// large tension (the missing geometric stiffness).
@@ -40,7 +42,8 @@ pub enum Tangent {
     /// clamped to stay positive semi-definite: in the principal frame of `S = RᵀF`, the
     /// twist mode of the axes `i, j` gets the stiffness `2 max(σᵢ + σⱼ, 0) / max(sᵢ + sⱼ,
     /// 0.1)` (σ principal stresses, s signed singular values). Exact Newton tangent in
-    /// tension, so Newton converges quadratically there; in compression the negative
+    /// tension for the tetrahedra (membranes lack the term of their in-plane turn), so
+    /// Newton converges quadratically there; in compression the negative
     /// part is dropped (a positive definite approximation, as in Teran et al. 2005).
     #[default]
     Full,
@@ -62,8 +65,8 @@ pub struct InversionBarrier {
     /// Its modulus `κ` (kPa), positive: the least of every element's.
     pub modulus_kpa: f64,
     /// An element's `κ` is at least this multiple of its own Young's modulus
-    /// (non-negative), so that stiff elements (a skin layer) are held as firmly relative
-    /// to what pushes them.
+    /// (non-negative), so that stiff elements are held as firmly relative to what pushes
+    /// them.
     pub young_multiple: f64,
 }
 
@@ -144,6 +147,10 @@ pub struct FemModel {
     elements: Vec<ElementRest>,
     barrier: Option<InversionBarrier>,
     compression: Option<CompressionPenalty>,
+    /// Membranes ([`crate::membrane`]) sorted by element, and for each element the start
+    /// of its own in that list (`ne + 1` entries; empty when there are none).
+    membranes: Vec<MembraneRest>,
+    membrane_ptr: Vec<u32>,
 }
 
 /// Rest data of one tetrahedron; `Err` with its signed volume if it is not positive.
@@ -243,6 +250,8 @@ impl FemModel {
             elements: rest_elements,
             barrier: None,
             compression: None,
+            membranes: Vec::new(),
+            membrane_ptr: Vec::new(),
         })
     }
 
@@ -293,6 +302,100 @@ impl FemModel {
         e.vol_mu = e.volume_mm3 * mu;
         self.materials[element] = material;
         Ok(())
+    }
+
+    /// Replaces the model's membranes ([`crate::membrane`]; none by default), each on a
+    /// face of its tetrahedron.
+    ///
+    /// Errors: an element out of range, a face that is not one of its element's, a
+    /// degenerate face, a material or thickness out of range (the model is left
+    /// unchanged).
+    pub fn set_membranes(&mut self, membranes: &[Membrane]) -> Result<(), FemError> {
+        let mut sorted = membranes.to_vec();
+        sorted.sort_by_key(|m| m.element);
+        let ne = self.tets.len();
+        let mut rest = Vec::with_capacity(sorted.len());
+        let mut ptr = vec![0u32; ne + 1];
+        for m in &sorted {
+            let tet = *self
+                .tets
+                .get(m.element as usize)
+                .ok_or(FemError::LengthMismatch {
+                    what: "membrane's element (an index into the tetrahedra)",
+                    expected: ne,
+                    got: m.element as usize,
+                })?;
+            rest.push(MembraneRest::new(m, tet, &self.rest)?);
+            ptr[m.element as usize + 1] += 1;
+        }
+        for e in 0..ne {
+            ptr[e + 1] += ptr[e];
+        }
+        self.membrane_ptr = if rest.is_empty() { Vec::new() } else { ptr };
+        self.membranes = rest;
+        Ok(())
+    }
+
+    /// Number of membranes.
+    pub fn membrane_count(&self) -> usize {
+        self.membranes.len()
+    }
+
+    /// The indices of element `e`'s membranes in [`FemModel::membrane_states`].
+    #[inline]
+    pub(crate) fn membranes_of(&self, e: usize) -> std::ops::Range<usize> {
+        if self.membrane_ptr.is_empty() {
+            return 0..0;
+        }
+        self.membrane_ptr[e] as usize..self.membrane_ptr[e + 1] as usize
+    }
+
+    /// The tetrahedron corner of each face corner of membrane `m`.
+    #[inline]
+    pub(crate) fn membrane_corners(&self, m: usize) -> [u8; 3] {
+        self.membranes[m].corners
+    }
+
+    /// Every membrane's state for displacement `u`, in the order of
+    /// [`FemModel::membranes_of`].
+    pub(crate) fn membrane_states(
+        &self,
+        u: &[DVec3],
+        formulation: Formulation,
+    ) -> Vec<MembraneState> {
+        if self.membranes.is_empty() {
+            return Vec::new();
+        }
+        (0..self.tets.len())
+            .into_par_iter()
+            .flat_map_iter(|e| {
+                let tet = self.tets[e];
+                self.membranes_of(e).map(move |m| {
+                    let rest = &self.membranes[m];
+                    let x = rest.corners.map(|c| {
+                        let v = tet[c as usize] as usize;
+                        self.rest[v] + u[v]
+                    });
+                    rest.state(x, formulation)
+                })
+            })
+            .collect()
+    }
+
+    /// Calls `add(corner, force)` for each face corner of element `e`'s membranes with
+    /// its force in `states` (from [`FemModel::membrane_states`]).
+    #[inline]
+    pub(crate) fn membrane_corner_forces(
+        &self,
+        e: usize,
+        states: &[MembraneState],
+        mut add: impl FnMut(usize, DVec3),
+    ) {
+        for m in self.membranes_of(e) {
+            for (i, &c) in self.membranes[m].corners.iter().enumerate() {
+                add(c as usize, states[m].force[i]);
+            }
+        }
     }
 
     /// Sets (or, with `None`, removes) the [`InversionBarrier`] of every element; none by
@@ -645,7 +748,8 @@ impl FemModel {
     }
 
     /// Elastic energy of element `e` (mN·mm = µJ): `V (μ ‖ε‖² + λ/2 tr(ε)²)` with the
-    /// strain of [`FemModel::element_stress`], plus the [`InversionBarrier`]'s. For the corotated formulation this is
+    /// strain of [`FemModel::element_stress`], plus the [`InversionBarrier`]'s and those of
+    /// the element's membranes ([`crate::membrane`]). For the corotated formulation this is
     /// `V (μ ‖F - R‖² + λ/2 tr(RᵀF - I)²)`, whose gradient is exactly the element force
     /// (the derivative of the polar rotation drops out), so the forces are conservative.
     pub fn element_energy(&self, e: usize, u: &[DVec3], formulation: Formulation) -> f64 {
@@ -654,7 +758,19 @@ impl FemModel {
             Formulation::Linear => DMat3::IDENTITY,
             Formulation::Corotated => polar_rotation(DMat3::IDENTITY + du),
         };
-        self.energy_of(e, formulation, r, du)
+        let tet = self.tets[e];
+        let membranes: f64 = self
+            .membranes_of(e)
+            .map(|m| {
+                let rest = &self.membranes[m];
+                let x = rest.corners.map(|c| {
+                    let v = tet[c as usize] as usize;
+                    self.rest[v] + u[v]
+                });
+                rest.state(x, formulation).energy
+            })
+            .sum();
+        self.energy_of(e, formulation, r, du) + membranes
     }
 
     /// [`FemModel::element_energy`] for rotation `r` and displacement gradient `du`.
@@ -675,7 +791,8 @@ impl FemModel {
         el.vol_mu * norm2 + 0.5 * el.vol_lambda * tr * tr + barrier
     }
 
-    /// Total potential energy `Σₑ Ψₑ(u) - f_ext · u` (mN·mm); `f_ext` may be empty.
+    /// Total potential energy `Σₑ Ψₑ(u) - f_ext · u` (mN·mm), the membranes' included;
+    /// `f_ext` may be empty.
     pub fn potential_energy(&self, u: &[DVec3], f_ext: &[DVec3], formulation: Formulation) -> f64 {
         let elastic: f64 = (0..self.tets.len().div_ceil(POLAR_LANES))
             .into_par_iter()
@@ -687,8 +804,13 @@ impl FemModel {
                     .sum::<f64>()
             })
             .sum();
+        let membranes: f64 = self
+            .membrane_states(u, formulation)
+            .iter()
+            .map(|m| m.energy)
+            .sum();
         let work: f64 = f_ext.iter().zip(u).map(|(f, u)| f.dot(*u)).sum();
-        elastic - work
+        elastic + membranes - work
     }
 
     /// Unrotated stresses of all elements (kPa), see [`FemModel::element_stress`].
@@ -700,7 +822,7 @@ impl FemModel {
             .collect())
     }
 
-    /// The internal elastic force `Σₑ R K (Rᵀ x - X)` at every vertex (mN) for
+    /// The internal elastic force `Σₑ R K (Rᵀ x - X)` (and the membranes') at every vertex (mN) for
     /// displacement `u` (mm). At equilibrium it equals the external force at free
     /// vertices.
     pub fn internal_forces(
@@ -718,6 +840,12 @@ impl FemModel {
                     chunk[l] = w.force;
                 });
             });
+        let states = self.membrane_states(u, formulation);
+        if !states.is_empty() {
+            forces.par_iter_mut().enumerate().for_each(|(e, f)| {
+                self.membrane_corner_forces(e, &states, |c, force| f[c] += force);
+            });
+        }
         let f = self.nodal_sum(|e| forces[e]);
         Ok(f)
     }

@@ -24,11 +24,15 @@
 #![allow(unsafe_code)] // vector kernels and raw disjoint writes, each block with its SAFETY reason
 use crate::blocks::{self, BlockKernels};
 use crate::error::FemError;
+use crate::membrane::MembraneState;
 use crate::model::{FemModel, Formulation, Tangent};
 use crate::polar::POLAR_LANES;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use std::marker::PhantomData;
+
+mod upper;
+pub(crate) use upper::UpperTriangle;
 
 /// Marks a vertex that is not an unknown of the reduced system.
 pub const NOT_FREE: u32 = u32::MAX;
@@ -254,6 +258,9 @@ pub struct ReducedSystem {
     cores: Vec<ElementCore>,
     /// Twist terms of each element for [`Tangent::Full`] (empty otherwise).
     twists: Vec<DMat3>,
+    /// The model's membranes in their state of the latest assembly (their forces are
+    /// in `cores`).
+    membranes: Vec<MembraneState>,
     /// For each unknown, whether a changeable constraint holds it (eliminated at
     /// assembly).
     eliminated: Vec<bool>,
@@ -407,6 +414,7 @@ impl ReducedSystem {
             incident_slots,
             cores: Vec::new(),
             twists: Vec::new(),
+            membranes: Vec::new(),
         })
     }
 
@@ -609,6 +617,13 @@ impl ReducedSystem {
                     });
                 });
         }
+        self.membranes = model.membrane_states(u, formulation);
+        if !self.membranes.is_empty() {
+            let states = &self.membranes;
+            self.cores.par_iter_mut().enumerate().for_each(|(e, c)| {
+                model.membrane_corner_forces(e, states, |k, force| c.force[k] += force);
+            });
+        }
         let BlockCsr {
             row_ptr,
             cols,
@@ -620,6 +635,7 @@ impl ReducedSystem {
             f_ext,
             full,
             cores: &self.cores,
+            membranes: &self.membranes,
             twists: &self.twists,
             row_ptr,
             cols,
@@ -659,6 +675,7 @@ struct RowGather<'a> {
     f_ext: &'a [DVec3],
     full: bool,
     cores: &'a [ElementCore],
+    membranes: &'a [MembraneState],
     twists: &'a [DMat3],
     row_ptr: &'a [usize],
     cols: &'a [u32],
@@ -720,8 +737,39 @@ impl RowGather<'_> {
                     add_rank_one(out, c.barrier_stiffness, g[a], g[b]);
                 }
             }
+            self.add_membrane_blocks(e, a, k, vals, ucols);
         }
         *r = f;
+    }
+
+    /// Adds the blocks of element `e`'s membranes for its corner `a` (incidence `k`) to
+    /// the row's upper part `vals` (columns `ucols`).
+    #[inline]
+    fn add_membrane_blocks(
+        &self,
+        e: usize,
+        a: usize,
+        k: usize,
+        vals: &mut [[f64; 9]],
+        ucols: &[u32],
+    ) {
+        for m in self.model.membranes_of(e) {
+            let corners = self.model.membrane_corners(m);
+            let Some(i) = corners.iter().position(|&c| c as usize == a) else {
+                continue;
+            };
+            for (j, &b) in corners.iter().enumerate() {
+                let s = self.incident_slots[k][b as usize];
+                if s == NOT_FREE || self.eliminated[ucols[s as usize] as usize] {
+                    continue;
+                }
+                // row-major: the transpose's columns are the block's rows
+                let block = self.membranes[m].block(i, j).transpose().to_cols_array();
+                for (o, x) in vals[s as usize].iter_mut().zip(block) {
+                    *o += x;
+                }
+            }
+        }
     }
 
     /// [`RowGather::row`] with the AVX2/FMA block kernels.
@@ -742,86 +790,6 @@ pub(crate) const IDENTITY_BLOCK: [f64; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 
 #[inline]
 pub(crate) fn transposed(b: &[f64; 9]) -> [f64; 9] {
     [b[0], b[3], b[6], b[1], b[4], b[7], b[2], b[5], b[8]]
-}
-
-/// The upper block triangle (diagonal and right of it) of a symmetric [`BlockCsr`]
-/// pattern: callers fill the upper part of every row in place ([`UpperTriangle::rows_mut`])
-/// and [`UpperTriangle::mirror`] writes the lower blocks as the transposes of the upper
-/// ones, so the matrix is exactly symmetric.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct UpperTriangle {
-    /// Row `i` has `ptr[i + 1] - ptr[i]` blocks on and right of its diagonal.
-    ptr: Vec<usize>,
-    /// For each block left of the diagonal, in row order, the slot of its transpose in
-    /// the full matrix.
-    lower_src: Vec<u32>,
-}
-
-impl UpperTriangle {
-    /// The upper triangle of the pattern of `a` (structurally symmetric, every diagonal
-    /// block present).
-    pub(crate) fn new(a: &BlockCsr) -> UpperTriangle {
-        let n = a.block_rows();
-        let mut ptr = vec![0usize];
-        for i in 0..n {
-            let row = &a.cols[a.row_ptr[i]..a.row_ptr[i + 1]];
-            ptr.push(ptr[i] + row.len() - row.partition_point(|&j| (j as usize) < i));
-        }
-        // rows i ascending meet the blocks (j, i), j < i, of row j in column order; the
-        // next unmatched block right of row j's diagonal is its slot `next[j]`
-        let mut next: Vec<usize> = (0..n)
-            .map(|j| a.row_ptr[j + 1] - (ptr[j + 1] - ptr[j]))
-            .collect();
-        let mut lower_src = Vec::with_capacity(a.cols.len() - ptr[n]);
-        for i in 0..n {
-            for &j in &a.cols[a.row_ptr[i]..a.row_ptr[i + 1]] {
-                let j = j as usize;
-                if j < i {
-                    next[j] += 1;
-                    lower_src.push(next[j] as u32);
-                }
-            }
-        }
-        UpperTriangle { ptr, lower_src }
-    }
-
-    /// The upper part of every row of the values of a matrix with the pattern given to
-    /// [`UpperTriangle::new`] (`row_ptr` its row pointers): row `i`'s diagonal block,
-    /// then the blocks right of it.
-    pub(crate) fn rows_mut<'a>(
-        &self,
-        row_ptr: &[usize],
-        values: &'a mut [[f64; 9]],
-    ) -> Vec<&'a mut [[f64; 9]]> {
-        split_rows(values, row_ptr)
-            .into_iter()
-            .enumerate()
-            .map(|(i, row)| {
-                let lower = row.len() - (self.ptr[i + 1] - self.ptr[i]);
-                &mut row[lower..]
-            })
-            .collect()
-    }
-
-    /// Writes the blocks left of the diagonal of `a` (the pattern given to
-    /// [`UpperTriangle::new`]) as the transposes of the upper blocks (parallel over rows).
-    pub(crate) fn mirror(&self, a: &mut BlockCsr) {
-        let (ptr, lower_src) = (&self.ptr, &self.lower_src);
-        let row_ptr = &a.row_ptr;
-        let values = DisjointWrites::new(&mut a.values);
-        (0..row_ptr.len() - 1).into_par_iter().for_each(|i| {
-            let lower = row_ptr[i + 1] - row_ptr[i] - (ptr[i + 1] - ptr[i]);
-            let src = &lower_src[row_ptr[i] - ptr[i]..][..lower];
-            for (k, &s) in src.iter().enumerate() {
-                // SAFETY: every slot is within `a.values`; the slots written are the
-                // lower blocks of row `i`, written by this task alone, and the slots read
-                // are upper blocks, which no task writes.
-                unsafe {
-                    values.write(row_ptr[i] + k, transposed(&values.read(s as usize)));
-                }
-            }
-        });
-    }
 }
 
 /// A slice that parallel tasks read and write through, each writing only entries that no

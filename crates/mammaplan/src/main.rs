@@ -242,11 +242,11 @@ struct SimulateArgs {
     #[arg(long)]
     no_gravity: bool,
     /// Simulate homogeneous tissue up to the surface (the paper's model) instead of
-    /// a stiff skin layer over it.
+    /// a stiff skin membrane over it.
     #[arg(long)]
     no_skin: bool,
     /// Leave volume loss to the corotated energy (the paper's model) instead of
-    /// resisting every loss with the first Lamé parameter (see docs/dev/volume-loss.md).
+    /// resisting every loss with twice the first Lamé parameter (see docs/dev/volume-loss.md).
     #[arg(long)]
     no_compression_penalty: bool,
     /// A CSV catalog for catalog:ID specs instead of the built-in one.

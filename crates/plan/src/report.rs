@@ -526,7 +526,7 @@ fn case_info(
             implant_material: material(&simulation.materials.implant),
             skin: simulation.materials.skin.map(|skin| {
                 format!(
-                    "{:.0} kPa, {:.2} mm thick, carried by the outer elements",
+                    "{:.0} kPa, {:.2} mm thick, a membrane on the surface",
                     skin.young_kpa, skin.thickness_mm
                 )
             }),

@@ -4,7 +4,7 @@
 //! preconditioner of CG) and the direct sparse Cholesky solver agree to 1e-6 relative;
 //! bare V(2,1) cycles from zero reduce the residual per cycle and reach the direct
 //! solution, with the barycentric and the smoothed prolongation, on the homogeneous
-//! tissue (with the default skin layer, PCG still agrees with the direct solver).
+//! tissue (with the default skin membrane, PCG still agrees with the direct solver).
 //!
 //! The bare-cycle bounds hold on the model issue 5 was measured on: the upright clip
 //! box, the tissue over the sternum free. The default model's lateral clip planes lean to follow the breasts' footprints;
@@ -61,7 +61,7 @@ fn multigrid_matches_the_direct_solver_on_shared_scans() {
             skin: None,
             ..Default::default()
         };
-        // the default model, with its stiff skin layer: PCG against the direct solver
+        // the default model, with its stiff skin membrane: PCG against the direct solver
         let mut session = session_with(
             &ModelOptions::default(),
             simulation::SimulationOptions::default(),
@@ -82,7 +82,7 @@ fn multigrid_matches_the_direct_solver_on_shared_scans() {
         assert!(fitted.error < 2e-3, "{name}: {fitted}");
 
         // issue 5's bounds on bare cycles stand for the homogeneous tissue (the paper's
-        // model): a skin 40-150 times stiffer in the outer elements is a coefficient jump
+        // model): a skin membrane 150 times stiffer than the tissue is a coefficient jump
         // the coarse levels do not resolve (docs/dev/skin.md); and on the upright box
         // (see the module documentation)
         let mut upright = ModelOptions::default();
@@ -146,7 +146,7 @@ fn pcg_matches_direct(name: &str, what: &str, mg: &mut fem::multigrid::Multigrid
     );
     assert!(result.converged, "{name}, {what}: {result:?}");
     // PCG stops at 1e-10 relative residual; the system's condition number (soft implant
-    // elements at 1% of the tissue, skin elements up to 150 times it) leaves the error
+    // elements at 1% of the tissue, the skin membrane 150 times it) leaves the error
     // well under 1e-6.
     assert!(relative < 1e-6, "{name}, {what}: {relative}");
 }

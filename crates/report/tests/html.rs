@@ -87,7 +87,7 @@ fn minimal_content() -> ReportContent {
                     poisson_ratio: 0.3,
                     density_kg_m3: 970.0,
                 },
-                skin: Some("344 kPa, 1.55 mm thick, on the outer elements".into()),
+                skin: Some("344 kPa, 1.55 mm thick, a membrane on the surface".into()),
                 compression_penalty: Some(
                     "every loss resisted with 1 times the first Lamé parameter".into(),
                 ),

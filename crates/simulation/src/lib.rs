@@ -11,7 +11,7 @@
 //! - [`over_implant`]: the chest skin over an implant that reaches beyond the native
 //!   breast, measured with the breast after surgery.
 //! - [`template`]: fill-in elements, implant vertices, fixed vertices, implant elements.
-//! - [`skin`]: the skin as a stiff layer carried by the finest elements on the surface.
+//! - [`skin`]: the skin as a stiff membrane on the finest mesh's surface faces.
 //! - [`session`]: [`Simulation`], the session: set or move implants, one V-cycle or
 //!   solve to convergence, the gravity correction, the moved scan, landmarks and breast
 //!   volumes.

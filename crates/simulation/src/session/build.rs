@@ -57,12 +57,7 @@ impl Simulation {
             for &(v, _) in &finest_wall_and_band {
                 not_skin[v as usize] = true;
             }
-            let materials = skin.materials(&finest, options.tissue, &not_skin);
-            for (e, material) in materials.into_iter().enumerate() {
-                if material != options.tissue {
-                    levels[0].set_material(e, material)?;
-                }
-            }
+            levels[0].set_membranes(&skin.membranes(&finest, options.tissue, &not_skin))?;
         }
         let every_bed: Vec<&ImplantBed> = bed_choices.iter().flatten().map(|c| &c.bed).collect();
         let HeldVertices {

@@ -18,9 +18,9 @@ pub const DEFAULT_IMPLANT_YOUNG_RATIO: f64 = 0.01;
 
 /// Default inversion barrier of the finest level: elements squeezed below half their
 /// volume resist with a modulus of 100 kPa (about forty times the tissue's Young's
-/// modulus), the soft implant elements too, and stiffer elements (the skin's) with forty
-/// times their own modulus (docs/dev/skin.md): the least that left no element inverted
-/// on the shared scans (docs/dev/session-choices.md).
+/// modulus), the soft implant elements too, and any stiffer element with forty times its
+/// own modulus (docs/dev/skin.md): the least that left no element inverted on the shared
+/// scans (docs/dev/session-choices.md).
 pub const DEFAULT_INVERSION_BARRIER: InversionBarrier = InversionBarrier {
     min_volume_ratio: 0.5,
     modulus_kpa: 100.0,
@@ -28,14 +28,16 @@ pub const DEFAULT_INVERSION_BARRIER: InversionBarrier = InversionBarrier {
 };
 
 /// Default compression penalty of the finest level: every element that loses volume
-/// resists with its own first Lamé parameter, `λ V (1 - J)²`. To first order that is the
-/// resistance to compression of tissue with a Poisson ratio of 0.48 (three times the
-/// paper's `λ` at 0.45) while shear stays the paper's; breast tissue is nearly
-/// incompressible, and without it the tissue squeezed between implant and skin lost
-/// 6-8% of the implant's volume (docs/dev/volume-loss.md).
+/// resists with twice its own first Lamé parameter, `2 λ V (1 - J)²`. To first order
+/// that is the resistance to compression of tissue with a Poisson ratio of 0.489 (five
+/// times the paper's `λ` at 0.45) while shear stays the paper's; breast tissue is nearly
+/// incompressible (0.49-0.5 in breast models). Without it the tissue squeezed between
+/// implant and skin lost 6-8% of the implant's volume; one `λ` was enough while the skin
+/// stiffened the outer elements in every direction, not once it became a membrane
+/// (docs/dev/volume-loss.md, docs/dev/discretisation.md).
 pub const DEFAULT_COMPRESSION_PENALTY: CompressionPenalty = CompressionPenalty {
     onset_volume_ratio: 1.0,
-    lambda_multiple: 1.0,
+    lambda_multiple: 2.0,
 };
 
 /// Default radius of the implant rim's mollifier. Linear tetrahedra cannot follow a rim
