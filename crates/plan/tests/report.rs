@@ -99,6 +99,7 @@ fn a_report_shows_the_model_the_simulation_and_the_postoperative_scan() {
     let model_json = read_json(&path("model/model.json"));
     check_case(&content, &result, &model_json);
     check_implants(&content, &result);
+    check_template_lengths(&result, &model_json);
     check_distances(&content, &result);
     check_volumes(&content, &result, &model_json, &postop, dir.path());
     check_symmetry(&content, &postop);
@@ -152,6 +153,21 @@ fn check_implants(content: &ReportContent, result: &Value) {
     assert!(implant.catalog.is_none());
     assert!(implant.shape.starts_with("anatomic, "), "{}", implant.shape);
     assert!(content.implants.right.is_none());
+}
+
+/// The template's lengths as resolved on this model: 14 and 7 mm, or two and one finest
+/// spacings where those are longer (the coarse test model's case).
+fn check_template_lengths(result: &Value, model_json: &Value) {
+    let spacing_mm = model_json["levels"][0]["spacing_mm"].as_f64().unwrap();
+    let left = &result["implants"]["left"];
+    assert_eq!(
+        left["rim_smoothing_mm"].as_f64().unwrap(),
+        f64::max(14.0, 2.0 * spacing_mm)
+    );
+    assert_eq!(
+        left["template_layer_mm"].as_f64().unwrap(),
+        f64::max(7.0, spacing_mm)
+    );
 }
 
 /// The distance table: simulated values are result.json's, row for row.

@@ -169,6 +169,9 @@ pub struct ImplantTemplate {
     /// The factor in (0, 1] the thicknesses along the bed's normals were scaled by to
     /// insert the covered volume (1 where the unscaled template inserts no more).
     pub scale: f64,
+    /// Thickness of the tissue layer over the footprint that moved with the implant (mm;
+    /// [`TemplateRules::layer_mm`]).
+    pub layer_mm: f64,
 }
 
 /// The implant's thickness mollified over a disc of radius `radius_mm` (mm): the
@@ -188,6 +191,11 @@ pub struct SmoothedThickness {
 pub const SMOOTHING_RINGS: usize = 4;
 
 impl SmoothedThickness {
+    /// The radius of the disc the rim is mollified over (mm).
+    pub fn radius_mm(&self) -> f64 {
+        self.radius_mm
+    }
+
     pub fn new(shape: ImplantShape, radius_mm: f64) -> SmoothedThickness {
         let mut samples = vec![(DVec2::ZERO, 1.0)];
         if radius_mm > 0.0 {
@@ -496,7 +504,10 @@ pub fn build_template(
     } = *rules;
     let classes = classify(feet, anchor, thickness);
     let mut state = vec![0u8; classes.len()];
-    let mut template = ImplantTemplate::default();
+    let mut template = ImplantTemplate {
+        layer_mm,
+        ..ImplantTemplate::default()
+    };
     let fill_in = mark_fill_in(candidates, &classes, hold_bed, &mut state, &mut template);
     // the rest of the tissue layer up to `layer_mm` over the footprint moves with it
     for (k, class) in classes.iter().enumerate() {

@@ -517,7 +517,7 @@ fn landmarks_stay_on_the_simulated_scan() {
 /// where it can be non-zero) has, to the last bit, the numbers of the smoother over the
 /// whole scan: tolerance 0, the same operations in the same order (see
 /// `simulation::field::SurfaceSmoother::with_support`). The two composed into one sparse
-/// map (`simulation::carry::ScanCarry`) give it within 5e-3 mm: its pruned terms and
+/// map (`simulation::carry::ScanCarry`, as the session composes it) give it within 5e-3 mm: its pruned terms and
 /// single-precision weights change the sums by far less than a scanner's noise (0.2 mm)
 /// or the discretisation's error (millimetres), while a wrong composition is off by
 /// millimetres.
@@ -549,14 +549,8 @@ fn the_scan_displacement_equals_the_smoothing_over_the_whole_scan() {
     assert!(still > 0 && still < moved.len());
     assert!(bits(&moved) == bits(&expected));
 
-    let smoother = simulation::field::SurfaceSmoother::with_support(
-        scan,
-        0.5 * sim.spacing_mm(),
-        &map.support(),
-    );
     let t = std::time::Instant::now();
-    let carry =
-        simulation::carry::ScanCarry::new(&map, &smoother, sim.finest_mesh().positions.len());
+    let carry = sim.scan_carry_job()();
     println!("TIMING compose {:.0} ms", t.elapsed().as_secs_f64() * 1e3);
     let mut hist = [0usize; 6];
     let mut terms = [0usize; 6];
@@ -575,6 +569,11 @@ fn the_scan_displacement_equals_the_smoothing_over_the_whole_scan() {
     }
     println!("TIMING P rows by size (0,1-4,5-20,21-100,101-400,>400): {hist:?} terms {terms:?}");
     let composed = carry.displacements(sim.displacement());
+    // the positions in one pass: the same sums added to the rest positions
+    let positions = carry.positions(&scan.positions, sim.displacement());
+    assert!(
+        (positions.iter().zip(&composed).zip(&scan.positions)).all(|((p, d), r)| *p == *r + *d)
+    );
     let error = (composed.iter().zip(&expected))
         .map(|(a, b)| a.distance(*b))
         .fold(0.0, f64::max);

@@ -46,6 +46,11 @@ pub struct ImplantSummary {
     /// less than `volume_ml` where the footprint lies beyond the model's side, where the
     /// scan ends; that part is left out of the prediction.
     pub covered_volume_ml: f64,
+    /// The radius the template's thickness was mollified over at the implant's rim and
+    /// the thickness of the tissue layer over the footprint that moves with the implant
+    /// (mm; the defaults, or the options, resolved on this model's mesh).
+    pub rim_smoothing_mm: f64,
+    pub template_layer_mm: f64,
     /// The move asked for (mm, anatomical frame).
     pub move_mm: [f64; 3],
     /// The turn asked for about the bed's normal (degrees, counter-clockwise from the
@@ -95,6 +100,8 @@ impl ImplantSummary {
             template_volume_ml: placed.template.template_volume_ml,
             template_scale: placed.template.scale,
             covered_volume_ml: placed.template.covered_volume_ml,
+            rim_smoothing_mm: placed.thickness.radius_mm(),
+            template_layer_mm: placed.template.layer_mm,
             move_mm: request.move_mm.to_array(),
             rotation_deg: request.rotation_deg,
             fit_shift_mm: placed.fit_shift_mm.to_array(),

@@ -154,11 +154,13 @@ fn closed_soup(patch: &TriMesh, fill: &TriMesh) -> TriMesh {
 impl Simulation {
     /// Where each scan vertex is now (same order and count as the scan).
     pub fn scan_positions(&self) -> Vec<DVec3> {
-        self.scan_displacements()
-            .into_iter()
-            .zip(&self.scan_rest)
-            .map(|(d, p)| *p + d)
-            .collect()
+        match &self.scan_carry {
+            Some(carry) => carry.positions(&self.scan_rest, &self.u),
+            None => (self.scan_displacements().into_iter())
+                .zip(&self.scan_rest)
+                .map(|(d, p)| *p + d)
+                .collect(),
+        }
     }
 
     /// Where the simulated fold of `side` lies (mm, file frame): on the vertical plane
@@ -206,13 +208,29 @@ impl Simulation {
         let map = self.scan_map.clone();
         let smoother = self.scan_smoother.clone();
         let node_count = self.finest.positions.len();
+        let held_at_zero = self.held_whatever_the_implants();
         move || {
-            let compose = || ScanCarry::new(&map, &smoother, node_count);
+            let compose = || ScanCarry::new(&map, &smoother, node_count, &held_at_zero);
             match rayon::ThreadPoolBuilder::new().num_threads(1).build() {
                 Ok(pool) => pool.install(compose),
                 Err(_) => compose(),
             }
         }
+    }
+
+    /// The finest vertices whose displacement is zero whatever the implants: on the wall
+    /// and a template candidate of no bed (a template may displace a wall vertex, which
+    /// then keeps its place through the gravity stage).
+    fn held_whatever_the_implants(&self) -> Vec<u32> {
+        let mut candidate = vec![false; self.finest.positions.len()];
+        for choice in self.bed_choices.iter().flatten() {
+            for &v in &choice.candidates.vertices {
+                candidate[v as usize] = true;
+            }
+        }
+        (self.wall.iter().copied())
+            .filter(|&v| !candidate[v as usize])
+            .collect()
     }
 
     /// Carries to the scan through `carry` from now on; `false` (and nothing changes)
