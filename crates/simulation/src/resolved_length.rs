@@ -19,7 +19,9 @@ impl ResolvedLength {
 
 #[cfg(test)]
 mod tests {
-    use crate::session::{DEFAULT_RIM_SMOOTHING, DEFAULT_TEMPLATE_LAYER};
+    use crate::session::{
+        DEFAULT_RIM_SMOOTHING, DEFAULT_SCAN_SMOOTHING, DEFAULT_TEMPLATE_LAYER, OUTSIDE_BLEND,
+    };
 
     #[test]
     fn a_resolved_length_is_fixed_in_mm_until_the_mesh_is_too_coarse() {
@@ -29,9 +31,13 @@ mod tests {
         for spacing_mm in [3.0, 4.0, 6.0, 7.0] {
             assert_eq!(DEFAULT_RIM_SMOOTHING.on_mesh(spacing_mm), 14.0);
             assert_eq!(DEFAULT_TEMPLATE_LAYER.on_mesh(spacing_mm), 7.0);
+            assert_eq!(DEFAULT_SCAN_SMOOTHING.on_mesh(spacing_mm), 3.5);
+            assert_eq!(OUTSIDE_BLEND.on_mesh(spacing_mm), 7.0);
         }
         // A draft mesh of 10 mm keeps two spacings and one.
         assert_eq!(DEFAULT_RIM_SMOOTHING.on_mesh(10.0), 20.0);
         assert_eq!(DEFAULT_TEMPLATE_LAYER.on_mesh(10.0), 10.0);
+        assert_eq!(DEFAULT_SCAN_SMOOTHING.on_mesh(10.0), 5.0);
+        assert_eq!(OUTSIDE_BLEND.on_mesh(10.0), 10.0);
     }
 }

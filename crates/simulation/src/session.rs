@@ -69,6 +69,7 @@ mod solve;
 
 pub use options::*;
 
+use build::field_locator;
 pub use carried::CARRIED_CONTROL_POINT_SPACING_MM;
 use carried::{ScanFeet, closed_volume, points_along_loop};
 

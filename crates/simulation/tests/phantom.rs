@@ -366,9 +366,7 @@ fn gravity_correction_moves_the_nipple_down() {
     // the scan's smoothed displacement, tested in `landmarks_stay_on_the_simulated_scan`)
     let after = nipple + at[0];
     // the nipple before the correction, from the stage-1 displacement
-    let locator =
-        simulation::field::FieldLocator::new(sim.finest_mesh(), sim.spacing_mm()).unwrap();
-    let map = simulation::PointMap::new(&locator, &[nipple], sim.options().falloff_mm);
+    let map = simulation::PointMap::new(&sim.field_locator(), &[nipple], sim.options().falloff_mm);
     let stage1 = nipple + map.displacements(&before_gravity)[0];
     let drop = frame.to_local(after).y - frame.to_local(stage1).y;
     println!(
@@ -527,11 +525,13 @@ fn the_scan_displacement_equals_the_smoothing_over_the_whole_scan() {
     let p = common::phantom();
     let scan = &p.marked.scan.mesh;
     let sim = &b.sim;
-    let locator =
-        simulation::field::FieldLocator::new(sim.finest_mesh(), sim.spacing_mm()).unwrap();
-    let map = simulation::PointMap::new(&locator, &scan.positions, sim.options().falloff_mm);
+    let map = simulation::PointMap::new(
+        &sim.field_locator(),
+        &scan.positions,
+        sim.options().falloff_mm,
+    );
     let mut expected = map.displacements(sim.displacement());
-    let full = simulation::field::SurfaceSmoother::new(scan, 0.5 * sim.spacing_mm());
+    let full = simulation::field::SurfaceSmoother::new(scan, sim.scan_smoothing_mm());
     full.apply(&mut expected);
     let bits = |field: &[DVec3]| -> Vec<[u64; 3]> {
         field

@@ -394,6 +394,12 @@ fn held_vertices(
     })
 }
 
+/// The locator of points in the finest level `finest` of spacing `spacing_mm`, with the
+/// session's blend beyond it ([`OUTSIDE_BLEND`]); `None` without tetrahedra.
+pub(super) fn field_locator(finest: &TetMesh, spacing_mm: f64) -> Option<FieldLocator<'_>> {
+    FieldLocator::new(finest, OUTSIDE_BLEND.on_mesh(spacing_mm))
+}
+
 /// The scan's vertices, landmarks and cut-curve points located in the finest level.
 fn scan_maps(
     input: &PatientInput,
@@ -401,13 +407,13 @@ fn scan_maps(
     spacing_mm: f64,
     options: &SimulationOptions,
 ) -> Result<ScanMaps, SimulationError> {
-    let locator = FieldLocator::new(finest, spacing_mm)
+    let locator = field_locator(finest, spacing_mm)
         .ok_or_else(|| SimulationError::BadModel("the finest level has no tetrahedra".into()))?;
     let scan_rest = input.scan.positions.clone();
     let scan_map = PointMap::new(&locator, &scan_rest, options.falloff_mm);
     let scan_smoother = SurfaceSmoother::with_support(
         input.scan,
-        options.scan_smoothing_mm.unwrap_or(0.5 * spacing_mm),
+        options.scan_smoothing_on_mesh(spacing_mm),
         &scan_map.support(),
     );
     let scan_index = mesh::SurfaceIndex::new(input.scan)

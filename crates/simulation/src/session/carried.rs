@@ -244,11 +244,20 @@ impl Simulation {
         fits
     }
 
+    /// The locator the scan and every carried point are mapped with.
+    pub fn field_locator(&self) -> FieldLocator<'_> {
+        field_locator(&self.finest, self.spacing_mm).expect("checked when the session was built")
+    }
+
+    /// The radius of the smoothing over the scan (mm, [`SimulationOptions::scan_smoothing_mm`]
+    /// resolved on the finest mesh).
+    pub fn scan_smoothing_mm(&self) -> f64 {
+        self.options.scan_smoothing_on_mesh(self.spacing_mm)
+    }
+
     /// The displacement of any points (mm), mapped like the scan (slower: locates them).
     pub fn displacements_at(&self, points: &[DVec3]) -> Vec<DVec3> {
-        let locator = FieldLocator::new(&self.finest, self.spacing_mm)
-            .expect("checked when the session was built");
-        PointMap::new(&locator, points, self.options.falloff_mm).displacements(&self.u)
+        PointMap::new(&self.field_locator(), points, self.options.falloff_mm).displacements(&self.u)
     }
 
     /// The landmarks moved with the tissue (required and extra points): each by the
@@ -310,7 +319,7 @@ impl Simulation {
         } = self;
         let maps = mesh_maps.get_or_insert_with(|| {
             let locator =
-                FieldLocator::new(finest, *spacing_mm).expect("checked when the session was built");
+                field_locator(finest, *spacing_mm).expect("checked when the session was built");
             let map = |m: &TriMesh| PointMap::new(&locator, &m.positions, options.falloff_mm);
             MeshMaps {
                 base: map(base),

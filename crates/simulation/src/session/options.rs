@@ -61,6 +61,26 @@ pub const DEFAULT_TEMPLATE_LAYER: ResolvedLength = ResolvedLength {
     min_spacings: 1.0,
 };
 
+/// Default radius of the smoothing of the displacement over the scan
+/// ([`SimulationOptions::scan_smoothing_mm`]): it takes out the elements' facets and
+/// moves smooth skin by hundredths of a millimetre; half of 7 mm, one spacing of the
+/// default mesh on the largest of our bodies, and fixed in mm like the template's
+/// lengths (at half the spacing, the finer mesh's skin was smoothed less where the clip
+/// faces' seams bend it; docs/dev/discretisation.md).
+pub const DEFAULT_SCAN_SMOOTHING: ResolvedLength = ResolvedLength {
+    mm: 3.5,
+    min_spacings: 0.5,
+};
+
+/// Radius of the blend beyond the finest mesh: past about this distance, a point
+/// outside takes a weighted average of the boundary's displacements rather than its
+/// closest point's ([`crate::field`]); 7 mm, one spacing of the default mesh on the
+/// largest of our bodies, fixed in mm for the same reason.
+pub const OUTSIDE_BLEND: ResolvedLength = ResolvedLength {
+    mm: 7.0,
+    min_spacings: 1.0,
+};
+
 /// Largest [`SimulationOptions::scan_smoothing_mm`] (mm): the smoothing is meant for
 /// the element scale, and its cost grows with the radius squared.
 pub const MAX_SCAN_SMOOTHING_MM: f64 = 20.0;
@@ -203,7 +223,7 @@ pub struct SimulationOptions {
     /// Fade length of the displacement beyond the finest mesh (mm), see [`crate::field`].
     pub falloff_mm: f64,
     /// Radius over which the displacement is smoothed on the scan (mm, see
-    /// [`SurfaceSmoother`]); `None`: half the finest lattice spacing; `Some(0.0)`: none.
+    /// [`SurfaceSmoother`]); `None`: [`DEFAULT_SCAN_SMOOTHING`]; `Some(0.0)`: none.
     pub scan_smoothing_mm: Option<f64>,
     /// Fill-in parameters for re-measuring the simulated breasts (the cylinder axis
     /// defaults to the frame's `y`, as when the model was built).
@@ -245,6 +265,12 @@ impl Default for SimulationOptions {
 }
 
 impl SimulationOptions {
+    /// The radius of the smoothing over the scan on a mesh of finest spacing
+    /// `spacing_mm` (mm).
+    pub fn scan_smoothing_on_mesh(&self, spacing_mm: f64) -> f64 {
+        (self.scan_smoothing_mm).unwrap_or(DEFAULT_SCAN_SMOOTHING.on_mesh(spacing_mm))
+    }
+
     /// Checks every setting's range; the error names the first bad one.
     pub(super) fn check(&self) -> Result<(), SimulationError> {
         check_option("shift_mm", self.shift_mm, true, "a finite number of mm")?;
