@@ -6,11 +6,11 @@
 //! closest point on the mesh, which lies on a boundary face of the nearest element
 //! (barycentric coordinates of that closest point, all in `[0, 1]`, so nothing is
 //! extrapolated linearly and nothing grows with distance); beyond about one blend
-//! radius `b` (a session's `OUTSIDE_BLEND`) that gives way, smoothly, to a weighted
-//! average of the boundary vertices within `d + 2b` (weights `(1 - (r/(d + 2b))²)²`),
-//! because closest points jump across the medial axis of concave parts of the boundary
-//! (measured on the phantom beyond a lateral clip plane: a 1.4 mm scan edge stretched to
-//! 5.8 mm). All of it times a falloff `(1 - (d/D)²)²` of its distance `d` to the mesh
+//! radius `b` (in a session, `OUTSIDE_BLEND_RADIUS`) that gives way, smoothly, to a
+//! weighted average of the boundary vertices within `d + 2b` (weights
+//! `(1 - (r/(d + 2b))²)²`), because closest points jump across the medial axis of
+//! concave parts of the boundary (measured on the phantom beyond a lateral clip plane: a
+//! 1.4 mm scan edge stretched to 5.8 mm). All of it times a falloff `(1 - (d/D)²)²` of its distance `d` to the mesh
 //! that is 1 with zero slope at the mesh and reaches 0 with zero slope at `D`
 //! ([`DEFAULT_FALLOFF_MM`]). The map is
 //! continuous in the point (closest points move continuously), so the moved scan has no

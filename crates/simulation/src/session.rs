@@ -332,6 +332,10 @@ pub struct Simulation {
     wall: Vec<u32>,
     /// Per finest vertex: on the wall (held at every stage).
     on_wall: Vec<bool>,
+    /// The finest vertices whose displacement is zero whatever the implants (the wall
+    /// where no template reaches): `u` is zero there at all times, which the composed
+    /// carry to the scan relies on.
+    never_moved: Vec<u32>,
     /// Per finest vertex: on the clip planes' band (held or not).
     on_band: Vec<bool>,
     /// Per finest vertex: on the skin (a boundary vertex off the wall and the band).
@@ -442,6 +446,12 @@ impl Simulation {
         self.pocket_bounds[side as usize].as_ref()
     }
 
+    /// The finest vertices whose displacement is zero whatever the implants: the wall
+    /// ([`Simulation::wall_vertices`]) but where a template may displace it.
+    pub fn never_moved(&self) -> &[u32] {
+        &self.never_moved
+    }
+
     /// The finest vertices held at every stage: the posterior wall, the clip faces but
     /// where they cut a breast, and the strip over the sternum.
     pub fn wall_vertices(&self) -> &[u32] {
@@ -484,8 +494,9 @@ impl Simulation {
     }
 
     /// Starts stage 1 afresh from a state [`Simulation::solved_state`] gave, as after a
-    /// change of the implants; the next gravity correction starts from the state's. On
-    /// error nothing changes.
+    /// change of the implants; the next gravity correction starts from the state's. The
+    /// vertices no implant moves ([`Simulation::never_moved`]) start at zero whatever
+    /// the state says. On error nothing changes.
     pub fn restore(&mut self, state: &SolvedState) -> Result<(), SimulationError> {
         let count = self.u.len();
         let fits = |v: &[DVec3]| v.len() == count && v.iter().all(|d| d.is_finite());
@@ -501,6 +512,9 @@ impl Simulation {
             }
         }
         self.u.copy_from_slice(&state.u);
+        for &v in &self.never_moved {
+            self.u[v as usize] = DVec3::ZERO;
+        }
         self.constraints_changed();
         self.gravity_guess = state.gravity_correction.clone();
         Ok(())

@@ -515,8 +515,9 @@ fn landmarks_stay_on_the_simulated_scan() {
 /// where it can be non-zero) has, to the last bit, the numbers of the smoother over the
 /// whole scan: tolerance 0, the same operations in the same order (see
 /// `simulation::field::SurfaceSmoother::with_support`). The two composed into one sparse
-/// map (`simulation::carry::ScanCarry`, as the session composes it) give it within 5e-3 mm: its pruned terms and
-/// single-precision weights change the sums by far less than a scanner's noise (0.2 mm)
+/// map (`simulation::carry::ScanCarry`, as the session composes it) give it within
+/// 5e-3 mm: its pruned terms and single-precision weights and sums change the sums by
+/// far less than a scanner's noise (0.2 mm)
 /// or the discretisation's error (millimetres), while a wrong composition is off by
 /// millimetres.
 #[test]
@@ -569,11 +570,12 @@ fn the_scan_displacement_equals_the_smoothing_over_the_whole_scan() {
     }
     println!("TIMING P rows by size (0,1-4,5-20,21-100,101-400,>400): {hist:?} terms {terms:?}");
     let composed = carry.displacements(sim.displacement());
-    // the positions in one pass: the same sums added to the rest positions
+    // the positions in one pass, against the rest positions moved by the two steps
     let positions = carry.positions(&scan.positions, sim.displacement());
-    assert!(
-        (positions.iter().zip(&composed).zip(&scan.positions)).all(|((p, d), r)| *p == *r + *d)
-    );
+    let position_error = (positions.iter().zip(&expected).zip(&scan.positions))
+        .map(|((p, d), r)| p.distance(*r + *d))
+        .fold(0.0, f64::max);
+    assert!(position_error <= 5e-3, "{position_error} mm");
     let error = (composed.iter().zip(&expected))
         .map(|(a, b)| a.distance(*b))
         .fold(0.0, f64::max);

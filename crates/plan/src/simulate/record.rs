@@ -46,10 +46,11 @@ pub struct ImplantSummary {
     /// less than `volume_ml` where the footprint lies beyond the model's side, where the
     /// scan ends; that part is left out of the prediction.
     pub covered_volume_ml: f64,
-    /// The radius the template's thickness was mollified over at the implant's rim and
-    /// the thickness of the tissue layer over the footprint that moves with the implant
-    /// (mm; the defaults, or the options, resolved on this model's mesh).
+    /// The radius the template's thickness was mollified over at the implant's rim (mm;
+    /// the default or the option, resolved on this model's mesh).
     pub rim_smoothing_mm: f64,
+    /// The thickness of the tissue layer over the footprint that moves with the implant
+    /// (mm; the default or the option, resolved on this model's mesh).
     pub template_layer_mm: f64,
     /// The move asked for (mm, anatomical frame).
     pub move_mm: [f64; 3],

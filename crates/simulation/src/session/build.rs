@@ -84,7 +84,9 @@ impl Simulation {
         } = scan_maps(&input, &finest, spacing_mm, &options)?;
         let n = finest.positions.len();
         let (neighbour_ptr, neighbours) = vertex_neighbours(&finest);
+        let never_moved = never_moved(n, &wall, &bed_choices);
         Ok(Simulation {
+            never_moved,
             pocket_bounds: bed_choices.each_ref().map(|choices| choices[0].bounds),
             feet: bed_choices
                 .each_ref()
@@ -394,10 +396,25 @@ fn held_vertices(
     })
 }
 
+/// The finest vertices whose displacement is zero whatever the implants: on the wall
+/// and a template candidate of no bed (a template may displace a wall vertex, which then
+/// keeps its place through the gravity stage).
+fn never_moved(vertex_count: usize, wall: &[u32], bed_choices: &[Vec<BedChoice>; 2]) -> Vec<u32> {
+    let mut candidate = vec![false; vertex_count];
+    for choice in bed_choices.iter().flatten() {
+        for &v in &choice.candidates.vertices {
+            candidate[v as usize] = true;
+        }
+    }
+    (wall.iter().copied())
+        .filter(|&v| !candidate[v as usize])
+        .collect()
+}
+
 /// The locator of points in the finest level `finest` of spacing `spacing_mm`, with the
-/// session's blend beyond it ([`OUTSIDE_BLEND`]); `None` without tetrahedra.
+/// session's blend beyond it ([`OUTSIDE_BLEND_RADIUS`]); `None` without tetrahedra.
 pub(super) fn field_locator(finest: &TetMesh, spacing_mm: f64) -> Option<FieldLocator<'_>> {
-    FieldLocator::new(finest, OUTSIDE_BLEND.on_mesh(spacing_mm))
+    FieldLocator::new(finest, OUTSIDE_BLEND_RADIUS.on_mesh(spacing_mm))
 }
 
 /// The scan's vertices, landmarks and cut-curve points located in the finest level.

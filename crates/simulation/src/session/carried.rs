@@ -208,9 +208,10 @@ impl Simulation {
         let map = self.scan_map.clone();
         let smoother = self.scan_smoother.clone();
         let node_count = self.finest.positions.len();
-        let held_at_zero = self.held_whatever_the_implants();
+        let held_at_zero = self.never_moved.clone();
+        let source = self.carry_source();
         move || {
-            let compose = || ScanCarry::new(&map, &smoother, node_count, &held_at_zero);
+            let compose = || ScanCarry::new(&map, &smoother, node_count, &held_at_zero, source);
             match rayon::ThreadPoolBuilder::new().num_threads(1).build() {
                 Ok(pool) => pool.install(compose),
                 Err(_) => compose(),
@@ -218,30 +219,32 @@ impl Simulation {
         }
     }
 
-    /// The finest vertices whose displacement is zero whatever the implants: on the wall
-    /// and a template candidate of no bed (a template may displace a wall vertex, which
-    /// then keeps its place through the gravity stage).
-    fn held_whatever_the_implants(&self) -> Vec<u32> {
-        let mut candidate = vec![false; self.finest.positions.len()];
-        for choice in self.bed_choices.iter().flatten() {
-            for &v in &choice.candidates.vertices {
-                candidate[v as usize] = true;
-            }
-        }
-        (self.wall.iter().copied())
-            .filter(|&v| !candidate[v as usize])
-            .collect()
-    }
-
     /// Carries to the scan through `carry` from now on; `false` (and nothing changes)
-    /// unless it was composed for a scan and finest level of this simulation's sizes.
+    /// unless this simulation's [`Simulation::scan_carry_job`] composed it.
     pub fn use_scan_carry(&mut self, carry: ScanCarry) -> bool {
         let fits = carry.len() == self.scan_rest.len()
-            && carry.node_count() == self.finest.positions.len();
+            && carry.node_count() == self.finest.positions.len()
+            && carry.source() == self.carry_source();
         if fits {
             self.scan_carry = Some(carry);
         }
         fits
+    }
+
+    /// Identifies what the composed carry depends on: the sizes, the vertices left out,
+    /// the smoothing's and the blend's radii and the falloff.
+    fn carry_source(&self) -> u64 {
+        use std::hash::{Hash, Hasher};
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        (self.scan_rest.len(), self.finest.positions.len()).hash(&mut hasher);
+        self.never_moved.hash(&mut hasher);
+        let lengths = [
+            self.scan_smoothing_mm(),
+            OUTSIDE_BLEND_RADIUS.on_mesh(self.spacing_mm),
+            self.options.falloff_mm,
+        ];
+        lengths.map(f64::to_bits).hash(&mut hasher);
+        hasher.finish()
     }
 
     /// The locator the scan and every carried point are mapped with.

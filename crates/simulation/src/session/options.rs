@@ -62,11 +62,9 @@ pub const DEFAULT_TEMPLATE_LAYER: ResolvedLength = ResolvedLength {
 };
 
 /// Default radius of the smoothing of the displacement over the scan
-/// ([`SimulationOptions::scan_smoothing_mm`]): it takes out the elements' facets and
-/// moves smooth skin by hundredths of a millimetre; half of 7 mm, one spacing of the
-/// default mesh on the largest of our bodies, and fixed in mm like the template's
-/// lengths (at half the spacing, the finer mesh's skin was smoothed less where the clip
-/// faces' seams bend it; docs/dev/discretisation.md).
+/// ([`SimulationOptions::scan_smoothing_mm`]), which takes out the elements' facets:
+/// half of 7 mm, one spacing of the default mesh on the largest of our bodies; fixed in
+/// mm so that a finer mesh is smoothed alike (docs/dev/discretisation.md).
 pub const DEFAULT_SCAN_SMOOTHING: ResolvedLength = ResolvedLength {
     mm: 3.5,
     min_spacings: 0.5,
@@ -76,7 +74,7 @@ pub const DEFAULT_SCAN_SMOOTHING: ResolvedLength = ResolvedLength {
 /// outside takes a weighted average of the boundary's displacements rather than its
 /// closest point's ([`crate::field`]); 7 mm, one spacing of the default mesh on the
 /// largest of our bodies, fixed in mm for the same reason.
-pub const OUTSIDE_BLEND: ResolvedLength = ResolvedLength {
+pub const OUTSIDE_BLEND_RADIUS: ResolvedLength = ResolvedLength {
     mm: 7.0,
     min_spacings: 1.0,
 };
