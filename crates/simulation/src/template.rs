@@ -33,7 +33,7 @@
 use crate::bed::{Foot, ImplantBed};
 use crate::error::SimulationError;
 use crate::placement::{Anchor, Placement, resolve_anchor};
-use crate::template_volume::bed_section_volume_mm3;
+use crate::template_volume::covered_volume_ml;
 use anatomy::breast::Side;
 use glam::{DVec2, DVec3};
 use implant::ImplantShape;
@@ -624,7 +624,7 @@ const FIXED: u8 = 2;
 /// the implant's mollified `thickness` there.
 fn classify(feet: &BedFeet, anchor: &Anchor, thickness: &SmoothedThickness) -> Vec<Class> {
     feet.feet
-        .iter()
+        .par_iter()
         .map(|foot| match foot {
             None => Class::Off,
             Some(f) => {
@@ -761,25 +761,4 @@ fn displaced_volumes(mesh: &TetMesh, t: u32, d: [DVec3; 4]) -> (f64, f64) {
     let rest = tetra::quality::signed_volume(p);
     let moved = tetra::quality::signed_volume([p[0] + d[0], p[1] + d[1], p[2] + d[2], p[3] + d[3]]);
     (rest, moved)
-}
-
-/// The implant's volume over the bed sections of the fill-in elements (ml).
-fn covered_volume_ml(
-    fill_in: &[(u32, [u32; 4])],
-    feet: &BedFeet,
-    anchor: &Anchor,
-    thickness: &SmoothedThickness,
-) -> f64 {
-    fill_in
-        .iter()
-        .filter_map(|(_, corners)| {
-            let feet = corners.map(|k| feet.feet[k as usize]);
-            Some(bed_section_volume_mm3(
-                &[feet[0]?, feet[1]?, feet[2]?, feet[3]?],
-                anchor,
-                thickness,
-            ))
-        })
-        .sum::<f64>()
-        / 1000.0
 }

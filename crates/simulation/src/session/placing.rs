@@ -253,21 +253,24 @@ impl Simulation {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
                 (lo.min(p.x), hi.max(p.x))
             });
-        let in_template: std::collections::HashSet<u32> =
-            template.implant_vertices.iter().map(|&(v, _)| v).collect();
+        let mut in_template = vec![false; self.finest.positions.len()];
+        for &(v, _) in &template.implant_vertices {
+            in_template[v as usize] = true;
+        }
         let pushed_near = |v: u32| {
             let v = v as usize;
-            in_template.contains(&(v as u32))
+            in_template[v]
                 || self.neighbours[self.neighbour_ptr[v]..self.neighbour_ptr[v + 1]]
                     .iter()
-                    .any(|w| in_template.contains(w))
+                    .any(|&w| in_template[w as usize])
         };
         (0..self.finest.positions.len() as u32)
-            .filter(|&v| self.on_skin[v as usize] && !pushed_near(v))
+            .filter(|&v| self.on_skin[v as usize])
             .filter(|&v| {
                 let p = local(v);
                 p.y <= fold_y_mm && p.y > fold_y_mm - self.spacing_mm && p.x >= x_lo && p.x <= x_hi
             })
+            .filter(|&v| !pushed_near(v))
             .collect()
     }
 
