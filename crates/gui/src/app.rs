@@ -200,6 +200,14 @@ impl GuiApp {
             distances.update(&document.landmarks);
             self.distances = Some(distances);
         }
+        // While a running solve's previews are drawn, the panels' shapes go without
+        // egui's anti-aliasing feather: with a software renderer its thin triangles cost
+        // about a tenth of a window frame (docs/user/gui.md).
+        let feathering = !self.draws_preview();
+        if ui.ctx().tessellation_options(|o| o.feathering) != feathering {
+            ui.ctx()
+                .tessellation_options_mut(|o| o.feathering = feathering);
+        }
         let panel_frame = panel_frame(ui.style());
         egui::Panel::top("toolbar")
             .frame(panel_frame)

@@ -12,9 +12,11 @@
 //! its updates rewrite the vertex buffer only. Shading: per-vertex normals, a light slightly
 //! above and to the left of the eye, Lambert diffuse plus a weak Blinn-Phong highlight;
 //! back faces (the inside of an open scan) are lit from their own side and tinted (not
-//! drawn at all with a software renderer, see [`install`]). With a software renderer the
-//! live simulation's frames are drawn on an [`InteractionMesh`] (a quarter of the
-//! triangles) while the solver runs.
+//! drawn at all with a software renderer, see [`install`]). With a software renderer a
+//! running solve's frames trade detail for rate, as a level of detail does: they are
+//! drawn on an [`InteractionMesh`] (an eighth of the triangles) into a picture of half
+//! the viewport's pixels ([`INTERACTION_PIXEL_SCALE`]), which the copy into egui's pass
+//! scales up; the settled frame is drawn in full.
 //! Colours are the scan's vertex colours when it has them, else its photograph sampled at
 //! the vertices (a per-pixel GPU texture is not drawn yet), else a neutral skin tone.
 
@@ -39,6 +41,11 @@ const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 const MSAA_SAMPLES: u32 = 4;
 /// Most meshes drawn at once.
 pub const MAX_LAYERS: usize = 2;
+/// Linear scale of the scene's picture against the viewport's pixels while a running
+/// solve's frames are drawn with a software renderer: half the pixels. On the 2-core
+/// machine under Xvfb the live view then updates about a twentieth more often
+/// (docs/user/gui.md).
+pub const INTERACTION_PIXEL_SCALE: f64 = std::f64::consts::FRAC_1_SQRT_2;
 /// Colour factor and opacity of a translucent layer: a light blue veil.
 const TRANSLUCENT_TINT: [f32; 4] = [0.78, 0.88, 1.0, 0.45];
 
@@ -151,7 +158,7 @@ pub struct SceneMesh {
 
 /// A coarser triangulation of a scan on a subset of its vertices, drawn for the live
 /// simulation's frames while the solver runs when the window draws on the processor: a
-/// software renderer's cost is per triangle, and at the viewport's size a quarter of a
+/// software renderer's cost is per triangle, and at the viewport's size an eighth of a
 /// 290,000-triangle scan's triangles shows the same shape. Its vertices are scan
 /// vertices, moved by their own simulated displacements; once the solver settles, the
 /// full scan is drawn again.
@@ -680,6 +687,9 @@ pub struct ViewportCallback {
     pub layers: Vec<Layer>,
     /// Viewport size in egui points (the paint callback's rectangle).
     pub size_points: DVec2,
+    /// Linear scale of the scene's picture against the viewport's pixels (1: every
+    /// pixel drawn; below 1 the copy into egui's pass scales it up).
+    pub pixel_scale: f64,
 }
 
 impl ViewportCallback {
@@ -714,7 +724,7 @@ impl egui_wgpu::CallbackTrait for ViewportCallback {
         let Some(viewport) = resources.get_mut::<ViewportResources>() else {
             return Vec::new();
         };
-        let pixels = self.size_points * f64::from(screen.pixels_per_point);
+        let pixels = self.size_points * f64::from(screen.pixels_per_point) * self.pixel_scale;
         let size = [
             (pixels.x.round() as u32).max(1),
             (pixels.y.round() as u32).max(1),

@@ -1,10 +1,11 @@
 //! The interaction mesh drawn while the live simulation runs with a software renderer:
-//! a quarter of the scan's triangles on a subset of its vertices, whose surface stays
+//! an eighth of the scan's triangles on a subset of its vertices, whose surface stays
 //! within a millimetre of the scan's (about a pixel of the viewport at its default zoom)
 //! and within 0.15 mm on average. Checked on the phantom and on a shared
 //! scan by an independent measure, the distance from every scan vertex to the coarse
 //! surface (closest points on its triangles), not by the simplifier's own estimate.
 
+use gui::live_simulation::{INTERACTION_ERROR_MM, INTERACTION_TRIANGLE_SHARE};
 use gui::render::{InteractionMesh, SceneMesh};
 use mesh::TriMesh;
 use mesh::spatial::SurfaceIndex;
@@ -14,11 +15,16 @@ use std::path::Path;
 /// distance of the scan's vertices from its surface, mm).
 fn check(name: &str, scan: &TriMesh) -> (f64, f64, f64) {
     let scene = SceneMesh::new(scan);
-    let coarse = InteractionMesh::simplify(&scene, 0.25, 0.5);
+    let coarse =
+        InteractionMesh::simplify(&scene, INTERACTION_TRIANGLE_SHARE, INTERACTION_ERROR_MM);
     let triangles = coarse.triangles();
     let share = triangles.len() as f64 / scan.triangles.len() as f64;
-    // A quarter of the triangles at most (rounded down to whole triangles).
-    assert!(share <= 0.25, "{name}: {share} of the triangles kept");
+    // At most the share asked for, unless the simplifier's error limit stopped it first.
+    assert!(
+        share <= INTERACTION_TRIANGLE_SHARE || coarse.error_mm() >= 0.99 * INTERACTION_ERROR_MM,
+        "{name}: {share} of the triangles kept, error {} mm",
+        coarse.error_mm()
+    );
     // Its vertices are scan vertices, each once, and its triangles use them all.
     let vertices = coarse.scan_vertices();
     assert!(vertices.windows(2).all(|w| w[0] < w[1]), "{name}: vertices");
@@ -55,20 +61,23 @@ const LARGEST_MM: f64 = 1.0;
 /// The mean distance allowed (mm): a fifth of a pixel.
 const MEAN_MM: f64 = 0.15;
 
-/// The phantom's scan (145,245 vertices, 288,960 triangles, smooth; measured: largest
-/// 0.27 mm, mean 0.02 mm).
+/// The phantom's scan (145,245 vertices, 288,960 triangles, smooth; the share decides;
+/// measured: largest 0.34 mm, mean 0.03 mm).
 #[test]
-fn the_phantom_keeps_its_shape_with_a_quarter_of_its_triangles() {
+fn the_phantom_keeps_its_shape_with_an_eighth_of_its_triangles() {
     let document = gui::Document::phantom(false).unwrap();
     let (share, largest, mean) = check("phantom", &document.scan.mesh);
-    assert!(share > 0.2, "only {share} of the triangles kept");
+    assert!(
+        share > 0.9 * INTERACTION_TRIANGLE_SHARE,
+        "only {share} of the triangles kept"
+    );
     assert!(largest < LARGEST_MM, "{largest} mm");
     assert!(mean < MEAN_MM, "{mean} mm");
 }
 
 /// The same on the shared scan `v02_average` (182,077 triangles), made from an
-/// independent body model with finer detail than the phantom (measured: largest 0.68 mm,
-/// mean 0.09 mm).
+/// independent body model with finer detail than the phantom (the error limit decides,
+/// at 14% of the triangles; measured: largest 0.84 mm, mean 0.14 mm).
 #[test]
 fn a_shared_scan_keeps_its_shape_too() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scans/v02_average.ply");
@@ -78,7 +87,11 @@ fn a_shared_scan_keeps_its_shape_too() {
     }
     let scan = mesh::io::read_mesh(&path).unwrap();
     let (share, largest, mean) = check("v02_average", &scan);
-    assert!(share > 0.2, "only {share} of the triangles kept");
+    // the preview still leaves out most of the triangles
+    assert!(
+        share < 2.0 * INTERACTION_TRIANGLE_SHARE,
+        "{share} of the triangles kept"
+    );
     assert!(largest < LARGEST_MM, "{largest} mm");
     assert!(mean < MEAN_MM, "{mean} mm");
 }

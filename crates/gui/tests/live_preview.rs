@@ -3,7 +3,7 @@
 //! the same mesh for overlays; the frame it settles on, and the deviation map prepared
 //! from it, are drawn on the full scan.
 
-use gui::live_simulation::{ImplantSet, LiveSimulation};
+use gui::live_simulation::{INTERACTION_TRIANGLE_SHARE, ImplantSet, LiveSimulation};
 use gui::render::SceneMesh;
 use plan::catalog::Catalog;
 use plan::model::ModelOptions;
@@ -59,8 +59,11 @@ fn previews_while_running_and_the_full_scan_once_settled() {
                 if let Some(pre_operative) = &frame.pre_operative {
                     previews += 1;
                     let triangles = frame.scene.triangle_count();
+                    // the phantom's share decides (tests/interaction_mesh.rs)
+                    let share = triangles as f64 / scan_triangles as f64;
                     assert!(
-                        triangles <= scan_triangles / 4 && triangles > scan_triangles / 5,
+                        share <= INTERACTION_TRIANGLE_SHARE
+                            && share > 0.9 * INTERACTION_TRIANGLE_SHARE,
                         "a preview of {triangles} triangles"
                     );
                     assert_eq!(pre_operative.triangle_count(), triangles);

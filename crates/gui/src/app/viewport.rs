@@ -122,12 +122,18 @@ impl GuiApp {
 
         // Drawing: the shaded scans (GPU), then the curves, outlines and markers on top.
         if self.gpu {
+            let pixel_scale = if self.draws_preview() {
+                render::INTERACTION_PIXEL_SCALE
+            } else {
+                1.0
+            };
             painter.add(egui_wgpu::Callback::new_paint_callback(
                 rect,
                 ViewportCallback {
                     camera: self.camera,
                     layers,
                     size_points: size,
+                    pixel_scale,
                 },
             ));
         } else {
@@ -473,6 +479,15 @@ impl GuiApp {
                 None => vec![opaque(&registered.scene)],
             },
         }
+    }
+
+    /// Whether the viewport draws a running solve's preview frame (on the interaction
+    /// mesh, with a software renderer): the window then trades detail for rate (see
+    /// [`render`]).
+    pub(super) fn draws_preview(&self) -> bool {
+        let frame = self.live.as_ref().and_then(|live| live.frame.as_ref());
+        frame.is_some_and(|frame| frame.pre_operative.is_some())
+            && self.shown_frame_number().is_some()
     }
 
     /// The number of the live simulation's latest frame if the viewport draws it.
