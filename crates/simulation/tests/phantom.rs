@@ -586,6 +586,22 @@ fn the_scan_displacement_equals_the_smoothing_over_the_whole_scan() {
         carry.term_count() as f64 / (moved.len() - still) as f64
     );
     assert!(error <= 5e-3, "{error} mm");
+
+    // A session in the same state answers through the composed map once it has it: the
+    // same numbers as the map's own positions, to the bit.
+    let mut own = p.session(SimulationOptions::default());
+    own.restore(&sim.solved_state()).unwrap();
+    let two_steps = own.scan_positions();
+    assert!(
+        own.use_scan_carry(carry),
+        "the composed map fits its session"
+    );
+    let carried = own.scan_positions();
+    assert!(bits(&carried) == bits(&positions));
+    assert!(
+        bits(&two_steps) != bits(&carried),
+        "both answers came from one branch"
+    );
 }
 
 /// `AnchorRule::BehindNipple` (`simulate --anchor behind-nipple`): the default anchor is

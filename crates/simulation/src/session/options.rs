@@ -269,6 +269,18 @@ impl SimulationOptions {
         (self.scan_smoothing_mm).unwrap_or(DEFAULT_SCAN_SMOOTHING.on_mesh(spacing_mm))
     }
 
+    /// The radius the implant's rim is mollified over on a mesh of finest spacing
+    /// `spacing_mm` (mm).
+    pub fn rim_smoothing_on_mesh(&self, spacing_mm: f64) -> f64 {
+        (self.rim_smoothing_mm).unwrap_or(DEFAULT_RIM_SMOOTHING.on_mesh(spacing_mm))
+    }
+
+    /// The template's tissue layer over the footprint on a mesh of finest spacing
+    /// `spacing_mm` (mm).
+    pub fn template_layer_on_mesh(&self, spacing_mm: f64) -> f64 {
+        (self.template_layer_mm).unwrap_or(DEFAULT_TEMPLATE_LAYER.on_mesh(spacing_mm))
+    }
+
     /// Checks every setting's range; the error names the first bad one.
     pub(super) fn check(&self) -> Result<(), SimulationError> {
         check_option("shift_mm", self.shift_mm, true, "a finite number of mm")?;

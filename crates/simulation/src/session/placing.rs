@@ -181,14 +181,8 @@ impl Simulation {
             outcome = Err(limit);
         }
         let (bed, feet, bounds, requested, anchor, fold_lowering_mm) = outcome?;
-        let radius = self
-            .options
-            .rim_smoothing_mm
-            .unwrap_or(DEFAULT_RIM_SMOOTHING.on_mesh(self.spacing_mm));
-        let layer_mm = self
-            .options
-            .template_layer_mm
-            .unwrap_or(DEFAULT_TEMPLATE_LAYER.on_mesh(self.spacing_mm));
+        let radius = self.options.rim_smoothing_on_mesh(self.spacing_mm);
+        let layer_mm = self.options.template_layer_on_mesh(self.spacing_mm);
         let thickness = SmoothedThickness::new(shape, radius);
         let template = build_template(
             &self.finest,

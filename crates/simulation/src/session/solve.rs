@@ -449,10 +449,9 @@ impl Simulation {
             * (self.options.gravity_m_s2
                 * self.options.implant_density_kg_m3
                 * fem::model::KG_M3_TIMES_M_S2_TO_MN_MM3);
-        let wall: std::collections::HashSet<u32> = self.wall.iter().copied().collect();
         for implant in self.implants.iter().flatten() {
             for &(v, _) in &implant.template.implant_vertices {
-                if !wall.contains(&v) {
+                if !self.on_wall[v as usize] {
                     f_ext[v as usize] = f_int[v as usize];
                 }
             }
