@@ -17,36 +17,8 @@ import sys
 import numpy as np
 from scipy.spatial import cKDTree
 
+from fill_in_axis import read_ply
 from volume_balance import read_vtu
-
-
-def read_ply_xyz(path):
-    """The vertex positions of a binary little-endian or ASCII PLY whose vertices
-    start with x, y, z (any further vertex properties are skipped)."""
-    with open(path, "rb") as f:
-        props, count, fmt = [], 0, "ascii"
-        in_vertex = False
-        while True:
-            line = f.readline().decode("ascii").strip()
-            if line.startswith("format"):
-                fmt = line.split()[1]
-            elif line.startswith("element"):
-                in_vertex = line.split()[1] == "vertex"
-                if in_vertex:
-                    count = int(line.split()[2])
-            elif line.startswith("property") and in_vertex:
-                props.append(line.split()[1])
-            elif line == "end_header":
-                break
-        if fmt == "ascii":
-            rows = [f.readline().split()[:3] for _ in range(count)]
-            return np.array(rows, dtype=float)
-        sizes = {"float": "<f4", "float32": "<f4", "double": "<f8", "float64": "<f8",
-                 "uchar": "u1", "uint8": "u1", "int": "<i4", "int32": "<i4",
-                 "uint": "<u4", "uint32": "<u4", "short": "<i2", "ushort": "<u2"}
-        dtype = np.dtype([(f"p{k}", sizes[t]) for k, t in enumerate(props)])
-        data = np.frombuffer(f.read(count * dtype.itemsize), dtype=dtype)
-        return np.stack([data["p0"], data["p1"], data["p2"]], axis=1).astype(float)
 
 
 def summary(e):
@@ -56,9 +28,9 @@ def summary(e):
 def main():
     scan, fine_dir, coarse_dir = sys.argv[1:4]
     near = [float(x) for x in sys.argv[4:]] or [3.0, 4.5]
-    rest = read_ply_xyz(scan)
-    fine = read_ply_xyz(f"{fine_dir}/simulated_scan.ply")
-    coarse = read_ply_xyz(f"{coarse_dir}/simulated_scan.ply")
+    rest = read_ply(scan)[0]
+    fine = read_ply(f"{fine_dir}/simulated_scan.ply")[0]
+    coarse = read_ply(f"{coarse_dir}/simulated_scan.ply")[0]
     moved = np.linalg.norm(fine - rest, axis=1) > 1.0
     diff = np.linalg.norm(coarse - fine, axis=1)
     print(f"moved {moved.sum()}: {summary(diff[moved])}")

@@ -200,14 +200,6 @@ impl GuiApp {
             distances.update(&document.landmarks);
             self.distances = Some(distances);
         }
-        // While a running solve's previews are drawn, the panels' shapes go without
-        // egui's anti-aliasing feather: with a software renderer its thin triangles cost
-        // about a tenth of a window frame (docs/user/gui.md).
-        let feathering = !self.draws_preview();
-        if ui.ctx().tessellation_options(|o| o.feathering) != feathering {
-            ui.ctx()
-                .tessellation_options_mut(|o| o.feathering = feathering);
-        }
         let panel_frame = panel_frame(ui.style());
         egui::Panel::top("toolbar")
             .frame(panel_frame)
@@ -245,6 +237,14 @@ impl GuiApp {
                 });
             });
         egui::CentralPanel::no_frame().show(ui, |ui| self.viewport(ui));
+        // While a running solve's previews are drawn, the panels' shapes go without
+        // egui's anti-aliasing feather, whose thin triangles a software renderer pays
+        // for (docs/user/gui.md). Read when the frame is tessellated, after this.
+        let feathering = !self.draws_preview();
+        if ui.ctx().tessellation_options(|o| o.feathering) != feathering {
+            ui.ctx()
+                .tessellation_options_mut(|o| o.feathering = feathering);
+        }
     }
 
     fn info(&mut self, message: impl Into<String>) {

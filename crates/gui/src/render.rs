@@ -42,9 +42,8 @@ const MSAA_SAMPLES: u32 = 4;
 /// Most meshes drawn at once.
 pub const MAX_LAYERS: usize = 2;
 /// Linear scale of the scene's picture against the viewport's pixels while a running
-/// solve's frames are drawn with a software renderer: half the pixels. On the 2-core
-/// machine under Xvfb the live view then updates about a twentieth more often
-/// (docs/user/gui.md).
+/// solve's frames are drawn with a software renderer: half the pixels (its effect on the
+/// live view's rate: docs/user/gui.md).
 pub const INTERACTION_PIXEL_SCALE: f64 = std::f64::consts::FRAC_1_SQRT_2;
 /// Colour factor and opacity of a translucent layer: a light blue veil.
 const TRANSLUCENT_TINT: [f32; 4] = [0.78, 0.88, 1.0, 0.45];

@@ -1,5 +1,6 @@
 //! The interaction mesh drawn while the live simulation runs with a software renderer:
-//! an eighth of the scan's triangles on a subset of its vertices, whose surface stays
+//! an eighth of the scan's triangles (fewer where the simplifier's error limit stops it
+//! first) on a subset of its vertices, whose surface stays
 //! within a millimetre of the scan's (about a pixel of the viewport at its default zoom)
 //! and within 0.15 mm on average. Checked on the phantom and on a shared
 //! scan by an independent measure, the distance from every scan vertex to the coarse
@@ -19,10 +20,10 @@ fn check(name: &str, scan: &TriMesh) -> (f64, f64, f64) {
         InteractionMesh::simplify(&scene, INTERACTION_TRIANGLE_SHARE, INTERACTION_ERROR_MM);
     let triangles = coarse.triangles();
     let share = triangles.len() as f64 / scan.triangles.len() as f64;
-    // At most the share asked for, unless the simplifier's error limit stopped it first.
+    // The simplifier's own estimate stays within its limit (the share each test checks).
     assert!(
-        share <= INTERACTION_TRIANGLE_SHARE || coarse.error_mm() >= 0.99 * INTERACTION_ERROR_MM,
-        "{name}: {share} of the triangles kept, error {} mm",
+        coarse.error_mm() <= INTERACTION_ERROR_MM,
+        "{name}: error {} mm",
         coarse.error_mm()
     );
     // Its vertices are scan vertices, each once, and its triangles use them all.
@@ -68,8 +69,8 @@ fn the_phantom_keeps_its_shape_with_an_eighth_of_its_triangles() {
     let document = gui::Document::phantom(false).unwrap();
     let (share, largest, mean) = check("phantom", &document.scan.mesh);
     assert!(
-        share > 0.9 * INTERACTION_TRIANGLE_SHARE,
-        "only {share} of the triangles kept"
+        share > 0.9 * INTERACTION_TRIANGLE_SHARE && share <= INTERACTION_TRIANGLE_SHARE,
+        "{share} of the triangles kept"
     );
     assert!(largest < LARGEST_MM, "{largest} mm");
     assert!(mean < MEAN_MM, "{mean} mm");

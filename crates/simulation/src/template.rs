@@ -33,7 +33,7 @@
 use crate::bed::{Foot, ImplantBed};
 use crate::error::SimulationError;
 use crate::placement::{Anchor, Placement, resolve_anchor};
-use crate::template_volume::covered_volume_ml;
+use crate::template_volume::{covered_volume_ml, in_front};
 use anatomy::breast::Side;
 use glam::{DVec2, DVec3};
 use implant::ImplantShape;
@@ -629,7 +629,7 @@ fn classify(feet: &BedFeet, anchor: &Anchor, thickness: &SmoothedThickness) -> V
             None => Class::Off,
             Some(f) => {
                 let z = thickness.at(anchor.local(f.uv));
-                if f.height_mm > 0.0 {
+                if in_front(f.height_mm) {
                     Class::Front(z, f.normal, f.height_mm)
                 } else {
                     Class::Back(z)

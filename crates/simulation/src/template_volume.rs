@@ -15,11 +15,17 @@ use crate::template::{BedFeet, SmoothedThickness};
 use glam::DVec2;
 use rayon::prelude::*;
 
-/// Where the edge from a corner in front of the bed (`front`, height > 0) to one behind
-/// it (`back`, height <= 0) meets the bed, in implant coordinates: where the linear
-/// interpolation of their heights vanishes. Always taken from the front corner, so every
-/// element sharing the edge gets the same point.
-pub fn bed_crossing(front: &Foot, back: &Foot, anchor: &Anchor) -> DVec2 {
+/// Whether a point at `height_mm` above the bed counts as in front of it; every other
+/// point (a NaN height included) counts as behind.
+pub(crate) fn in_front(height_mm: f64) -> bool {
+    height_mm > 0.0
+}
+
+/// Where the edge from a corner in front of the bed (`front`) to one behind it (`back`)
+/// meets the bed, in implant coordinates: where the linear interpolation of their
+/// heights vanishes. Always taken from the front corner, so every element sharing the
+/// edge gets the same point.
+fn bed_crossing(front: &Foot, back: &Foot, anchor: &Anchor) -> DVec2 {
     let (h_front, h_back) = (front.height_mm, back.height_mm);
     anchor.local(front.uv.lerp(back.uv, h_front / (h_front - h_back)))
 }
@@ -29,7 +35,7 @@ pub fn bed_crossing(front: &Foot, back: &Foot, anchor: &Anchor) -> DVec2 {
 /// crossing ([`bed_crossing`]) on the edge from corner `front` (in front of the bed) to
 /// corner `back` (behind it), with the implant's mollified thickness there. Zero for an
 /// element that does not cross the bed.
-pub fn bed_section_volume_mm3(
+fn bed_section_volume_mm3(
     heights_mm: [f64; 4],
     mut crossing: impl FnMut(usize, usize) -> (DVec2, f64),
 ) -> f64 {
@@ -37,7 +43,7 @@ pub fn bed_section_volume_mm3(
     let mut back = [0; 4];
     let (mut fronts, mut backs) = (0, 0);
     for (k, &h) in heights_mm.iter().enumerate() {
-        if h > 0.0 {
+        if in_front(h) {
             front[fronts] = k;
             fronts += 1;
         } else {
@@ -92,29 +98,30 @@ pub fn covered_volume_ml(
     thickness: &SmoothedThickness,
 ) -> f64 {
     let foot = |k: u32| feet.feet[k as usize];
-    let in_front = |k: u32| foot(k).is_some_and(|f| f.height_mm > 0.0);
-    let behind = |k: u32| foot(k).is_some_and(|f| f.height_mm <= 0.0);
+    let front = |k: u32| foot(k).is_some_and(|f| in_front(f.height_mm));
+    let behind = |k: u32| foot(k).is_some_and(|f| !in_front(f.height_mm));
     // every crossed edge of every element, keyed `front << 32 | back` (candidate
-    // indices), with its slot `16 e + 4 front + back` (element `e`, local corners)
-    let mut uses: Vec<(u64, u32)> = (fill_in.iter().enumerate())
+    // indices), with its slot `16 e + 4 front + back` (element `e`, local corners);
+    // the same predicate as the section's, so every pair a section asks for is here
+    let mut uses: Vec<(u64, usize)> = (fill_in.iter().enumerate())
         .flat_map(|(e, (_, corners))| {
             (0..16).filter_map(move |pair| {
                 let (a, b) = (corners[pair / 4], corners[pair % 4]);
                 let key = (u64::from(a) << 32) | u64::from(b);
-                (in_front(a) && behind(b)).then_some((key, (16 * e + pair) as u32))
+                (front(a) && behind(b)).then_some((key, 16 * e + pair))
             })
         })
         .collect();
     uses.sort_unstable_by_key(|&(key, _)| key);
     let mut edges: Vec<(u32, u32)> = Vec::new();
-    let mut edge_of_slot = vec![usize::MAX; 16 * fill_in.len()];
+    let mut edge_of_slot = vec![u32::MAX; 16 * fill_in.len()];
     let mut last_key = None;
     for &(key, slot) in &uses {
         if last_key != Some(key) {
             edges.push(((key >> 32) as u32, key as u32));
             last_key = Some(key);
         }
-        edge_of_slot[slot as usize] = edges.len() - 1;
+        edge_of_slot[slot] = (edges.len() - 1) as u32;
     }
     let crossings: Vec<(DVec2, f64)> = edges
         .par_iter()
@@ -132,7 +139,7 @@ pub fn covered_volume_ml(
             let heights_mm = [feet[0]?, feet[1]?, feet[2]?, feet[3]?].map(|f| f.height_mm);
             // the section's crossings are the element's crossed edges, all in `uses`
             Some(bed_section_volume_mm3(heights_mm, |front, back| {
-                crossings[edge_of_slot[16 * e + 4 * front + back]]
+                crossings[edge_of_slot[16 * e + 4 * front + back] as usize]
             }))
         })
         .sum::<f64>()
@@ -205,7 +212,7 @@ mod tests {
 
     /// A 4 x 4 grid of 6 mm squares, each split into two triangles and each triangle's
     /// prism from z = -2 to 4 into three tetrahedra as above, over the flat bed z = 0
-    /// under the dome's centre: `covered_volume_ml`, which computes each crossing once
+    /// with one corner at the dome's centre: `covered_volume_ml`, which computes each crossing once
     /// per shared edge, equals the sum of the elements' own sections (to rounding: each
     /// crossing is the same point from either element) and the thickness integrated
     /// over the grid's 24 x 24 mm by a fine midpoint rule (1e-3, as above).
