@@ -526,6 +526,20 @@ impl ReducedSystem {
         u
     }
 
+    /// Turns the latest assembly's internal force at the marked vertices into a dead load:
+    /// at each unknown whose vertex `balanced` marks and no changeable constraint holds,
+    /// the right-hand side becomes `f_ext` there (mN), as if that vertex's external
+    /// force had been its internal force at the assembled displacement plus `f_ext`,
+    /// without evaluating that force again. `balanced` and `f_ext` have one entry per
+    /// vertex of the assembled model.
+    pub fn balance_internal_forces(&mut self, balanced: &[bool], f_ext: &[DVec3]) {
+        for ((r, &v), &held) in self.rhs.iter_mut().zip(&self.free).zip(&self.eliminated) {
+            if !held && balanced[v as usize] {
+                *r = f_ext[v as usize];
+            }
+        }
+    }
+
     /// The internal elastic force at every vertex of `model` (the model assembled, mN),
     /// from the latest [`ReducedSystem::assemble`]: the reactions at held vertices, the
     /// internal forces at free ones.

@@ -1,5 +1,6 @@
 //! A bar under axial load against the analytic elongation, gravity loads, the
-//! symmetric positive definite reduced matrix, and the error cases.
+//! symmetric positive definite reduced matrix, dead loads balancing the internal
+//! forces, and the error cases.
 
 mod common;
 
@@ -201,6 +202,72 @@ fn reduced_matrix_is_symmetric_positive_definite() {
         }
     }
     assert!(inverted > 0, "the test deformation should invert elements");
+}
+
+/// `balance_internal_forces` gives the right-hand side of an assembly whose external
+/// force at the marked vertices is their internal force (from `internal_forces`, a
+/// separate pass) plus a load: that load there, the assembly's own elsewhere. On a
+/// stretched and twisted box with a fixed face and a changeable constraint (which
+/// stays eliminated); to 1e-12 of the largest force, the rounding of two summation
+/// orders.
+#[test]
+fn balanced_vertices_keep_only_their_extra_load() {
+    let n = [4, 3, 3];
+    let mesh = jittered_box(DVec3::ZERO, DVec3::new(40.0, 30.0, 30.0), n, 0.15);
+    let model = FemModel::homogeneous(&mesh, Material::new(2.4, 0.45)).unwrap();
+    let mut constraints = Constraints::new();
+    let mut changeable = Constraints::new();
+    for (v, x) in mesh.positions.iter().enumerate() {
+        if x.x == 0.0 {
+            constraints.fix(v as u32);
+        } else if x.x == 40.0 && x.y == 0.0 {
+            changeable.fix(v as u32);
+        }
+    }
+    let mut system = ReducedSystem::new(&model, &constraints).unwrap();
+    system.set_constraints(&changeable).unwrap();
+    let u: Vec<DVec3> = (mesh.positions.iter())
+        .map(|&x| {
+            let a = 0.01 * x.x;
+            DVec3::new(0.1 * x.x, -a * (x.z - 15.0), a * (x.y - 15.0))
+        })
+        .collect();
+    let balanced: Vec<bool> = (mesh.positions.iter())
+        .map(|x| x.x >= 20.0 && x.z >= 15.0)
+        .collect();
+    let extra: Vec<DVec3> = (0..mesh.positions.len())
+        .map(|v| DVec3::new(0.0, 0.0, -0.01 * (v % 7) as f64))
+        .collect();
+    let f_int = model.internal_forces(&u, Formulation::Corotated).unwrap();
+    let mut f_ext = extra.clone();
+    for (v, f) in f_ext.iter_mut().enumerate() {
+        if balanced[v] {
+            *f += f_int[v];
+        }
+    }
+    system
+        .assemble(&model, &u, &f_ext, Formulation::Corotated, Tangent::Full)
+        .unwrap();
+    let direct = system.rhs.clone();
+    system
+        .assemble(&model, &u, &extra, Formulation::Corotated, Tangent::Full)
+        .unwrap();
+    let unbalanced = system.rhs.clone();
+    system.balance_internal_forces(&balanced, &extra);
+    let scale = max_norm(&f_int);
+    let rows = system.free.len();
+    let marked = (0..rows)
+        .filter(|&k| balanced[system.free[k] as usize] && !system.eliminated()[k])
+        .count();
+    println!(
+        "{marked} of {rows} unknowns balanced; largest internal force {scale:.3e} mN, \
+         largest difference {:.1e} mN",
+        max_diff(&direct, &system.rhs)
+    );
+    assert!(marked > 0 && system.eliminated().iter().any(|&held| held));
+    assert!(max_diff(&direct, &system.rhs) <= 1e-12 * scale);
+    // the balance changed something: the internal forces there are not negligible
+    assert!(max_diff(&unbalanced, &system.rhs) > 1e-3 * scale);
 }
 
 fn small_box() -> TetMesh {

@@ -359,6 +359,8 @@ pub struct Simulation {
     /// The constraints changed since stage 1's multigrid last received them.
     dirty: bool,
     u: Vec<DVec3>,
+    /// Stage 2's added implant weight (mN per finest vertex; empty in stage 1). The
+    /// implant vertices' dead load goes into stage 2's right-hand side directly.
     f_ext: Vec<DVec3>,
     last_relative_residual: f64,
     stage_cycles: usize,
@@ -558,11 +560,6 @@ impl Simulation {
     /// Cycles run in the current stage, and the relative residual before the last one.
     pub fn stage_progress(&self) -> (usize, f64) {
         (self.stage_cycles, self.last_relative_residual)
-    }
-
-    /// The current external loads of stage 2 (mN; empty in stage 1).
-    pub fn external_forces(&self) -> &[DVec3] {
-        &self.f_ext
     }
 
     /// The current stage's multigrid (its system, phase timings), once built: stage 1's

@@ -441,21 +441,11 @@ impl Simulation {
         if self.stage() == Stage::Gravity || self.implants.iter().all(Option::is_none) {
             return Ok(());
         }
-        let (kept, _) = self.take_stage_one_multigrid()?;
-        let model = self.multigrid.insert(kept).multigrid.model();
-        let f_int = model.internal_forces(&self.u, Formulation::Corotated)?;
         let mut f_ext = vec![DVec3::ZERO; self.u.len()];
         let g = -self.frame.up()
             * (self.options.gravity_m_s2
                 * self.options.implant_density_kg_m3
                 * fem::model::KG_M3_TIMES_M_S2_TO_MN_MM3);
-        for implant in self.implants.iter().flatten() {
-            for &(v, _) in &implant.template.implant_vertices {
-                if !self.on_wall[v as usize] {
-                    f_ext[v as usize] = f_int[v as usize];
-                }
-            }
-        }
         for implant in self.implants.iter().flatten() {
             for &e in &implant.template.implant_elements {
                 let t = self.finest.tets[e as usize];
@@ -474,12 +464,26 @@ impl Simulation {
         Ok(())
     }
 
+    /// The vertices stage 2 loads with the force that held them in stage 1: the implant
+    /// vertices off the wall (the wall stays held).
+    fn dead_load_vertices(&self) -> Vec<bool> {
+        let mut balanced = vec![false; self.u.len()];
+        for implant in self.implants.iter().flatten() {
+            for &(v, _) in &implant.template.implant_vertices {
+                balanced[v as usize] = !self.on_wall[v as usize];
+            }
+        }
+        balanced
+    }
+
     /// Gives the hierarchy stage 2's constraints and tangent and assembles stage 2's
     /// linear system at stage 1's displacement `u_implant` under the current loads.
     fn enter_gravity_stage(&mut self, u_implant: Vec<DVec3>) -> Result<(), SimulationError> {
         let (mut kept, _) = self.prepared_multigrid(Stage::Gravity)?;
         let mg = &mut kept.multigrid;
         mg.assemble(&u_implant, &self.f_ext, Formulation::Corotated)?;
+        // the implant vertices' dead load is their internal force at `u_implant`
+        mg.balance_internal_forces(&self.dead_load_vertices(), &self.f_ext);
         let rhs = mg.system().rhs.clone();
         let rhs_norm_mn = rhs.iter().map(|d| d.length_squared()).sum::<f64>().sqrt();
         let iteration = match &self.gravity_guess {
