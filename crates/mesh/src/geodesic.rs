@@ -384,13 +384,12 @@ pub(crate) fn locate(mesh: &TriMesh, topology: &Topology, end: SurfacePoint) -> 
 
 /// Checks that `topology` has one entry per triangle of `mesh`.
 pub(crate) fn check_topology(mesh: &TriMesh, topology: &Topology) -> Result<(), PathError> {
-    if topology.triangle_neighbors.len() == mesh.triangles.len() {
-        Ok(())
-    } else {
-        Err(PathError::TopologyMismatch {
-            topology_triangles: topology.triangle_neighbors.len(),
-            mesh_triangles: mesh.triangles.len(),
-        })
+    match topology.mismatch(mesh) {
+        None => Ok(()),
+        Some((topology_triangles, mesh_triangles)) => Err(PathError::TopologyMismatch {
+            topology_triangles,
+            mesh_triangles,
+        }),
     }
 }
 

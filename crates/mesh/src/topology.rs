@@ -28,6 +28,13 @@ pub struct Topology {
 }
 
 impl Topology {
+    /// `(this topology's triangles, the mesh's)` when it was not built for `mesh`, as far
+    /// as a cheap check tells (one entry per triangle); `None` when it may have been.
+    pub(crate) fn mismatch(&self, mesh: &TriMesh) -> Option<(usize, usize)> {
+        let (ours, theirs) = (self.triangle_neighbors.len(), mesh.triangles.len());
+        (ours != theirs).then_some((ours, theirs))
+    }
+
     /// Builds the tables. The mesh must have valid indices ([`TriMesh::validate`]).
     pub fn new(mesh: &TriMesh) -> Topology {
         let triangle_count = mesh.triangles.len();
