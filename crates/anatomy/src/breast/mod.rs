@@ -42,7 +42,7 @@ use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks, MAX_SNAP_DISTANCE_MM};
 use crate::measure::{MeasuredSurface, mean_normal_near};
 use crate::place::Place;
-use crate::scan_holes::{ClosedHole, OpenHole, close_scan_holes, loop_length};
+use crate::scan_holes::{ClosedHole, ClosedScan, OpenHole, close_scan_holes, loop_length};
 use glam::DVec3;
 use mesh::{
     CurveError, CutError, CutMesh, MeshPart, PathError, Region, SurfaceCurve, SurfaceIndex,
@@ -498,7 +498,70 @@ pub fn build_breast_model(
         cylinder_axis: options.fill_in.cylinder_axis.or(Some(frame.up())),
         ..options.fill_in
     };
-    let breast = |side: Side, control_points: Vec<DVec3>, curve: SurfaceCurve| {
+    let parts = BreastParts {
+        scan,
+        closed_scan: &closed_scan,
+        closed_index: closed_index.as_ref(),
+        cut_mesh: &cut_mesh,
+        base: &base,
+        to_base: &to_base,
+        fill_params: &fill_params,
+        frame,
+        landmarks,
+        options,
+    };
+    let left = parts.breast(Side::Left, left_points, left_curve)?;
+    let right = parts.breast(Side::Right, right_points, right_curve)?;
+    let filled_base = stitch(&stitch(&base.mesh, &left.fill), &right.fill);
+    Ok(BreastModel {
+        surface: closed_scan.mesh,
+        holes_closed: closed_scan.closed,
+        holes_left_open: closed_scan.left_open,
+        holes_in_breasts,
+        cut_mesh,
+        left,
+        right,
+        base,
+        filled_base,
+    })
+}
+
+/// What [`build_breast_model`] has ready when it makes each breast from its cut curve.
+struct BreastParts<'a> {
+    scan: &'a TriMesh,
+    closed_scan: &'a ClosedScan,
+    closed_index: Option<&'a SurfaceIndex>,
+    cut_mesh: &'a CutMesh,
+    base: &'a MeshPart,
+    /// Cut-mesh vertex to base vertex ([`NOT_IN_PART`] off the base).
+    to_base: &'a [u32],
+    fill_params: &'a FillInParams,
+    frame: &'a AnatomicalFrame,
+    landmarks: &'a Landmarks,
+    options: &'a BreastOptions,
+}
+
+impl BreastParts<'_> {
+    /// The breast of `side` inside its cut curve: its patch, the fill-in behind it, the
+    /// closed breast, its volumes and its reconstructed share.
+    fn breast(
+        &self,
+        side: Side,
+        control_points: Vec<DVec3>,
+        curve: SurfaceCurve,
+    ) -> Result<Breast, BreastError> {
+        let Self {
+            scan,
+            closed_scan,
+            closed_index,
+            cut_mesh,
+            base,
+            to_base,
+            fill_params,
+            frame,
+            landmarks,
+            options,
+        } = *self;
         let curve_index = side as usize;
         let cut_loop = &cut_mesh.loops[curve_index];
         let base_loop: Vec<u32> = cut_loop.iter().map(|&v| to_base[v as usize]).collect();
@@ -513,7 +576,7 @@ pub fn build_breast_model(
                 .collect();
             Place::around(&points)
         };
-        let fill = fill_hole(&base.mesh, &base_loop, &fill_params).map_err(|source| {
+        let fill = fill_hole(&base.mesh, &base_loop, fill_params).map_err(|source| {
             BreastError::FillIn {
                 side,
                 source,
@@ -532,11 +595,11 @@ pub fn build_breast_model(
         let reconstructed = reconstructed_part(
             &patch.mesh,
             reconstructed_triangles(
-                &cut_mesh,
+                cut_mesh,
                 Region::Inside(curve_index),
                 scan.triangle_count(),
                 closed_scan.mesh.triangle_count(),
-                closed_index.as_ref(),
+                closed_index,
             ),
         );
         if reconstructed.area_share > options.max_reconstructed_share {
@@ -590,21 +653,7 @@ pub fn build_breast_model(
             quadrant_volume_ml,
             reconstructed,
         })
-    };
-    let left = breast(Side::Left, left_points, left_curve)?;
-    let right = breast(Side::Right, right_points, right_curve)?;
-    let filled_base = stitch(&stitch(&base.mesh, &left.fill), &right.fill);
-    Ok(BreastModel {
-        surface: closed_scan.mesh,
-        holes_closed: closed_scan.closed,
-        holes_left_open: closed_scan.left_open,
-        holes_in_breasts,
-        cut_mesh,
-        left,
-        right,
-        base,
-        filled_base,
-    })
+    }
 }
 
 /// The centres of the triangles of `mesh` whose flag is set.
