@@ -458,26 +458,71 @@ fn scan_maps(
     })
 }
 
-/// The tissue over the sternum: within [`STERNUM_HALF_WIDTH_MM`] of the midline (the
-/// sternal frame's `x = 0`, through Pj and Px) and between Pj and Px along the sternum,
-/// at any depth.
+/// The tissue over the sternum: within [`STERNUM_HALF_WIDTH_MM`] of the midline and
+/// between the heights of Pj and Px, at any depth. The midline is the standing frame's
+/// `x = 0` (through Pj, vertical), the one the pockets keep their clearance from
+/// ([`crate::pocket::PocketBounds`]): on a line through a Px clicked a few millimetres
+/// off the midline the strip would reach into a pocket's clearance, and the tissue it
+/// holds at zero sat among vertices the template pushed forward.
 struct SternumStrip {
     frame: AnatomicalFrame,
-    length_mm: f64,
+    /// Px's height below Pj (mm, standing frame).
+    depth_mm: f64,
 }
 
 impl SternumStrip {
     fn new(frame: &AnatomicalFrame, landmarks: &Landmarks) -> SternumStrip {
         SternumStrip {
-            frame: frame.sternal(),
-            length_mm: landmarks
-                .get(LandmarkName::Pj)
-                .distance(landmarks.get(LandmarkName::Px)),
+            frame: *frame,
+            depth_mm: -frame.to_local(landmarks.get(LandmarkName::Px)).y,
         }
     }
 
     fn contains(&self, p: DVec3) -> bool {
         let local = self.frame.to_local(p);
-        local.x.abs() <= STERNUM_HALF_WIDTH_MM && (-self.length_mm..=0.0).contains(&local.y)
+        local.x.abs() <= STERNUM_HALF_WIDTH_MM && (-self.depth_mm..=0.0).contains(&local.y)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pocket::{PocketBounds, PocketLimits};
+    use anatomy::Up;
+
+    /// The strip held over the sternum lies inside both pockets' midline clearance, also
+    /// with Px clicked 8 mm off the midline (a sternal line through it would reach 13 mm
+    /// out at Px, into a pocket): every point the strip holds, on a grid over the chest
+    /// (2 mm steps), is one a pocket's bounds refuse as "the sternal midline region".
+    #[test]
+    fn the_sternum_strip_stays_inside_the_pockets_clearance() {
+        let mut landmarks = phantom::generate(&phantom::PhantomParams::default()).landmarks;
+        let frame = AnatomicalFrame::from_landmarks(&landmarks, Up::FILE_VERTICAL).unwrap();
+        let px = landmarks.get(LandmarkName::Px);
+        landmarks.set(LandmarkName::Px, px + frame.left() * 8.0);
+        let frame = AnatomicalFrame::from_landmarks(&landmarks, Up::FILE_VERTICAL).unwrap();
+        let strip = SternumStrip::new(&frame, &landmarks);
+        let limits = PocketLimits::default();
+        let bounds =
+            Side::BOTH.map(|side| PocketBounds::new(side, &frame, &landmarks, &limits, 0.0));
+        let mut held = 0;
+        for i in -30..=30 {
+            for j in -120..=10 {
+                let local = DVec3::new(f64::from(i) * 2.0, f64::from(j) * 2.0, 30.0);
+                let p = frame.to_file(local);
+                if !strip.contains(p) {
+                    continue;
+                }
+                held += 1;
+                for b in &bounds {
+                    let violation = b.violation(local).map(|(limit, _)| limit);
+                    assert_eq!(violation, Some("the sternal midline region"), "{local}");
+                }
+            }
+        }
+        // Px's height bounds it below; 10 mm either side of the midline at 2 mm steps
+        let px_depth_mm = -frame.to_local(landmarks.get(LandmarkName::Px)).y;
+        let rows = (px_depth_mm / 2.0).floor() as usize + 1;
+        assert_eq!(held, rows * 11, "Px {px_depth_mm:.1} mm below Pj");
     }
 }
