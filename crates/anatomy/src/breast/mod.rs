@@ -498,7 +498,7 @@ pub fn build_breast_model(
         cylinder_axis: options.fill_in.cylinder_axis.or(Some(frame.up())),
         ..options.fill_in
     };
-    let parts = BreastParts {
+    let inputs = BreastInputs {
         scan,
         closed_scan: &closed_scan,
         closed_index: closed_index.as_ref(),
@@ -510,8 +510,8 @@ pub fn build_breast_model(
         landmarks,
         options,
     };
-    let left = parts.breast(Side::Left, left_points, left_curve)?;
-    let right = parts.breast(Side::Right, right_points, right_curve)?;
+    let left = inputs.breast(Side::Left, left_points, left_curve)?;
+    let right = inputs.breast(Side::Right, right_points, right_curve)?;
     let filled_base = stitch(&stitch(&base.mesh, &left.fill), &right.fill);
     Ok(BreastModel {
         surface: closed_scan.mesh,
@@ -526,8 +526,9 @@ pub fn build_breast_model(
     })
 }
 
-/// What [`build_breast_model`] has ready when it makes each breast from its cut curve.
-struct BreastParts<'a> {
+/// What [`build_breast_model`] has ready, shared by both breasts, when it makes each
+/// breast from its cut curve.
+struct BreastInputs<'a> {
     scan: &'a TriMesh,
     closed_scan: &'a ClosedScan,
     closed_index: Option<&'a SurfaceIndex>,
@@ -541,7 +542,7 @@ struct BreastParts<'a> {
     options: &'a BreastOptions,
 }
 
-impl BreastParts<'_> {
+impl BreastInputs<'_> {
     /// The breast of `side` inside its cut curve: its patch, the fill-in behind it, the
     /// closed breast, its volumes and its reconstructed share.
     fn breast(
@@ -677,6 +678,10 @@ fn check_options(options: &BreastOptions) -> Result<(), BreastError> {
     Ok(())
 }
 
+/// A control point at most this far from the surface (mm) is on it: rounding, not a
+/// distance to snap.
+const ON_SURFACE_MM: f64 = 1e-9;
+
 /// The cut curve of one breast through `control_points` (mm, at most
 /// [`MAX_SNAP_DISTANCE_MM`] off the surface), sampled every `sample_spacing_mm`:
 /// returns the control points snapped to the surface and the curve on `surface.mesh`,
@@ -701,10 +706,18 @@ pub fn cut_curve(
                 distance_mm: closest.distance,
             });
         }
+        // a point on the surface to rounding is kept as given: snapping the snapped
+        // points again (the model folder's control_points.json) gives the same points
+        let on_surface = if closest.distance <= ON_SURFACE_MM {
+            point
+        } else {
+            closest.point
+        };
         if index == 0 {
-            start_triangle = closest.triangle;
+            // the triangle the kept point finds, whichever way it came
+            start_triangle = surface.index.closest_point(on_surface).triangle;
         }
-        snapped.push(closest.point);
+        snapped.push(on_surface);
     }
     let spline = ClosedSpline::through(&snapped).map_err(|error| match error {
         SplineError::TooFewPoints(count) => BreastError::TooFewControlPoints { side, count },
