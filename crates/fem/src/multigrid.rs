@@ -367,10 +367,15 @@ impl Multigrid {
             .expect("the finest level has its system")
     }
 
-    /// [`ReducedSystem::balance_internal_forces`] on the finest level's system of the
-    /// latest [`Multigrid::assemble`] (the coarse levels have no right-hand side).
-    pub fn balance_internal_forces(&mut self, balanced: &[bool], f_ext: &[DVec3]) {
-        self.finest_mut().balance_internal_forces(balanced, f_ext);
+    /// [`ReducedSystem::internal_forces_as_dead_loads`] on the finest level's system of
+    /// the latest [`Multigrid::assemble`] (the coarse levels have no right-hand side).
+    pub fn internal_forces_as_dead_loads(
+        &mut self,
+        marked: &[bool],
+        f_ext: &[DVec3],
+    ) -> Result<(), FemError> {
+        self.finest_mut()
+            .internal_forces_as_dead_loads(marked, f_ext)
     }
 
     /// Changes the prescribed displacement (mm) of an already constrained vertex of the

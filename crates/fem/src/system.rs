@@ -239,7 +239,8 @@ pub struct ReducedSystem {
     pub prescribed: Vec<DVec3>,
     /// The reduced stiffness `K'_ff`, 3x3 blocks.
     pub matrix: BlockCsr,
-    /// The reduced right-hand side `r_f = f_ext - f_int(u)` at the free vertices (mN).
+    /// The reduced right-hand side `r_f = f_ext - f_int(u)` at the free vertices (mN),
+    /// or a dead load where [`ReducedSystem::internal_forces_as_dead_loads`] set one.
     pub rhs: Vec<DVec3>,
     /// For each unknown, the incident elements `element << 2 | a`, sorted by element.
     incident_ptr: Vec<usize>,
@@ -527,17 +528,42 @@ impl ReducedSystem {
     }
 
     /// Turns the latest assembly's internal force at the marked vertices into a dead load:
-    /// at each unknown whose vertex `balanced` marks and no changeable constraint holds,
+    /// at each unknown whose vertex `marked` marks and no changeable constraint holds,
     /// the right-hand side becomes `f_ext` there (mN), as if that vertex's external
     /// force had been its internal force at the assembled displacement plus `f_ext`,
-    /// without evaluating that force again. `balanced` and `f_ext` have one entry per
-    /// vertex of the assembled model.
-    pub fn balance_internal_forces(&mut self, balanced: &[bool], f_ext: &[DVec3]) {
+    /// without evaluating that force again. The next [`ReducedSystem::assemble`] undoes
+    /// it.
+    ///
+    /// Errors: `marked` or `f_ext` does not have one entry per vertex, or `f_ext` is not
+    /// finite at a marked vertex.
+    pub fn internal_forces_as_dead_loads(
+        &mut self,
+        marked: &[bool],
+        f_ext: &[DVec3],
+    ) -> Result<(), FemError> {
+        let vertices = self.reduced_of.len();
+        for (what, got) in [("dead-load mask", marked.len()), ("dead load", f_ext.len())] {
+            if got != vertices {
+                return Err(FemError::LengthMismatch {
+                    what,
+                    expected: vertices,
+                    got,
+                });
+            }
+        }
+        if let Some(vertex) = (0..vertices).find(|&v| marked[v] && !f_ext[v].is_finite()) {
+            return Err(FemError::NonFiniteInput {
+                what: "dead load",
+                vertex,
+                value: f_ext[vertex].to_array(),
+            });
+        }
         for ((r, &v), &held) in self.rhs.iter_mut().zip(&self.free).zip(&self.eliminated) {
-            if !held && balanced[v as usize] {
+            if !held && marked[v as usize] {
                 *r = f_ext[v as usize];
             }
         }
+        Ok(())
     }
 
     /// The internal elastic force at every vertex of `model` (the model assembled, mN),

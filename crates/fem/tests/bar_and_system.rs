@@ -204,14 +204,14 @@ fn reduced_matrix_is_symmetric_positive_definite() {
     assert!(inverted > 0, "the test deformation should invert elements");
 }
 
-/// `balance_internal_forces` gives the right-hand side of an assembly whose external
+/// `internal_forces_as_dead_loads` gives the right-hand side of an assembly whose external
 /// force at the marked vertices is their internal force (from `internal_forces`, a
 /// separate pass) plus a load: that load there, the assembly's own elsewhere. On a
 /// stretched and twisted box with a fixed face and a changeable constraint (which
 /// stays eliminated); to 1e-12 of the largest force, the rounding of two summation
 /// orders.
 #[test]
-fn balanced_vertices_keep_only_their_extra_load() {
+fn dead_loads_leave_only_the_extra_load() {
     let n = [4, 3, 3];
     let mesh = jittered_box(DVec3::ZERO, DVec3::new(40.0, 30.0, 30.0), n, 0.15);
     let model = FemModel::homogeneous(&mesh, Material::new(2.4, 0.45)).unwrap();
@@ -253,7 +253,9 @@ fn balanced_vertices_keep_only_their_extra_load() {
         .assemble(&model, &u, &extra, Formulation::Corotated, Tangent::Full)
         .unwrap();
     let unbalanced = system.rhs.clone();
-    system.balance_internal_forces(&balanced, &extra);
+    system
+        .internal_forces_as_dead_loads(&balanced, &extra)
+        .unwrap();
     let scale = max_norm(&f_int);
     let rows = system.free.len();
     let marked = (0..rows)
@@ -264,10 +266,25 @@ fn balanced_vertices_keep_only_their_extra_load() {
          largest difference {:.1e} mN",
         max_diff(&direct, &system.rhs)
     );
-    assert!(marked > 0 && system.eliminated().iter().any(|&held| held));
+    let marked_and_held = (0..rows)
+        .filter(|&k| balanced[system.free[k] as usize] && system.eliminated()[k])
+        .count();
+    assert!(
+        marked > 0 && marked_and_held > 0,
+        "{marked} {marked_and_held}"
+    );
     assert!(max_diff(&direct, &system.rhs) <= 1e-12 * scale);
     // the balance changed something: the internal forces there are not negligible
     assert!(max_diff(&unbalanced, &system.rhs) > 1e-3 * scale);
+    // a mask or loads of the wrong length are refused, not indexed past
+    let refused =
+        |result: Result<(), FemError>| matches!(result, Err(FemError::LengthMismatch { .. }));
+    assert!(refused(
+        system.internal_forces_as_dead_loads(&balanced[1..], &extra)
+    ));
+    assert!(refused(
+        system.internal_forces_as_dead_loads(&balanced, &[])
+    ));
 }
 
 fn small_box() -> TetMesh {

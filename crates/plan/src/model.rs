@@ -16,7 +16,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-mod folder;
+pub mod folder;
 pub(crate) use folder::{ModelRecord, read_folder_json, read_model_record};
 pub use folder::{load_model, write_closed_polyline, write_model};
 

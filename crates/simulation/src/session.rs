@@ -13,8 +13,8 @@
 //!   band when their closest point on the closed surface lies on one of those triangles
 //!   and within [`WALL_TOLERANCE_FACTOR`] times the finest spacing of it.
 //! - Held at all times with [`SimulationOptions::hold_sternum`]: the tissue over the
-//!   sternum, within [`STERNUM_HALF_WIDTH_MM`] of the midline from Pj down to Px, at any
-//!   depth, except in front of any bed an implant may lie on (the fill-ins' and the
+//!   sternum, within [`STERNUM_HALF_WIDTH_MM`] of the standing frame's midline between
+//!   the heights of Pj and Px, at any depth, except in front of any bed an implant may lie on (the fill-ins' and the
 //!   pockets').
 //! - Per implant ([`crate::template`]): implant vertices displaced along the bed normal by
 //!   the implant's thickness, back vertices inside the footprint fixed. A vertex that is

@@ -21,9 +21,9 @@
 
 use super::*;
 
-/// Writes the model folder (see the module documentation), creating it if needed, and
-/// returns the report that `model.json` holds. The files are written all or nothing
-/// ([`crate::staged`]); `model.json` comes last.
+/// Writes the model folder (its files: [`crate::model::folder`]), creating it if
+/// needed, and returns the report that `model.json` holds. The files are written all or
+/// nothing ([`crate::staged`]); `model.json` comes last.
 pub fn write_model(
     out_dir: &Path,
     model: &PatientModel,

@@ -458,29 +458,28 @@ fn scan_maps(
     })
 }
 
-/// The tissue over the sternum: within [`STERNUM_HALF_WIDTH_MM`] of the midline and
-/// between the heights of Pj and Px, at any depth. The midline is the standing frame's
-/// `x = 0` (through Pj, vertical), the one the pockets keep their clearance from
-/// ([`crate::pocket::PocketBounds`]): on a line through a Px clicked a few millimetres
-/// off the midline the strip would reach into a pocket's clearance, and the tissue it
-/// holds at zero sat among vertices the template pushed forward.
+/// The tissue over the sternum: within [`STERNUM_HALF_WIDTH_MM`] of the standing frame's
+/// midline (`x = 0`, through Pj, vertical), the one the pockets keep their clearance
+/// from, and between the heights of Pj and Px (none if Px is not below Pj), at any
+/// depth. Why not along the line through Pj and Px: docs/dev/model-on-every-body.md,
+/// session 39.
 struct SternumStrip {
     frame: AnatomicalFrame,
     /// Px's height below Pj (mm, standing frame).
-    depth_mm: f64,
+    px_below_pj_mm: f64,
 }
 
 impl SternumStrip {
     fn new(frame: &AnatomicalFrame, landmarks: &Landmarks) -> SternumStrip {
         SternumStrip {
             frame: *frame,
-            depth_mm: -frame.to_local(landmarks.get(LandmarkName::Px)).y,
+            px_below_pj_mm: -frame.to_local(landmarks.get(LandmarkName::Px)).y,
         }
     }
 
     fn contains(&self, p: DVec3) -> bool {
         let local = self.frame.to_local(p);
-        local.x.abs() <= STERNUM_HALF_WIDTH_MM && (-self.depth_mm..=0.0).contains(&local.y)
+        local.x.abs() <= STERNUM_HALF_WIDTH_MM && (-self.px_below_pj_mm..=0.0).contains(&local.y)
     }
 }
 
@@ -491,8 +490,8 @@ mod tests {
     use anatomy::Up;
 
     /// The strip held over the sternum lies inside both pockets' midline clearance, also
-    /// with Px clicked 8 mm off the midline (a sternal line through it would reach 13 mm
-    /// out at Px, into a pocket): every point the strip holds, on a grid over the chest
+    /// with Px clicked 8 mm off the midline (a strip along the line through Pj and Px
+    /// would reach 18 mm out at Px, 3 mm into a pocket): every point the strip holds, on a grid over the chest
     /// (2 mm steps), is one a pocket's bounds refuse as "the sternal midline region".
     #[test]
     fn the_sternum_strip_stays_inside_the_pockets_clearance() {
@@ -521,8 +520,8 @@ mod tests {
             }
         }
         // Px's height bounds it below; 10 mm either side of the midline at 2 mm steps
-        let px_depth_mm = -frame.to_local(landmarks.get(LandmarkName::Px)).y;
-        let rows = (px_depth_mm / 2.0).floor() as usize + 1;
-        assert_eq!(held, rows * 11, "Px {px_depth_mm:.1} mm below Pj");
+        let px_below_pj_mm = -frame.to_local(landmarks.get(LandmarkName::Px)).y;
+        let rows = (px_below_pj_mm / 2.0).floor() as usize + 1;
+        assert_eq!(held, rows * 11, "Px {px_below_pj_mm:.1} mm below Pj");
     }
 }

@@ -11,6 +11,9 @@ pub const WALL_TOLERANCE_FACTOR: f64 = 0.25;
 /// pocket keeps 15 mm from the midline ([`crate::pocket::DEFAULT_MIDLINE_CLEARANCE_MM`]).
 pub const STERNUM_HALF_WIDTH_MM: f64 = 10.0;
 
+// the strip held over the sternum must lie inside every pocket's midline clearance
+const _: () = assert!(STERNUM_HALF_WIDTH_MM < crate::pocket::DEFAULT_MIDLINE_CLEARANCE_MM);
+
 /// Default Young's modulus of implant elements as a fraction of the tissue's: "very soft"
 /// (paper V-A). Only stage 2 sees it (in stage 1 every implant element has all its corners
 /// prescribed).
@@ -146,7 +149,8 @@ pub struct SimulationOptions {
     /// invert and the corotated iteration stall (docs/dev/session-choices.md).
     pub hold_bed: bool,
     /// Hold the tissue over the sternum ([`STERNUM_HALF_WIDTH_MM`] either side of the
-    /// midline, from Pj down to Px) to the bone at every stage. The presternal skin is
+    /// standing frame's midline, the one the pockets' clearance is measured from,
+    /// between the heights of Pj and Px) to the bone at every stage. The presternal skin is
     /// bound to the sternum; it lifts off only where the pockets join over it
     /// (symmastia), which the pocket's midline clearance rules out. Left free, the
     /// 15 mm slab in front of the rear wall let the breasts drag the skin at Px 2-3 mm
@@ -336,6 +340,17 @@ impl SimulationOptions {
         ] {
             if let Some(v) = value {
                 check_option(what, v, (0.0..=max).contains(&v), expected)?;
+            }
+        }
+        if self.hold_sternum {
+            for limits in self.pocket.iter().flatten() {
+                check_option(
+                    "pocket midline_clearance_mm",
+                    limits.midline_clearance_mm,
+                    limits.midline_clearance_mm > STERNUM_HALF_WIDTH_MM,
+                    "more than the 10 mm either side of the midline held over the sternum \
+                     (or hold_sternum off)",
+                )?;
             }
         }
         self.tissue

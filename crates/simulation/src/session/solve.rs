@@ -458,22 +458,27 @@ impl Simulation {
             }
         }
         self.f_ext = f_ext;
-        self.enter_gravity_stage(self.u.clone())?;
+        if let Err(e) = self.enter_gravity_stage(self.u.clone()) {
+            // still stage 1, whose loads are none
+            self.f_ext.clear();
+            return Err(e);
+        }
         self.stage_cycles = 0;
         self.fresh = true;
         Ok(())
     }
 
     /// The vertices stage 2 loads with the force that held them in stage 1: the implant
-    /// vertices off the wall (the wall stays held).
+    /// vertices (those stage 2 still holds, on the wall or the band, are not unknowns
+    /// or are eliminated, and the system leaves them alone).
     fn dead_load_vertices(&self) -> Vec<bool> {
-        let mut balanced = vec![false; self.u.len()];
+        let mut marked = vec![false; self.u.len()];
         for implant in self.implants.iter().flatten() {
             for &(v, _) in &implant.template.implant_vertices {
-                balanced[v as usize] = !self.on_wall[v as usize];
+                marked[v as usize] = true;
             }
         }
-        balanced
+        marked
     }
 
     /// Gives the hierarchy stage 2's constraints and tangent and assembles stage 2's
@@ -483,7 +488,7 @@ impl Simulation {
         let mg = &mut kept.multigrid;
         mg.assemble(&u_implant, &self.f_ext, Formulation::Corotated)?;
         // the implant vertices' dead load is their internal force at `u_implant`
-        mg.balance_internal_forces(&self.dead_load_vertices(), &self.f_ext);
+        mg.internal_forces_as_dead_loads(&self.dead_load_vertices(), &self.f_ext)?;
         let rhs = mg.system().rhs.clone();
         let rhs_norm_mn = rhs.iter().map(|d| d.length_squared()).sum::<f64>().sqrt();
         let iteration = match &self.gravity_guess {
