@@ -385,6 +385,29 @@ pub struct ReconstructedReport {
     pub volume_ml: f64,
 }
 
+/// One sentence for the user when Px does not lie below Pj within the strip the
+/// simulation holds over the sternum ([`simulation::STERNUM_HALF_WIDTH_MM`] either side
+/// of the vertical through Pj): the skin at Px is then not held, and the pockets'
+/// midline clearance is measured from a line the sternum does not follow.
+fn sternum_doubt(marked: &MarkedScan) -> Option<String> {
+    use anatomy::LandmarkName;
+    let px = marked
+        .frame
+        .to_local(marked.landmarks.get(LandmarkName::Px));
+    let (aside_mm, below_mm) = (px.x.abs(), -px.y);
+    (aside_mm > simulation::STERNUM_HALF_WIDTH_MM || below_mm <= 0.0).then(|| {
+        let (vertical_mm, way) = (
+            below_mm.abs(),
+            if below_mm > 0.0 { "below" } else { "above" },
+        );
+        format!(
+            "Px lies {aside_mm:.0} mm to the side of the vertical through Pj and \
+             {vertical_mm:.0} mm {way} it: check where Px and Pj are marked, or the scan's up \
+             axis (--up); the skin over the sternum at Px is not held in the simulation"
+        )
+    })
+}
+
 /// Builds the breast model and the closed surface of a scan with its landmarks.
 /// Errors about one breast start with its name ("left breast: ..."). Stops with
 /// [`crate::Cancelled`] between stages once `progress` asks to.
@@ -397,6 +420,9 @@ pub fn build_model(
     check_cancelled(progress)?;
     let start = Instant::now();
     let scan = &marked.scan;
+    if let Some(doubt) = sternum_doubt(marked) {
+        progress.warn(&format!("{}: {doubt}", marked.landmarks_path.display()));
+    }
     progress.stage("model", 2);
     let (breasts, pc_ratio) = build_breasts(
         marked,
@@ -728,6 +754,29 @@ impl PatientModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A Px marked 12 mm to the side of the vertical through Pj is doubted, with the
+    /// distance; the phantom's own is not.
+    #[test]
+    fn a_px_off_the_midline_is_doubted() {
+        use crate::{MarkedScan, PhantomParams, Silent};
+        use anatomy::LandmarkName;
+        let marked = MarkedScan::phantom(&PhantomParams::default()).unwrap();
+        assert_eq!(sternum_doubt(&marked), None);
+        let mut landmarks = marked.landmarks.clone();
+        let px = landmarks.get(LandmarkName::Px);
+        landmarks.set(LandmarkName::Px, px + marked.frame.left() * 12.0);
+        let moved = MarkedScan::new(
+            marked.scan.clone(),
+            landmarks,
+            Path::new("moved.json"),
+            Some(marked.up()),
+            &Silent,
+        )
+        .unwrap();
+        let doubt = sternum_doubt(&moved).expect("a doubt");
+        assert!(doubt.starts_with("Px lies 12 mm to the side"), "{doubt}");
+    }
 
     /// The defaults pass; each number out of its range is refused with its field named.
     #[test]

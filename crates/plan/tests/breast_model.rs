@@ -628,10 +628,10 @@ fn a_model_rebuilt_from_its_control_points_is_the_same() {
     let phantom = medium_phantom();
     let mesh = &phantom.scan;
     let mut landmarks = phantom.landmarks.clone();
+    let index = SurfaceIndex::new(mesh).unwrap();
     for (k, name) in LandmarkName::ALL.into_iter().enumerate() {
         let angle = k as f64 * 2.4;
         let step = DVec3::new(angle.cos(), angle.sin(), 0.3 * angle.cos()) * 2.5;
-        let index = SurfaceIndex::new(mesh).unwrap();
         landmarks.set(name, index.closest_point(landmarks.get(name) + step).point);
     }
     let first = build(mesh, &landmarks, &BreastOptions::default()).unwrap();

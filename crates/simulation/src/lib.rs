@@ -67,7 +67,8 @@ pub use placement::{Anchor, AnchorRule, ParseAnchorRuleError, Placement};
 pub use resolved_length::ResolvedLength;
 pub use session::{
     BreastVolume, CARRIED_CONTROL_POINT_SPACING_MM, CycleInfo, PatientInput, PlacedImplant,
-    RunReport, Simulation, SimulationOptions, SolveReport, SolvedState, Stage,
+    RunReport, STERNUM_HALF_WIDTH_MM, Simulation, SimulationOptions, SolveReport, SolvedState,
+    Stage,
 };
 pub use skin::SkinLayer;
 pub use template::ImplantTemplate;

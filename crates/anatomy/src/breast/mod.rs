@@ -678,14 +678,19 @@ fn check_options(options: &BreastOptions) -> Result<(), BreastError> {
     Ok(())
 }
 
-/// A control point at most this far from the surface (mm) is on it: rounding, not a
-/// distance to snap.
+/// A control point this close to the surface (mm, or a thousand rounding steps of its
+/// coordinates if more) is on it: rounding, not a distance to snap.
 const ON_SURFACE_MM: f64 = 1e-9;
+
+/// Closest-point steps a control point takes at most until it finds itself on the
+/// surface (one almost always).
+const MAX_SNAP_STEPS: usize = 3;
 
 /// The cut curve of one breast through `control_points` (mm, at most
 /// [`MAX_SNAP_DISTANCE_MM`] off the surface), sampled every `sample_spacing_mm`:
-/// returns the control points snapped to the surface and the curve on `surface.mesh`,
-/// counter-clockwise seen from the front.
+/// returns the control points snapped to the surface (a point already on it, within
+/// [`ON_SURFACE_MM`], kept as given, so that the snapped points snap to themselves) and
+/// the curve on `surface.mesh`, counter-clockwise seen from the front.
 pub fn cut_curve(
     surface: &MeasuredSurface<'_>,
     frame: &AnatomicalFrame,
@@ -706,18 +711,21 @@ pub fn cut_curve(
                 distance_mm: closest.distance,
             });
         }
-        // a point on the surface to rounding is kept as given: snapping the snapped
-        // points again (the model folder's control_points.json) gives the same points
-        let on_surface = if closest.distance <= ON_SURFACE_MM {
-            point
-        } else {
-            closest.point
-        };
-        if index == 0 {
-            // the triangle the kept point finds, whichever way it came
-            start_triangle = surface.index.closest_point(on_surface).triangle;
+        // snapped until the point finds itself on the surface: the model folder's
+        // control_points.json then rebuilds the same curve
+        let (mut kept, mut found) = (point, closest);
+        for _ in 0..MAX_SNAP_STEPS {
+            let rounding_mm = 1e3 * f64::EPSILON * kept.abs().max_element();
+            if found.distance <= ON_SURFACE_MM.max(rounding_mm) {
+                break;
+            }
+            kept = found.point;
+            found = surface.index.closest_point(kept);
         }
-        snapped.push(on_surface);
+        if index == 0 {
+            start_triangle = found.triangle;
+        }
+        snapped.push(kept);
     }
     let spline = ClosedSpline::through(&snapped).map_err(|error| match error {
         SplineError::TooFewPoints(count) => BreastError::TooFewControlPoints { side, count },

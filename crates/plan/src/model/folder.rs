@@ -306,8 +306,10 @@ fn why_the_rebuild_differs(record: &ModelRecord, this: &str) -> String {
     match (&record.inputs_sha256, &record.software) {
         (Some(_), Some(writer)) if writer == this => {
             "the scan and landmarks are those the model was built from and the program has \
-             the same version and commit, so model.json was edited, or this build has changes \
-             not committed (or another platform's arithmetic)"
+             the same version and commit, so model.json or control_points.json was edited, \
+             this build has changes not committed, another platform's arithmetic differs, or \
+             the build is not exactly repeatable here (a fault: please report it with the \
+             scan and landmark files)"
                 .to_string()
         }
         (Some(_), Some(writer)) => format!(

@@ -486,9 +486,18 @@ impl Simulation {
     fn enter_gravity_stage(&mut self, u_implant: Vec<DVec3>) -> Result<(), SimulationError> {
         let (mut kept, _) = self.prepared_multigrid(Stage::Gravity)?;
         let mg = &mut kept.multigrid;
-        mg.assemble(&u_implant, &self.f_ext, Formulation::Corotated)?;
-        // the implant vertices' dead load is their internal force at `u_implant`
-        mg.internal_forces_as_dead_loads(&self.dead_load_vertices(), &self.f_ext)?;
+        let assembled = mg
+            .assemble(&u_implant, &self.f_ext, Formulation::Corotated)
+            // the implant vertices' dead load is their internal force at `u_implant`
+            .and_then(|()| {
+                mg.internal_forces_as_dead_loads(&self.dead_load_vertices(), &self.f_ext)
+            });
+        if let Err(e) = assembled {
+            // the hierarchy stays the session's, for stage 1 to take up again
+            self.multigrid = Some(kept);
+            self.dirty = true;
+            return Err(e.into());
+        }
         let rhs = mg.system().rhs.clone();
         let rhs_norm_mn = rhs.iter().map(|d| d.length_squared()).sum::<f64>().sqrt();
         let iteration = match &self.gravity_guess {
