@@ -42,6 +42,14 @@ pub enum FemError {
         /// What is wrong, with the value.
         what: String,
     },
+    /// A slider ([`crate::slider::Slider`]) is out of range or not finite.
+    #[error("slider {slider}: {what}")]
+    BadSlider {
+        /// Index in the list given.
+        slider: usize,
+        /// What is wrong.
+        what: &'static str,
+    },
     /// A per-vertex or per-element input array has the wrong length.
     #[error("{what}: expected {expected} entries, got {got}")]
     LengthMismatch {

@@ -51,6 +51,7 @@ pub mod membrane;
 pub mod model;
 pub mod multigrid;
 pub mod polar;
+pub mod slider;
 pub mod solve;
 pub mod system;
 pub mod transfer;
@@ -67,6 +68,7 @@ pub use model::{
     CompressionPenalty, ElementRest, FemModel, Formulation, InversionBarrier, Tangent,
 };
 pub use polar::{polar_rotation, rotation_variant_svd};
+pub use slider::Slider;
 pub use solve::{SolveOptions, StaticSolution, StaticSolver, solve_static};
 pub use system::{BlockCsr, Constraints, NOT_FREE, ReducedSystem, block_mul};
 pub use transfer::Prolongation;

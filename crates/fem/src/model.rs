@@ -11,6 +11,7 @@ use crate::error::FemError;
 use crate::material::Material;
 use crate::membrane::{Membrane, MembraneRest, MembraneState};
 use crate::polar::{POLAR_LANES, polar_rotation, polar_rotations};
+use crate::slider::Sliders;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 use tetmesh::TetMesh;
@@ -151,6 +152,7 @@ pub struct FemModel {
     /// of its own in that list (`ne + 1` entries; empty when there are none).
     membranes: Vec<MembraneRest>,
     membrane_ptr: Vec<u32>,
+    pub(crate) sliders: Sliders,
 }
 
 /// Rest data of one tetrahedron; `Err` with its signed volume if it is not positive.
@@ -252,6 +254,7 @@ impl FemModel {
             compression: None,
             membranes: Vec::new(),
             membrane_ptr: Vec::new(),
+            sliders: Sliders::default(),
         })
     }
 
@@ -791,7 +794,8 @@ impl FemModel {
         el.vol_mu * norm2 + 0.5 * el.vol_lambda * tr * tr + barrier
     }
 
-    /// Total potential energy `Σₑ Ψₑ(u) - f_ext · u` (mN·mm), the membranes' included;
+    /// Total potential energy `Σₑ Ψₑ(u) - f_ext · u` (mN·mm), the membranes' and
+    /// sliders' included;
     /// `f_ext` may be empty.
     pub fn potential_energy(&self, u: &[DVec3], f_ext: &[DVec3], formulation: Formulation) -> f64 {
         let elastic: f64 = (0..self.tets.len().div_ceil(POLAR_LANES))
@@ -810,7 +814,7 @@ impl FemModel {
             .map(|m| m.energy)
             .sum();
         let work: f64 = f_ext.iter().zip(u).map(|(f, u)| f.dot(*u)).sum();
-        elastic + membranes - work
+        elastic + membranes + self.slider_energy(u) - work
     }
 
     /// Unrotated stresses of all elements (kPa), see [`FemModel::element_stress`].
@@ -822,7 +826,7 @@ impl FemModel {
             .collect())
     }
 
-    /// The internal elastic force `Σₑ R K (Rᵀ x - X)` (and the membranes') at every vertex (mN) for
+    /// The internal elastic force `Σₑ R K (Rᵀ x - X)` (and the membranes' and sliders') at every vertex (mN) for
     /// displacement `u` (mm). At equilibrium it equals the external force at free
     /// vertices.
     pub fn internal_forces(
@@ -846,7 +850,8 @@ impl FemModel {
                 self.membrane_corner_forces(e, &states, |c, force| f[c] += force);
             });
         }
-        let f = self.nodal_sum(|e| forces[e]);
+        let mut f = self.nodal_sum(|e| forces[e]);
+        self.add_slider_forces(u, &mut f);
         Ok(f)
     }
 }

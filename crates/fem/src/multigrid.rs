@@ -479,6 +479,14 @@ impl Multigrid {
         self.levels[0].model.set_material(element, material)
     }
 
+    /// Replaces the finest model's sliders ([`FemModel::set_sliders`]); the next
+    /// [`Multigrid::assemble`] uses them. Rediscretised coarse levels have none.
+    ///
+    /// Errors: see [`FemModel::set_sliders`].
+    pub fn set_sliders(&mut self, sliders: &[crate::slider::Slider]) -> Result<(), FemError> {
+        self.levels[0].model.set_sliders(sliders)
+    }
+
     /// Active unknowns per level, finest first: the unknowns not held by a changeable
     /// constraint (finest) or not switched off as too weakly seen (coarse).
     pub fn active_unknowns_per_level(&self) -> Vec<usize> {

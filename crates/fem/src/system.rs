@@ -566,9 +566,10 @@ impl ReducedSystem {
         Ok(())
     }
 
-    /// The internal elastic force at every vertex of `model` (the model assembled, mN),
-    /// from the latest [`ReducedSystem::assemble`]: the reactions at held vertices, the
-    /// internal forces at free ones.
+    /// The internal elastic force of the elements and membranes at every vertex of
+    /// `model` (the model assembled, mN; not the sliders'), from the latest
+    /// [`ReducedSystem::assemble`]: the reactions at held vertices, the internal forces
+    /// at free ones.
     pub fn nodal_forces(&self, model: &FemModel) -> Vec<DVec3> {
         model.nodal_sum(|e| self.cores[e].force)
     }
@@ -778,6 +779,14 @@ impl RowGather<'_> {
                 }
             }
             self.add_membrane_blocks(e, a, k, vals, ucols);
+        }
+        let v = self.free[i] as usize;
+        if let Some(slider) = self.model.sliders.at(v) {
+            // the diagonal block comes first in the row's upper part
+            for (o, x) in vals[0].iter_mut().zip(slider.block()) {
+                *o += x;
+            }
+            f -= slider.force(self.u[v]);
         }
         *r = f;
     }
