@@ -249,6 +249,11 @@ struct SimulateArgs {
     /// resisting every loss with twice the first Lamé parameter (see docs/dev/volume-loss.md).
     #[arg(long)]
     no_compression_penalty: bool,
+    /// Let the skin over a thin pocket (beyond the native breast, a lowered fold) slide
+    /// over the implant instead of holding it: no elements sheared over where held and
+    /// free skin meet, but slower to converge (docs/dev/model-on-every-body.md).
+    #[arg(long)]
+    skin_slides: bool,
     /// A CSV catalog for catalog:ID specs instead of the built-in one.
     #[arg(long, value_name = "CSV")]
     catalog: Option<PathBuf>,
@@ -287,6 +292,7 @@ fn simulate_command(args: SimulateArgs, progress: &TerminalProgress) -> Result<(
         no_gravity,
         no_skin,
         no_compression_penalty,
+        skin_slides,
         catalog,
         anchor,
         lower_fold_left,
@@ -313,6 +319,7 @@ fn simulate_command(args: SimulateArgs, progress: &TerminalProgress) -> Result<(
         },
         no_skin,
         no_compression_penalty,
+        skin_slides,
     };
     let report = plan::simulate::simulate(&model, &out, &options, progress)?;
     progress.finish();

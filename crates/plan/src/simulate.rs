@@ -104,6 +104,9 @@ pub struct SimulateOptions {
     /// The paper's corotated energy alone, without the resistance to large volume loss
     /// ([`fem::CompressionPenalty`]).
     pub no_compression_penalty: bool,
+    /// The skin over a thin pocket slides over the implant instead of being held
+    /// ([`simulation::SimulationOptions::skin_slides`]).
+    pub skin_slides: bool,
 }
 
 /// A patient's model ready for interactive simulation.
@@ -553,6 +556,7 @@ pub fn simulate(
         } else {
             SimulationOptions::default().compression_penalty
         },
+        skin_slides: options.skin_slides,
         ..SimulationOptions::default()
     };
     let session = Session::new(marked, model, catalog, simulation_options)?;

@@ -97,7 +97,8 @@ use anatomy::fill_in::{FillInParams, fill_hole};
 use anatomy::{AnatomicalFrame, LandmarkName, Landmarks};
 use fem::multigrid::{CoarseOperator, Multigrid, MultigridOptions, PcgIteration};
 use fem::{
-    CompressionPenalty, Constraints, FemModel, Formulation, InversionBarrier, Material, Tangent,
+    CompressionPenalty, Constraints, FemModel, Formulation, InversionBarrier, Material, Slider,
+    Tangent,
 };
 use glam::{DVec2, DVec3};
 use implant::ImplantShape;

@@ -17,9 +17,11 @@
 //!    fill-in element with `z' > 0` is an *implant vertex*, displaced by `z'` along the
 //!    bed's normal at its foot; so is every front vertex over the footprint within a
 //!    thin layer above the bed (7 mm by default), which smooths the ragged top
-//!    of the paper's set. A *back* vertex with `z' > 0` (inside the footprint) is fixed,
-//!    and by default ([`crate::SimulationOptions::hold_bed`]) every other back vertex of
-//!    a fill-in element too. Laying the thickness off along normals from the foot makes
+//!    of the paper's set (with [`crate::SimulationOptions::skin_slides`], a vertex
+//!    on the skin is not held but slides over the implant). A *back* vertex with
+//!    `z' > 0` (inside the footprint) is fixed, and by default
+//!    ([`crate::SimulationOptions::hold_bed`]) every other back vertex of a fill-in
+//!    element too. Laying the thickness off along normals from the foot makes
 //!    the prescribed map `b(s) + h n(s) -> b(s) + (h + z'(s)) n(s)`, which does not
 //!    fold elements over where the bed is inclined.
 //! 3. *Implant elements*: fill-in elements whose four vertices are implant or fixed
@@ -151,6 +153,12 @@ pub struct ImplantTemplate {
     /// Implant (front) vertices with their displacement (mm): `z'` along the bed normal,
     /// all scaled by one factor so that the fill-in elements gain the covered volume.
     pub implant_vertices: Vec<(u32, DVec3)>,
+    /// Skin vertices the template would displace, with that displacement (mm, scaled
+    /// like [`ImplantTemplate::implant_vertices`]), with
+    /// [`crate::SimulationOptions::skin_slides`] (else none): not held but on sliders in
+    /// stage 1, and counted with their displacement when the template is scaled to the
+    /// covered volume.
+    pub skin_vertices: Vec<(u32, DVec3)>,
     /// Back vertices inside the footprint, fixed.
     pub fixed_vertices: Vec<u32>,
     /// Implant elements (finest level).
@@ -172,6 +180,13 @@ pub struct ImplantTemplate {
     /// Thickness of the tissue layer over the footprint that moved with the implant (mm;
     /// [`TemplateRules::layer_mm`]).
     pub layer_mm: f64,
+}
+
+impl ImplantTemplate {
+    /// The vertices the implant pushes: held ones, then the skin carried over them.
+    pub fn pushed_vertices(&self) -> impl Iterator<Item = &(u32, DVec3)> {
+        self.implant_vertices.iter().chain(&self.skin_vertices)
+    }
 }
 
 /// The implant's thickness mollified over a disc of radius `radius_mm` (mm): the
@@ -474,6 +489,9 @@ pub struct TemplateRules<'a> {
     pub layer_mm: f64,
     /// Per finest vertex: held on the wall in every stage.
     pub on_wall: &'a [bool],
+    /// Per finest vertex: on the skin, which the template does not hold but lets slide
+    /// ([`ImplantTemplate::skin_vertices`]); `None`: the skin is held like any vertex.
+    pub slides: Option<&'a [bool]>,
 }
 
 /// Builds the template of the implant whose mollified thickness is `thickness`,
@@ -487,6 +505,9 @@ pub struct TemplateRules<'a> {
 /// up held (by the template, or on the wall: `on_wall`, per finest vertex) and which the
 /// template would fold (leave under a tenth of its volume) gets one of its template
 /// corners off the wall released: its highest displaced one if any, else a fixed one.
+/// With `slides`, a vertex on the skin is not held: where the tissue over the bed is
+/// thinner than the layer, the skin slides over the implant, and no element touching
+/// it is an implant element.
 ///
 /// Errors: [`SimulationError::EmptyTemplate`] when no vertex is displaced.
 pub fn build_template(
@@ -501,6 +522,7 @@ pub fn build_template(
         hold_bed,
         layer_mm,
         on_wall,
+        slides,
     } = *rules;
     let classes = classify(feet, anchor, thickness);
     let mut state = vec![0u8; classes.len()];
@@ -519,11 +541,27 @@ pub fn build_template(
             state[k] = DISPLACED;
         }
     }
+    if let Some(on_skin) = slides {
+        // skin held next to free skin shears the surface elements between them over
+        for (k, st) in state.iter_mut().enumerate() {
+            if on_skin[candidates.vertices[k] as usize] {
+                *st = match *st {
+                    DISPLACED => FOLLOWS,
+                    _ => 0,
+                };
+            }
+        }
+        (template.implant_elements).retain(|&t| {
+            let corners = mesh.tets[t as usize];
+            !corners.iter().any(|&v| on_skin[v as usize])
+        });
+    }
     release_folded(mesh, candidates, &classes, on_wall, &mut state);
     for (k, &st) in state.iter().enumerate() {
         let v = candidates.vertices[k];
         match (st, classes[k]) {
             (DISPLACED, Class::Front(z, n, _)) => template.implant_vertices.push((v, n * z)),
+            (FOLLOWS, Class::Front(z, n, _)) => template.skin_vertices.push((v, n * z)),
             (FIXED, _) => template.fixed_vertices.push(v),
             _ => {}
         }
@@ -558,7 +596,7 @@ fn scale_to_covered_volume(
     template: &mut ImplantTemplate,
 ) -> f64 {
     let mut displacement = vec![DVec3::ZERO; mesh.positions.len()];
-    for &(v, d) in &template.implant_vertices {
+    for &(v, d) in template.pushed_vertices() {
         displacement[v as usize] = d;
     }
     let gain_mm3 = |factor: f64| -> f64 {
@@ -602,7 +640,7 @@ fn scale_to_covered_volume(
             last_side = 1;
         }
     }
-    for (_, d) in &mut template.implant_vertices {
+    for (_, d) in (template.implant_vertices.iter_mut()).chain(&mut template.skin_vertices) {
         *d *= factor;
     }
     template.scale = factor;
@@ -619,6 +657,9 @@ const SCALE_TOLERANCE: f64 = 1e-6;
 const DISPLACED: u8 = 1;
 /// A template state of a candidate vertex: fixed (0: free).
 const FIXED: u8 = 2;
+/// A template state of a candidate vertex: on the skin where the template would
+/// displace it, on a slider in the solve.
+const FOLLOWS: u8 = 3;
 
 /// Where each candidate vertex lies: over the bed or not, in front of it or behind, with
 /// the implant's mollified `thickness` there.
@@ -714,6 +755,7 @@ fn release_folded(
     // stretched by the implant's thickness, kept `v02_average` with R-MOD-120 from
     // converging: relative residual 1.9e-2 after 40 cycles).
     let walled = |k: u32| on_wall[candidates.vertices[k as usize] as usize];
+    let held = |st: u8| st == DISPLACED || st == FIXED;
     let displacement = |state: &[u8], k: usize| match classes[k] {
         Class::Front(z, n, _) if state[k] == DISPLACED => n * z,
         _ => DVec3::ZERO,
@@ -722,8 +764,10 @@ fn release_folded(
     for _ in 0..UNFOLD_PASSES {
         release.clear();
         for &(t, corners) in &candidates.tets {
-            if !corners.iter().all(|&k| state[k as usize] != 0 || walled(k))
-                || corners.iter().all(|&k| state[k as usize] == 0)
+            if !corners
+                .iter()
+                .all(|&k| held(state[k as usize]) || walled(k))
+                || !corners.iter().any(|&k| held(state[k as usize]))
             {
                 continue;
             }

@@ -52,6 +52,9 @@ pub struct ImplantSummary {
     /// The thickness of the tissue layer over the footprint that moves with the implant
     /// (mm; the default or the option, resolved on this model's mesh).
     pub template_layer_mm: f64,
+    /// Skin vertices over a thin pocket that slide over the implant instead of being
+    /// held (`--skin-slides`; 0 without).
+    pub sliding_skin_vertices: usize,
     /// The move asked for (mm, anatomical frame).
     pub move_mm: [f64; 3],
     /// The turn asked for about the bed's normal (degrees, counter-clockwise from the
@@ -103,6 +106,7 @@ impl ImplantSummary {
             covered_volume_ml: placed.template.covered_volume_ml,
             rim_smoothing_mm: placed.thickness.radius_mm(),
             template_layer_mm: placed.template.layer_mm,
+            sliding_skin_vertices: placed.template.skin_vertices.len(),
             move_mm: request.move_mm.to_array(),
             rotation_deg: request.rotation_deg,
             fit_shift_mm: placed.fit_shift_mm.to_array(),

@@ -30,6 +30,13 @@ pub const DEFAULT_INVERSION_BARRIER: InversionBarrier = InversionBarrier {
     young_multiple: 40.0,
 };
 
+/// Stiffness of the sliders that keep the skin over a thin pocket at the template's
+/// distance from the implant, as a multiple of the tissue's Young's modulus times the
+/// finest spacing (mN/mm; 100 x 2.4 kPa x 6.4 mm = 1,540 mN/mm at the default mesh). The
+/// skin then keeps to its plane within 0.2 mm on average and 0.7 mm at most on the
+/// small hanging phantom (docs/dev/model-on-every-body.md, session 40).
+pub const SKIN_SLIDER_STIFFNESS_MULTIPLE: f64 = 100.0;
+
 /// Default compression penalty of the finest level: every element that loses volume
 /// resists with twice its own first Lamé parameter, `2 λ V (1 - J)²`. To first order
 /// that is the resistance to compression of tissue with a Poisson ratio of 0.489 (five
@@ -148,6 +155,13 @@ pub struct SimulationOptions {
     /// edge of the implant on one side and dragged along the free slab on the other,
     /// invert and the corotated iteration stall (docs/dev/session-choices.md).
     pub hold_bed: bool,
+    /// Let the skin the template would push where the tissue over the bed is thinner
+    /// than its layer (the pocket beyond the native breast, a lowered fold) slide over
+    /// the implant on [`fem::Slider`]s, at the template's distance, instead of holding
+    /// it. Held skin next to free skin can shear the surface elements between them
+    /// over; sliding, it does not, but stage 1 converges more slowly. Off by default
+    /// (docs/dev/model-on-every-body.md, session 40).
+    pub skin_slides: bool,
     /// Hold the tissue over the sternum ([`STERNUM_HALF_WIDTH_MM`] either side of the
     /// standing frame's midline, the one the pockets' clearance is measured from,
     /// between the heights of Pj and Px) to the bone at every stage. The presternal skin is
@@ -240,6 +254,7 @@ impl Default for SimulationOptions {
             pocket: Some([PocketLimits::default(); 2]),
             fit_footprint: true,
             hold_bed: true,
+            skin_slides: false,
             hold_sternum: true,
             rim_smoothing_mm: None,
             template_layer_mm: None,

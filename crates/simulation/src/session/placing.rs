@@ -194,6 +194,7 @@ impl Simulation {
                 hold_bed: self.options.hold_bed,
                 layer_mm,
                 on_wall: &self.on_wall,
+                slides: self.options.skin_slides.then_some(&self.on_skin[..]),
             },
         )?;
         let fold_vertices = self.fold_line(side, fold_lowering_mm, &template);
@@ -227,11 +228,7 @@ impl Simulation {
     ) -> Vec<u32> {
         let local = |v: u32| self.frame.to_local(self.finest.positions[v as usize]);
         let fold_y_mm = native_fold_y_mm(side, &self.frame, &self.landmarks) - fold_lowering_mm;
-        let pushed: Vec<DVec3> = template
-            .implant_vertices
-            .iter()
-            .map(|&(v, _)| local(v))
-            .collect();
+        let pushed: Vec<DVec3> = template.pushed_vertices().map(|&(v, _)| local(v)).collect();
         let Some(middle_y_mm) = pushed
             .iter()
             .map(|p| p.y)
@@ -248,7 +245,7 @@ impl Simulation {
                 (lo.min(p.x), hi.max(p.x))
             });
         let mut in_template = vec![false; self.finest.positions.len()];
-        for &(v, _) in &template.implant_vertices {
+        for &(v, _) in template.pushed_vertices() {
             in_template[v as usize] = true;
         }
         let pushed_near = |v: u32| {

@@ -153,10 +153,13 @@ impl Simulation {
     }
 
     /// Gives a stage's finest model the current implants' soft elements (and the
-    /// tissue back to the elements of earlier implants).
-    pub(super) fn update_implant_materials(
+    /// tissue back to the elements of earlier implants) and, in stage 1, the sliders
+    /// that keep the skin over a thin pocket at the template's distance (stage 2 has
+    /// none: their stage-1 forces become dead loads there).
+    pub(super) fn update_implant_model(
         &self,
         stage: &mut StageMultigrid,
+        which: Stage,
     ) -> Result<(), SimulationError> {
         let t = self.options.tissue;
         let soft = Material {
@@ -178,7 +181,30 @@ impl Simulation {
             stage.multigrid.set_material(e as usize, soft)?;
         }
         stage.soft_elements = current;
+        let sliders = match which {
+            Stage::Implant => self.skin_sliders(),
+            Stage::Gravity => Vec::new(),
+        };
+        stage.multigrid.set_sliders(&sliders)?;
         Ok(())
+    }
+
+    /// One [`fem::Slider`] per skin vertex the templates would push
+    /// ([`ImplantTemplate::skin_vertices`]): on the plane through its template
+    /// displacement across the bed's normal, so the skin keeps its distance from the
+    /// implant and slides over it.
+    fn skin_sliders(&self) -> Vec<Slider> {
+        let stiffness_mn_per_mm =
+            SKIN_SLIDER_STIFFNESS_MULTIPLE * self.options.tissue.young_kpa * self.spacing_mm;
+        (self.implants.iter().flatten())
+            .flat_map(|implant| &implant.template.skin_vertices)
+            .map(|&(vertex, displacement)| Slider {
+                vertex,
+                displacement,
+                normal: displacement,
+                stiffness_mn_per_mm,
+            })
+            .collect()
     }
 
     /// How many multigrid hierarchies the session has built: one at its first cycle (or
@@ -239,7 +265,7 @@ impl Simulation {
                 (kept, true)
             }
         };
-        self.update_implant_materials(&mut kept)?;
+        self.update_implant_model(&mut kept, stage)?;
         Ok((kept, built))
     }
 
@@ -470,11 +496,11 @@ impl Simulation {
 
     /// The vertices stage 2 loads with the force that held them in stage 1: the implant
     /// vertices (those stage 2 still holds, on the wall or the band, are not unknowns
-    /// or are eliminated, and the system leaves them alone).
+    /// or are eliminated, and the system leaves them alone) and the skin on sliders.
     fn dead_load_vertices(&self) -> Vec<bool> {
         let mut marked = vec![false; self.u.len()];
         for implant in self.implants.iter().flatten() {
-            for &(v, _) in &implant.template.implant_vertices {
+            for &(v, _) in implant.template.pushed_vertices() {
                 marked[v as usize] = true;
             }
         }
