@@ -135,7 +135,7 @@ impl StaticSolver {
                 .map(|r| r.length_squared())
                 .sum::<f64>()
                 .sqrt();
-            let scale = f_ext_norm.max(internal_force_norm(model, &self.system));
+            let scale = f_ext_norm.max(internal_force_norm(model, &self.system, &u));
             let relative_residual = if r_norm == 0.0 { 0.0 } else { r_norm / scale };
             let converged = relative_residual <= options.relative_tolerance;
             if converged || iterations >= options.max_iterations || self.direct.is_none() {
@@ -208,9 +208,11 @@ impl StaticSolver {
     }
 }
 
-/// `‖f_int‖₂` over all vertices from the element forces of the latest assembly.
-fn internal_force_norm(model: &FemModel, system: &ReducedSystem) -> f64 {
-    let f = system.nodal_forces(model);
+/// `‖f_int‖₂` over all vertices from the element forces of the latest assembly at
+/// displacement `u`, the sliders' included.
+fn internal_force_norm(model: &FemModel, system: &ReducedSystem, u: &[DVec3]) -> f64 {
+    let mut f = system.nodal_forces(model);
+    model.add_slider_forces(u, &mut f);
     f.iter().map(|x| x.length_squared()).sum::<f64>().sqrt()
 }
 

@@ -271,6 +271,8 @@ pub struct ReducedSystem {
     permanent_held: Vec<bool>,
     /// Per-vertex: held by a permanent or a changeable constraint.
     held: Vec<bool>,
+    /// `Σ |f|²` of the sliders' forces at the free vertices, latest assembly (mN²).
+    slider_force_norm_squared: f64,
     /// Number of vertices held by a permanent or a changeable constraint.
     held_count: usize,
 }
@@ -416,6 +418,7 @@ impl ReducedSystem {
             cores: Vec::new(),
             twists: Vec::new(),
             membranes: Vec::new(),
+            slider_force_norm_squared: 0.0,
         })
     }
 
@@ -578,7 +581,7 @@ impl ReducedSystem {
     /// the internal forces `f` of the latest [`ReducedSystem::assemble`], i.e. the squared
     /// norm of the reactions that hold them (mN²); the same as summing
     /// [`ReducedSystem::nodal_forces`] there, without forming the forces of the free
-    /// vertices.
+    /// vertices. Plus the sliders' forces at free vertices, which hold them too.
     pub fn reaction_norm_squared(&self) -> f64 {
         let force_at = |incident: &[u32]| {
             incident.iter().fold(DVec3::ZERO, |f, &k| {
@@ -596,7 +599,7 @@ impl ReducedSystem {
             .filter(|&(_, &held)| held)
             .map(|(r, _)| force_at(&self.incident[r]).length_squared())
             .sum();
-        permanent + changeable
+        permanent + changeable + self.slider_force_norm_squared
     }
 
     /// Assembles `K'_ff` (with the chosen [`Tangent`]) for the rotations of displacement
@@ -704,6 +707,13 @@ impl ReducedSystem {
                 gather.row::<blocks::Scalar>(i, vals, r);
             });
         self.upper.mirror(&mut self.matrix);
+        self.slider_force_norm_squared = (model.sliders().iter())
+            .filter(|s| {
+                let v = s.vertex as usize;
+                !self.held[v] && self.reduced_of[v] != NOT_FREE
+            })
+            .map(|s| s.force(u[s.vertex as usize]).length_squared())
+            .sum();
         Ok(())
     }
 }

@@ -746,11 +746,12 @@ pub fn write_simulation(
     Ok(report)
 }
 
-/// Writes the finest level with its displacement, constrained vertices and implant
-/// elements.
+/// Writes the finest level with its displacement, constrained and sliding vertices and
+/// implant elements.
 fn write_fe_result(path: &Path, simulation: &Simulation) -> Result<()> {
     let mesh = simulation.finest_mesh();
     let mut constrained = vec![0.0; mesh.vertex_count()];
+    let mut sliding = vec![0.0; mesh.vertex_count()];
     let mut implant_elements = vec![0.0; mesh.tet_count()];
     for &v in simulation.wall_vertices() {
         constrained[v as usize] = 1.0;
@@ -764,6 +765,9 @@ fn write_fe_result(path: &Path, simulation: &Simulation) -> Result<()> {
             for &v in &template.fixed_vertices {
                 constrained[v as usize] = 1.0;
             }
+            for &(v, _) in &template.skin_vertices {
+                sliding[v as usize] = 1.0;
+            }
             for &e in &template.implant_elements {
                 implant_elements[e as usize] = 1.0;
             }
@@ -775,6 +779,7 @@ fn write_fe_result(path: &Path, simulation: &Simulation) -> Result<()> {
         &[
             Field::vectors(DISPLACEMENT, simulation.displacement().to_vec()),
             Field::scalars(CONSTRAINED, constrained),
+            Field::scalars("sliding", sliding),
         ],
         &[Field::scalars("implant", implant_elements)],
     )

@@ -163,6 +163,9 @@ pub struct ImplantTemplate {
     pub fixed_vertices: Vec<u32>,
     /// Implant elements (finest level).
     pub implant_elements: Vec<u32>,
+    /// Elements that would be implant elements but have a sliding skin corner
+    /// ([`ImplantTemplate::skin_vertices`]): the tissue's material, the implant's weight.
+    pub sliding_elements: Vec<u32>,
     /// Number of fill-in elements (crossing the bed).
     pub fill_in_elements: usize,
     /// The volume the template alone adds to the fill-in elements (ml): the sum over the
@@ -505,9 +508,11 @@ pub struct TemplateRules<'a> {
 /// up held (by the template, or on the wall: `on_wall`, per finest vertex) and which the
 /// template would fold (leave under a tenth of its volume) gets one of its template
 /// corners off the wall released: its highest displaced one if any, else a fixed one.
-/// With `slides`, a vertex on the skin is not held: where the tissue over the bed is
-/// thinner than the layer, the skin slides over the implant, and no element touching
-/// it is an implant element.
+/// With `slides`, a vertex on the skin (and off the wall) that the template would
+/// displace is not held: where the tissue over the bed is thinner than the layer, the
+/// skin slides over the implant, and no element with a sliding corner is an implant
+/// element (it keeps the tissue's material but is weighed with the implant,
+/// [`ImplantTemplate::sliding_elements`]).
 ///
 /// Errors: [`SimulationError::EmptyTemplate`] when no vertex is displaced.
 pub fn build_template(
@@ -543,18 +548,19 @@ pub fn build_template(
     }
     if let Some(on_skin) = slides {
         // skin held next to free skin shears the surface elements between them over
+        let mut sliding = vec![false; mesh.positions.len()];
         for (k, st) in state.iter_mut().enumerate() {
-            if on_skin[candidates.vertices[k] as usize] {
-                *st = match *st {
-                    DISPLACED => FOLLOWS,
-                    _ => 0,
-                };
+            let v = candidates.vertices[k] as usize;
+            if *st == DISPLACED && on_skin[v] && !on_wall[v] {
+                *st = FOLLOWS;
+                sliding[v] = true;
             }
         }
-        (template.implant_elements).retain(|&t| {
-            let corners = mesh.tets[t as usize];
-            !corners.iter().any(|&v| on_skin[v as usize])
-        });
+        // the soft implant material under a sliding corner has nothing to hold its shape
+        let (tissue, implant): (Vec<u32>, Vec<u32>) = (template.implant_elements.iter())
+            .partition(|&&t| mesh.tets[t as usize].iter().any(|&v| sliding[v as usize]));
+        template.implant_elements = implant;
+        template.sliding_elements = tissue;
     }
     release_folded(mesh, candidates, &classes, on_wall, &mut state);
     for (k, &st) in state.iter().enumerate() {
@@ -754,10 +760,12 @@ fn release_folded(
     // the implant (R-MOD-100 on `pair1_pre`: 7 inverted, but the tissue behind the bed,
     // stretched by the implant's thickness, kept `v02_average` with R-MOD-120 from
     // converging: relative residual 1.9e-2 after 40 cycles).
+    // sliding skin counts as held at its template position (its slider keeps it near),
+    // but is never the corner released
     let walled = |k: u32| on_wall[candidates.vertices[k as usize] as usize];
-    let held = |st: u8| st == DISPLACED || st == FIXED;
+    let held = |st: u8| st != 0;
     let displacement = |state: &[u8], k: usize| match classes[k] {
-        Class::Front(z, n, _) if state[k] == DISPLACED => n * z,
+        Class::Front(z, n, _) if state[k] == DISPLACED || state[k] == FOLLOWS => n * z,
         _ => DVec3::ZERO,
     };
     let mut release = Vec::new();

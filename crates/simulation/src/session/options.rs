@@ -32,9 +32,9 @@ pub const DEFAULT_INVERSION_BARRIER: InversionBarrier = InversionBarrier {
 
 /// Stiffness of the sliders that keep the skin over a thin pocket at the template's
 /// distance from the implant, as a multiple of the tissue's Young's modulus times the
-/// finest spacing (mN/mm; 100 x 2.4 kPa x 6.4 mm = 1,540 mN/mm at the default mesh). The
-/// skin then keeps to its plane within 0.2 mm on average and 0.7 mm at most on the
-/// small hanging phantom (docs/dev/model-on-every-body.md, session 40).
+/// finest spacing (mN/mm; 100 x 2.4 kPa x 6.4 mm = 1,540 mN/mm at the default mesh):
+/// stiff against the skin's press on a vertex, soft enough for the multigrid (figures:
+/// docs/dev/model-on-every-body.md, session 40).
 pub const SKIN_SLIDER_STIFFNESS_MULTIPLE: f64 = 100.0;
 
 /// Default compression penalty of the finest level: every element that loses volume

@@ -193,11 +193,14 @@ impl Simulation {
     /// ([`ImplantTemplate::skin_vertices`]): on the plane through its template
     /// displacement across the bed's normal, so the skin keeps its distance from the
     /// implant and slides over it.
+    /// A vertex in both sides' templates keeps the first side's.
     fn skin_sliders(&self) -> Vec<Slider> {
         let stiffness_mn_per_mm =
             SKIN_SLIDER_STIFFNESS_MULTIPLE * self.options.tissue.young_kpa * self.spacing_mm;
+        let mut seen = vec![false; self.u.len()];
         (self.implants.iter().flatten())
             .flat_map(|implant| &implant.template.skin_vertices)
+            .filter(|&&(vertex, _)| !std::mem::replace(&mut seen[vertex as usize], true))
             .map(|&(vertex, displacement)| Slider {
                 vertex,
                 displacement,
@@ -473,7 +476,12 @@ impl Simulation {
                 * self.options.implant_density_kg_m3
                 * fem::model::KG_M3_TIMES_M_S2_TO_MN_MM3);
         for implant in self.implants.iter().flatten() {
-            for &e in &implant.template.implant_elements {
+            let template = &implant.template;
+            for &e in template
+                .implant_elements
+                .iter()
+                .chain(&template.sliding_elements)
+            {
                 let t = self.finest.tets[e as usize];
                 let p = t.map(|v| self.finest.positions[v as usize]);
                 let q = [0, 1, 2, 3].map(|k| p[k] + self.u[t[k] as usize]);
