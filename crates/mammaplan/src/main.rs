@@ -250,8 +250,8 @@ struct SimulateArgs {
     #[arg(long)]
     no_compression_penalty: bool,
     /// Let the skin over a thin pocket (beyond the native breast, a lowered fold) slide
-    /// over the implant instead of holding it: no elements sheared over where held and
-    /// free skin meet, but slower to converge (docs/dev/model-on-every-body.md).
+    /// over the implant instead of holding it: fewer elements sheared over where held
+    /// and free skin meet, but slower to converge (docs/dev/model-on-every-body.md).
     #[arg(long)]
     skin_slides: bool,
     /// A CSV catalog for catalog:ID specs instead of the built-in one.

@@ -159,7 +159,7 @@ pub struct SimulationOptions {
     /// than its layer (the pocket beyond the native breast, a lowered fold) slide over
     /// the implant on [`fem::Slider`]s, at the template's distance, instead of holding
     /// it. Held skin next to free skin can shear the surface elements between them
-    /// over; sliding, it does not, but stage 1 converges more slowly. Off by default
+    /// over; sliding, far fewer do, but stage 1 converges more slowly. Off by default
     /// (docs/dev/model-on-every-body.md, session 40).
     pub skin_slides: bool,
     /// Hold the tissue over the sternum ([`STERNUM_HALF_WIDTH_MM`] either side of the

@@ -192,8 +192,8 @@ impl Simulation {
     /// One [`fem::Slider`] per skin vertex the templates would push
     /// ([`ImplantTemplate::skin_vertices`]): on the plane through its template
     /// displacement across the bed's normal, so the skin keeps its distance from the
-    /// implant and slides over it.
-    /// A vertex in both sides' templates keeps the first side's.
+    /// implant and slides over it. A vertex in both sides' templates keeps the first
+    /// side's.
     fn skin_sliders(&self) -> Vec<Slider> {
         let stiffness_mn_per_mm =
             SKIN_SLIDER_STIFFNESS_MULTIPLE * self.options.tissue.young_kpa * self.spacing_mm;
