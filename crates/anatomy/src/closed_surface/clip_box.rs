@@ -4,7 +4,7 @@ use super::{ClosedSurfaceError, ClosedSurfaceOptions, LANDMARK_MARGIN_MM};
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks};
 use glam::DVec3;
-use mesh::TriMesh;
+use mesh::{Topology, TriMesh};
 
 /// The landmarks the clip box must contain. The lateral fold ends PSMFll and PSMFlr are
 /// not among them: on a torso scanned round to the side they may lie beyond the scan's
@@ -251,13 +251,14 @@ impl ClipBox {
             }
         }
         clip_box.check()?;
-        // Top and bottom inside the scan's height at every x of the box (in the box's
-        // coordinates, where the lateral planes are upright).
-        let boxed: Vec<DVec3> = local_scan.iter().map(|&p| clip_box.to_box(p)).collect();
-        let (y_min, y_max) = extent_limits(&boxed, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
-        clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
-        clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
-        clip_box.check()?;
+        fit_top_and_bottom(
+            &mut clip_box,
+            scan,
+            &local_scan,
+            frame,
+            landmarks,
+            clearance,
+        )?;
 
         if let Some(name) = clip_box.left_out(frame, landmarks) {
             return Err(ClosedSurfaceError::InvalidInput(format!(
@@ -481,10 +482,14 @@ pub(super) fn upright_box(
         .x_max_mm
         .min((x_max - clearance).max(needed_x_max))
         .min(x_max - min_clearance);
-    let (y_min, y_max) = extent_limits(&local_scan, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
-    clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
-    clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
-    clip_box.check()?;
+    fit_top_and_bottom(
+        &mut clip_box,
+        scan,
+        &local_scan,
+        frame,
+        landmarks,
+        clearance,
+    )?;
     if let Some(name) = clip_box.left_out(frame, landmarks) {
         return Err(ClosedSurfaceError::InvalidInput(format!(
             "the scan does not extend {min_clearance} mm beyond the breasts: kept clear of \
@@ -498,6 +503,65 @@ pub(super) fn upright_box(
         )));
     }
     Ok(clip_box)
+}
+
+/// Top and bottom moved `clearance` inside the scan (`local_scan`: its positions in the
+/// frame), in the box's coordinates where the lateral planes are upright:
+/// 1. inside the scan's height at every x of the box;
+/// 2. off the scan's border where it reaches into the box from outside it: a notch of
+///    skin the cameras did not see cut into the scan's edge (the upward-facing skin over
+///    a clavicle), which step 1 does not see because the skin behind the notch reaches
+///    higher. The border would otherwise end inside the box and the clipped scan would
+///    have no closed border on the planes. Neither plane passes the breast landmarks
+///    with [`LANDMARK_MARGIN_MM`]; a border loop wholly inside the box is a hole, not
+///    a notch, and is left for the clipping to report.
+fn fit_top_and_bottom(
+    clip_box: &mut ClipBox,
+    scan: &TriMesh,
+    local_scan: &[DVec3],
+    frame: &AnatomicalFrame,
+    landmarks: &Landmarks,
+    clearance: f64,
+) -> Result<(), ClosedSurfaceError> {
+    let boxed: Vec<DVec3> = local_scan.iter().map(|&p| clip_box.to_box(p)).collect();
+    let (y_min, y_max) = extent_limits(&boxed, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
+    clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
+    clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
+    clip_box.check()?;
+
+    let landmark_heights = BREAST_LANDMARKS.map(|name| frame.to_local(landmarks.get(name)).y);
+    let lowest_kept = landmark_heights
+        .iter()
+        .fold(f64::INFINITY, |a, &b| a.min(b))
+        - LANDMARK_MARGIN_MM;
+    let highest_kept = landmark_heights
+        .iter()
+        .fold(f64::NEG_INFINITY, |a, &b| a.max(b))
+        + LANDMARK_MARGIN_MM;
+    let inside = |p: DVec3| {
+        (clip_box.x_min_mm..=clip_box.x_max_mm).contains(&p.x)
+            && (clip_box.y_min_mm..=clip_box.y_max_mm).contains(&p.y)
+    };
+    let (mut top, mut bottom) = (clip_box.y_max_mm, clip_box.y_min_mm);
+    for border in Topology::new(scan).boundary_loops(scan) {
+        if border.iter().all(|&v| inside(boxed[v as usize])) {
+            continue;
+        }
+        let across_box = border
+            .iter()
+            .map(|&v| boxed[v as usize])
+            .filter(|p| (clip_box.x_min_mm..=clip_box.x_max_mm).contains(&p.x));
+        for p in across_box {
+            if (highest_kept..clip_box.y_max_mm + clearance).contains(&p.y) {
+                top = top.min(p.y - clearance);
+            } else if (clip_box.y_min_mm - clearance..lowest_kept).contains(&p.y) {
+                bottom = bottom.max(p.y + clearance);
+            }
+        }
+    }
+    clip_box.y_max_mm = top.max(highest_kept.min(clip_box.y_max_mm));
+    clip_box.y_min_mm = bottom.min(lowest_kept.max(clip_box.y_min_mm));
+    clip_box.check()
 }
 
 /// A plane of the clip box: `axis` 0 (x) or 1 (y) of the frame; the kept side is

@@ -317,3 +317,72 @@ fn an_error_with_no_place_names_both_grazing_planes() {
     assert_eq!(text.matches(inner.as_str()).count(), 1, "{text}");
     assert_eq!(error.place(), None);
 }
+
+/// Landmarks on [`cylinder_patch`]: clavicles at y = 40 mm, nipples at y = -60 mm, fold
+/// points at -90 to -100 mm (left at +x).
+fn cylinder_landmarks() -> Landmarks {
+    use crate::landmarks::LandmarkName::*;
+    Landmarks::new(|name| {
+        let (x, y) = match name {
+            Pj => (0.0, 40.0),
+            Pcl => (70.0, 40.0),
+            Pcr => (-70.0, 40.0),
+            Pnl => (60.0, -60.0),
+            Pnr => (-60.0, -60.0),
+            PSMFl => (60.0, -100.0),
+            PSMFr => (-60.0, -100.0),
+            PSMFml => (20.0, -90.0),
+            PSMFmr => (-20.0, -90.0),
+            PSMFll => (90.0, -80.0),
+            PSMFlr => (-90.0, -80.0),
+            Px => (0.0, -80.0),
+        };
+        DVec3::new(x, y, (RADIUS_MM * RADIUS_MM - x * x).sqrt() - RADIUS_MM)
+    })
+}
+
+/// The triangles of `mesh` whose three corners satisfy `cut`, removed.
+fn without(mut mesh: TriMesh, cut: impl Fn(DVec3) -> bool) -> TriMesh {
+    let positions = mesh.positions.clone();
+    mesh.triangles
+        .retain(|tri| !tri.iter().all(|&v| cut(positions[v as usize])));
+    mesh
+}
+
+/// A band of unseen skin across the upper chest (y -20 to -14 mm, from x = 30 mm out to
+/// the scan's left edge), like the upward-facing skin over a clavicle that a standing
+/// scan misses: the scan goes on above it, so the scan's height at every x does not
+/// show it. The box's top, at the clavicles, would end the clipped scan's border inside
+/// the box; it moves to the clearance (10 mm) below the band's lower edge, y = -30 mm,
+/// and the surface closes. A hole wholly inside the box (y -40 mm) does not move it:
+/// that is a hole for the breast model to close, not a notch of the scan's edge.
+#[test]
+fn the_top_plane_stays_clear_of_a_notch_in_the_scan_edge() {
+    let notched = without(cylinder_patch(), |p| {
+        p.x >= 30.0 && (-20.0..=-14.0).contains(&p.y)
+    });
+    let frame = identity_frame();
+    let landmarks = cylinder_landmarks();
+    let options = ClosedSurfaceOptions::default();
+    let clip = ClipBox::around_breasts(&notched, &frame, &landmarks, &options).unwrap();
+    assert_eq!(clip.y_max_mm, -30.0, "{clip:?}");
+    let surface =
+        build_closed_surface_in_box(&notched, &cylinder_patch(), &frame, &clip, 15.0).unwrap();
+    assert_closed(&surface);
+    // The box at the clavicles fails as the occluded phantom did.
+    let at_clavicles = ClipBox {
+        y_max_mm: 40.0,
+        ..clip
+    };
+    let error =
+        build_closed_surface_in_box(&notched, &cylinder_patch(), &frame, &at_clavicles, 15.0)
+            .unwrap_err();
+    assert!(
+        matches!(error, ClosedSurfaceError::RunsOffBorder { .. }),
+        "{error}"
+    );
+
+    let with_hole = without(notched, |p| p.distance(DVec3::new(-40.0, -40.0, p.z)) < 3.0);
+    let clip_with_hole = ClipBox::around_breasts(&with_hole, &frame, &landmarks, &options).unwrap();
+    assert_eq!(clip_with_hole, clip);
+}
