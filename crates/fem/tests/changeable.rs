@@ -312,6 +312,12 @@ fn interactive_cycles_after_set_constraints() {
         mg.set_constraints(&bad),
         Err(FemError::ConstraintOutOfRange { .. })
     ));
+    let mut not_finite = Constraints::new();
+    not_finite.prescribe(5, DVec3::new(0.0, f64::NAN, 0.0));
+    assert!(matches!(
+        mg.set_constraints(&not_finite),
+        Err(FemError::NonFiniteInput { vertex: 5, .. })
+    ));
     let c = union(
         &wall(&meshes[0]),
         &template(&meshes[0], 50.0, 30.0, 20.0, 8.0, false),

@@ -13,6 +13,8 @@ pub const STERNUM_HALF_WIDTH_MM: f64 = 10.0;
 
 // the strip held over the sternum must lie inside every pocket's midline clearance
 const _: () = assert!(STERNUM_HALF_WIDTH_MM < crate::pocket::DEFAULT_MIDLINE_CLEARANCE_MM);
+// the option check's message ([`SimulationOptions::check`]) says "10 mm" in a static text
+const _: () = assert!(STERNUM_HALF_WIDTH_MM == 10.0);
 
 /// Default Young's modulus of implant elements as a fraction of the tissue's: "very soft"
 /// (paper V-A). Only stage 2 sees it (in stage 1 every implant element has all its corners
