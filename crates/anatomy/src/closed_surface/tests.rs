@@ -349,23 +349,25 @@ fn without(mut mesh: TriMesh, cut: impl Fn(DVec3) -> bool) -> TriMesh {
     mesh
 }
 
-/// A band of unseen skin across the upper chest (y -20 to -14 mm, from x = 30 mm out to
-/// the scan's left edge), like the upward-facing skin over a clavicle that a standing
-/// scan misses: the scan goes on above it, so the scan's height at every x does not
-/// show it. The box's top, at the clavicles, would end the clipped scan's border inside
-/// the box; it moves to the clearance (10 mm) below the band's lower edge, y = -30 mm,
-/// and the surface closes. A hole wholly inside the box (y -40 mm) does not move it:
-/// that is a hole for the breast model to close, not a notch of the scan's edge.
+/// Bands of unseen skin cut into the scan from its edge, like the upward-facing skin over
+/// a clavicle that a standing scan misses: across the upper chest (y -20 to -14 mm, from
+/// x = 30 mm out to the scan's left edge) and below the folds (y -130 to -126 mm, from
+/// x = -30 mm to the right edge). The scan goes on beyond each band, so its height at
+/// every x does not show them. The box at the clavicles would end the clipped scan's
+/// border inside the box; the top moves to the clearance (10 mm) below the upper band,
+/// y = -30 mm, the bottom to 10 mm above the lower one, y = -116 mm, and the surface
+/// closes.
 #[test]
-fn the_top_plane_stays_clear_of_a_notch_in_the_scan_edge() {
+fn the_top_and_bottom_planes_stay_clear_of_notches_in_the_scan_edge() {
     let notched = without(cylinder_patch(), |p| {
-        p.x >= 30.0 && (-20.0..=-14.0).contains(&p.y)
+        (p.x >= 30.0 && (-20.0..=-14.0).contains(&p.y))
+            || (p.x <= -30.0 && (-130.0..=-126.0).contains(&p.y))
     });
     let frame = identity_frame();
     let landmarks = cylinder_landmarks();
     let options = ClosedSurfaceOptions::default();
     let clip = ClipBox::around_breasts(&notched, &frame, &landmarks, &options).unwrap();
-    assert_eq!(clip.y_max_mm, -30.0, "{clip:?}");
+    assert_eq!((clip.y_min_mm, clip.y_max_mm), (-116.0, -30.0), "{clip:?}");
     let surface =
         build_closed_surface_in_box(&notched, &cylinder_patch(), &frame, &clip, 15.0).unwrap();
     assert_closed(&surface);
@@ -382,7 +384,32 @@ fn the_top_plane_stays_clear_of_a_notch_in_the_scan_edge() {
         "{error}"
     );
 
-    let with_hole = without(notched, |p| p.distance(DVec3::new(-40.0, -40.0, p.z)) < 3.0);
-    let clip_with_hole = ClipBox::around_breasts(&with_hole, &frame, &landmarks, &options).unwrap();
-    assert_eq!(clip_with_hole, clip);
+    // A hole wholly inside the box (y -40 mm) does not move it: that is a hole for the
+    // breast model to close. Nor does a speck apart from the scan across the new top
+    // (the clipping drops it).
+    let with_hole = without(notched.clone(), |p| {
+        p.distance(DVec3::new(-40.0, -40.0, p.z)) < 3.0
+    });
+    let mut speck = grid(3, 5, 2.0);
+    speck.map_positions(|p| DVec3::new(p.x - 60.0, p.y - 35.0, 20.0));
+    let mut with_speck = notched.clone();
+    let first = with_speck.positions.len() as u32;
+    with_speck.positions.extend(&speck.positions);
+    with_speck
+        .triangles
+        .extend(speck.triangles.iter().map(|tri| tri.map(|v| v + first)));
+    for scan in [&with_hole, &with_speck] {
+        assert_eq!(
+            ClipBox::around_breasts(scan, &frame, &landmarks, &options).unwrap(),
+            clip
+        );
+    }
+    // A hole the new top would pass through is a notch of that box: the top moves on,
+    // below it, and the surface closes.
+    let hole_at_top = without(notched, |p| p.distance(DVec3::new(-40.0, -30.0, p.z)) < 3.0);
+    let lower = ClipBox::around_breasts(&hole_at_top, &frame, &landmarks, &options).unwrap();
+    assert!(lower.y_max_mm <= -40.0, "{lower:?}");
+    let surface =
+        build_closed_surface_in_box(&hole_at_top, &cylinder_patch(), &frame, &lower, 15.0).unwrap();
+    assert_closed(&surface);
 }
