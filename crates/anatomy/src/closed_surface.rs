@@ -5,8 +5,7 @@
 //!
 //! # Algorithm
 //! 1. The clip box ([`ClipBox::around_breasts_and_footprints`]): top and bottom planes
-//!    orthogonal to the frame's y axis, from the clavicles and the folds, kept a
-//!    clearance inside the scan's height and off notches cut into its edge; two lateral
+//!    orthogonal to the frame's y axis, from the clavicles and the folds; two lateral
 //!    planes parallel to its z axis that may lean in the coronal plane, each fitted (a
 //!    small linear programme over offset and lean) to lie as far beyond the breast
 //!    footprints as the scan allows while staying a clearance inside the scan's outline

@@ -4,7 +4,7 @@ use super::{ClosedSurfaceError, ClosedSurfaceOptions, LANDMARK_MARGIN_MM};
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks};
 use glam::DVec3;
-use mesh::{Topology, TriMesh};
+use mesh::TriMesh;
 
 /// The landmarks the clip box must contain. The lateral fold ends PSMFll and PSMFlr are
 /// not among them: on a torso scanned round to the side they may lie beyond the scan's
@@ -149,8 +149,7 @@ impl ClipBox {
     ///    footprint. Where even then the scan ends too close beyond a breast, a warning
     ///    says by how much the footprint is cut;
     /// 3. top and bottom moved inside the scan's highest and lowest point at every x
-    ///    of the box, and off notches of the scan's border that reach into it, short of
-    ///    the footprints and breast landmarks.
+    ///    of the box.
     ///
     /// An error if a nipple or a fold's lowest point or medial end ends up outside.
     pub fn around_breasts_and_footprints(
@@ -252,7 +251,13 @@ impl ClipBox {
             }
         }
         clip_box.check()?;
-        fit_top_and_bottom(&mut clip_box, scan, &local_scan, &keep, clearance)?;
+        // Top and bottom inside the scan's height at every x of the box (in the box's
+        // coordinates, where the lateral planes are upright).
+        let boxed: Vec<DVec3> = local_scan.iter().map(|&p| clip_box.to_box(p)).collect();
+        let (y_min, y_max) = extent_limits(&boxed, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
+        clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
+        clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
+        clip_box.check()?;
 
         if let Some(name) = clip_box.left_out(frame, landmarks) {
             return Err(ClosedSurfaceError::InvalidInput(format!(
@@ -466,7 +471,7 @@ pub(super) fn upright_box(
     let local_scan: Vec<DVec3> = scan.positions.iter().map(|&p| frame.to_local(p)).collect();
     // Lateral planes inside the scan's width at every height of the box (by the
     // clearance, less where the landmarks need it), then top and bottom inside its
-    // height at every x of the narrowed box and off notches of its border.
+    // height at every x of the narrowed box.
     let (x_min, x_max) = extent_limits(&local_scan, 1, clip_box.y_min_mm, clip_box.y_max_mm, 0);
     clip_box.x_min_mm = clip_box
         .x_min_mm
@@ -476,8 +481,10 @@ pub(super) fn upright_box(
         .x_max_mm
         .min((x_max - clearance).max(needed_x_max))
         .min(x_max - min_clearance);
-    let kept = BREAST_LANDMARKS.map(|name| frame.to_local(landmarks.get(name)));
-    fit_top_and_bottom(&mut clip_box, scan, &local_scan, &kept, clearance)?;
+    let (y_min, y_max) = extent_limits(&local_scan, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
+    clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
+    clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
+    clip_box.check()?;
     if let Some(name) = clip_box.left_out(frame, landmarks) {
         return Err(ClosedSurfaceError::InvalidInput(format!(
             "the scan does not extend {min_clearance} mm beyond the breasts: kept clear of \
@@ -491,80 +498,6 @@ pub(super) fn upright_box(
         )));
     }
     Ok(clip_box)
-}
-
-/// Top and bottom moved `clearance` inside the scan (`local_scan`: its positions in the
-/// frame), in the box's coordinates where the lateral planes are upright:
-/// 1. inside the scan's height at every x of the box;
-/// 2. off the scan's border where it reaches into the box from outside it: a notch of
-///    skin the cameras did not see cut into the scan's edge (the upward-facing skin over
-///    a clavicle), which step 1 does not see because the skin behind the notch reaches
-///    higher. The border would otherwise end inside the box and the clipped scan would
-///    have no closed border on the planes. Neither plane passes the points to keep
-///    (`kept`, frame coordinates: the breast landmarks and footprints) with
-///    [`LANDMARK_MARGIN_MM`]. Only the scan's largest piece counts (the clipping drops
-///    the rest), and a border loop wholly inside the box is a hole, not a notch, left
-///    for the clipping to report; a plane moved through a hole makes it a notch, so the
-///    loops are looked at again until the planes stay.
-fn fit_top_and_bottom(
-    clip_box: &mut ClipBox,
-    scan: &TriMesh,
-    local_scan: &[DVec3],
-    kept: &[DVec3],
-    clearance: f64,
-) -> Result<(), ClosedSurfaceError> {
-    let boxed: Vec<DVec3> = local_scan.iter().map(|&p| clip_box.to_box(p)).collect();
-    let (y_min, y_max) = extent_limits(&boxed, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
-    clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
-    clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
-    clip_box.check()?;
-
-    let kept_heights = kept.iter().map(|p| p.y);
-    let lowest_kept = kept_heights.clone().fold(f64::INFINITY, f64::min) - LANDMARK_MARGIN_MM;
-    let highest_kept = kept_heights.fold(f64::NEG_INFINITY, f64::max) + LANDMARK_MARGIN_MM;
-    let borders = largest_piece_borders(scan);
-    // Each pass moves a plane only inwards, and only when a loop counts that did not
-    // before, so this stops within one pass per loop.
-    for _ in 0..=borders.len() {
-        let (top, bottom) = (clip_box.y_max_mm, clip_box.y_min_mm);
-        let across_box = |p: &DVec3| (clip_box.x_min_mm..=clip_box.x_max_mm).contains(&p.x);
-        let inside = |p: &DVec3| across_box(p) && (bottom..=top).contains(&p.y);
-        let (mut new_top, mut new_bottom) = (top, bottom);
-        for border in &borders {
-            if border.iter().all(|&v| inside(&boxed[v as usize])) {
-                continue;
-            }
-            for p in border.iter().map(|&v| boxed[v as usize]).filter(across_box) {
-                if (highest_kept..top + clearance).contains(&p.y) {
-                    new_top = new_top.min(p.y - clearance);
-                } else if (bottom - clearance..lowest_kept).contains(&p.y) {
-                    new_bottom = new_bottom.max(p.y + clearance);
-                }
-            }
-        }
-        clip_box.y_max_mm = new_top.max(highest_kept.min(top));
-        clip_box.y_min_mm = new_bottom.min(lowest_kept.max(bottom));
-        if (clip_box.y_max_mm, clip_box.y_min_mm) == (top, bottom) {
-            break;
-        }
-    }
-    clip_box.check()
-}
-
-/// The border loops of the scan's largest connected piece.
-fn largest_piece_borders(scan: &TriMesh) -> Vec<Vec<u32>> {
-    let topology = Topology::new(scan);
-    let (component, count) = topology.triangle_components();
-    let largest = super::clip::largest_component(&component, count);
-    let in_largest = |v: u32| {
-        topology
-            .vertex_triangles(v as usize)
-            .first()
-            .is_some_and(|&t| component[t as usize] == largest)
-    };
-    let mut borders = topology.boundary_loops(scan);
-    borders.retain(|border| border.first().is_some_and(|&v| in_largest(v)));
-    borders
 }
 
 /// A plane of the clip box: `axis` 0 (x) or 1 (y) of the frame; the kept side is
