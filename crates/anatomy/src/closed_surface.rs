@@ -5,7 +5,8 @@
 //!
 //! # Algorithm
 //! 1. The clip box ([`ClipBox::around_breasts_and_footprints`]): top and bottom planes
-//!    orthogonal to the frame's y axis, from the clavicles and the folds; two lateral
+//!    orthogonal to the frame's y axis, from the clavicles and the folds, kept a
+//!    clearance inside the scan's height and off notches cut into its edge; two lateral
 //!    planes parallel to its z axis that may lean in the coronal plane, each fitted (a
 //!    small linear programme over offset and lean) to lie as far beyond the breast
 //!    footprints as the scan allows while staying a clearance inside the scan's outline
@@ -413,9 +414,10 @@ pub fn build_closed_surface(
     let mut filled_base = filled_base.clone();
     smooth_inside_borders(&mut filled_base, WALL_SMOOTHING_STEPS);
     let filled_base = &filled_base;
-    let fitted = if options.fit_lateral_planes {
-        ClipBox::around_breasts_and_footprints(scan, frame, landmarks, &footprints, options)?
-            .clip_box
+    let (fitted, notch_warnings) = if options.fit_lateral_planes {
+        let fit =
+            ClipBox::around_breasts_and_footprints(scan, frame, landmarks, &footprints, options)?;
+        (fit.clip_box, fit.notch_warnings)
     } else {
         upright_box(scan, frame, landmarks, options)?
     };
@@ -467,6 +469,7 @@ pub fn build_closed_surface(
     let keep: Vec<DVec3> = footprints.iter().map(|&p| frame.to_local(p)).collect();
     let room = lateral_room(&clip_box, &keep, frame, landmarks);
     surface.lateral_room_mm = Some(room);
+    surface.warnings.extend(notch_warnings);
     for (k, side) in SIDES.into_iter().enumerate() {
         let plane = moves[k];
         if !plane.is_clean() {

@@ -167,19 +167,29 @@ impl Topology {
     /// Connected components (through shared edges) as a component index per triangle,
     /// and the number of components.
     pub fn triangle_components(&self) -> (Vec<u32>, usize) {
+        self.triangle_components_among(|_| true)
+    }
+
+    /// Connected components (through shared edges) of the triangles `included` accepts
+    /// (by index), as a component index per triangle (`u32::MAX` for the others), and
+    /// the number of components.
+    pub fn triangle_components_among(&self, included: impl Fn(usize) -> bool) -> (Vec<u32>, usize) {
         let n = self.triangle_neighbors.len();
         let mut component = vec![u32::MAX; n];
         let mut count = 0u32;
         let mut stack = Vec::new();
         for seed in 0..n {
-            if component[seed] != u32::MAX {
+            if component[seed] != u32::MAX || !included(seed) {
                 continue;
             }
             component[seed] = count;
             stack.push(seed as u32);
             while let Some(t) = stack.pop() {
                 for &neighbor in &self.triangle_neighbors[t as usize] {
-                    if neighbor != NO_TRIANGLE && component[neighbor as usize] == u32::MAX {
+                    if neighbor != NO_TRIANGLE
+                        && component[neighbor as usize] == u32::MAX
+                        && included(neighbor as usize)
+                    {
                         component[neighbor as usize] = count;
                         stack.push(neighbor);
                     }
@@ -255,6 +265,20 @@ mod tests {
         assert_eq!(count, 2);
         assert_ne!(component[0], component[component.len() - 1]);
         assert_eq!(topology.boundary_loops(&mesh).len(), 2);
+    }
+
+    /// A strip of four triangles (1-0-3-2 through shared edges) without its second:
+    /// the first apart from the last two, the left-out one in none.
+    #[test]
+    fn components_among_some_triangles_split_where_one_is_left_out() {
+        let mesh = grid(2, 1, 1.0);
+        let topology = Topology::new(&mesh);
+        assert_eq!(topology.triangle_components().1, 1);
+        let (component, count) = topology.triangle_components_among(|t| t != 0);
+        assert_eq!(count, 2);
+        assert_eq!(component[0], u32::MAX);
+        assert_eq!(component[2], component[3]);
+        assert_ne!(component[1], component[2]);
     }
 
     #[test]

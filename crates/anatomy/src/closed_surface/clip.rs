@@ -505,16 +505,25 @@ fn clip_by_plane(
     clipped
 }
 
+/// The component with the most triangles, of `count` components numbered per triangle
+/// in `component` (as [`Topology::triangle_components_among`] gives them, `u32::MAX`
+/// for a triangle in none); 0 if none.
+pub(super) fn largest_component(component: &[u32], count: usize) -> u32 {
+    let mut sizes = vec![0usize; count];
+    for &c in component {
+        if let Some(size) = sizes.get_mut(c as usize) {
+            *size += 1;
+        }
+    }
+    (0..count).max_by_key(|&c| sizes[c]).unwrap_or(0) as u32
+}
+
 /// The connected piece (through edges) with the most triangles, its vertices renumbered
 /// without unused ones.
 fn largest_piece(positions: &[DVec3], triangles: &[[u32; 3]]) -> (Vec<DVec3>, Vec<[u32; 3]>) {
     let mesh = TriMesh::new(positions.to_vec(), triangles.to_vec());
     let (component, count) = Topology::new(&mesh).triangle_components();
-    let mut sizes = vec![0usize; count];
-    for &c in &component {
-        sizes[c as usize] += 1;
-    }
-    let largest = (0..count).max_by_key(|&c| sizes[c]).unwrap_or(0) as u32;
+    let largest = largest_component(&component, count);
     let kept: Vec<[u32; 3]> = (triangles.iter().zip(&component))
         .filter(|&(_, &c)| c == largest)
         .map(|(tri, _)| *tri)

@@ -4,7 +4,7 @@ use super::{ClosedSurfaceError, ClosedSurfaceOptions, LANDMARK_MARGIN_MM};
 use crate::frame::AnatomicalFrame;
 use crate::landmarks::{LandmarkName, Landmarks};
 use glam::DVec3;
-use mesh::TriMesh;
+use mesh::{Topology, TriMesh};
 
 /// The landmarks the clip box must contain. The lateral fold ends PSMFll and PSMFlr are
 /// not among them: on a torso scanned round to the side they may lie beyond the scan's
@@ -49,6 +49,8 @@ pub struct ClipBoxFit {
     pub lateral_room_mm: [f64; 2],
     /// Footprints the scan leaves too little room for.
     pub warnings: Vec<String>,
+    /// The top or bottom moved off a notch of the scan's border, with where.
+    pub notch_warnings: Vec<String>,
 }
 
 /// A lateral plane `x <= offset + slope (y - y_ref)` (mirrored for the right one) and its
@@ -149,7 +151,8 @@ impl ClipBox {
     ///    footprint. Where even then the scan ends too close beyond a breast, a warning
     ///    says by how much the footprint is cut;
     /// 3. top and bottom moved inside the scan's highest and lowest point at every x
-    ///    of the box.
+    ///    of the box, and off notches of the scan's border that reach into it, short of
+    ///    the footprints and breast landmarks.
     ///
     /// An error if a nipple or a fold's lowest point or medial end ends up outside.
     pub fn around_breasts_and_footprints(
@@ -251,13 +254,8 @@ impl ClipBox {
             }
         }
         clip_box.check()?;
-        // Top and bottom inside the scan's height at every x of the box (in the box's
-        // coordinates, where the lateral planes are upright).
-        let boxed: Vec<DVec3> = local_scan.iter().map(|&p| clip_box.to_box(p)).collect();
-        let (y_min, y_max) = extent_limits(&boxed, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
-        clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
-        clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
-        clip_box.check()?;
+        let notch_warnings =
+            fit_top_and_bottom(&mut clip_box, scan, &local_scan, &keep, clearance)?;
 
         if let Some(name) = clip_box.left_out(frame, landmarks) {
             return Err(ClosedSurfaceError::InvalidInput(format!(
@@ -276,6 +274,7 @@ impl ClipBox {
             clip_box,
             lateral_room_mm: room,
             warnings,
+            notch_warnings,
         })
     }
 
@@ -451,7 +450,9 @@ fn landmark_box(
 /// The upright box of earlier versions, which [`build_closed_surface`] uses without
 /// `fit_lateral_planes`: the lateral planes `lateral_margin_mm` beyond the lateral
 /// fold ends, moved inwards to stay the clearance inside the scan's narrowest width over
-/// the box's heights (less where the breast landmarks need it).
+/// the box's heights (less where the breast landmarks need it); top and bottom as in
+/// the fitted box, short of the breast landmarks (it has no footprints). With the
+/// warnings of planes moved off notches of the scan's border.
 ///
 /// [`build_closed_surface`]: super::build_closed_surface
 pub(super) fn upright_box(
@@ -459,7 +460,7 @@ pub(super) fn upright_box(
     frame: &AnatomicalFrame,
     landmarks: &Landmarks,
     options: &ClosedSurfaceOptions,
-) -> Result<ClipBox, ClosedSurfaceError> {
+) -> Result<(ClipBox, Vec<String>), ClosedSurfaceError> {
     let mut clip_box = landmark_box(frame, landmarks, options);
     clip_box.check()?;
     let clearance = options.border_clearance_mm.max(0.0);
@@ -471,7 +472,7 @@ pub(super) fn upright_box(
     let local_scan: Vec<DVec3> = scan.positions.iter().map(|&p| frame.to_local(p)).collect();
     // Lateral planes inside the scan's width at every height of the box (by the
     // clearance, less where the landmarks need it), then top and bottom inside its
-    // height at every x of the narrowed box.
+    // height at every x of the narrowed box and off notches of its border.
     let (x_min, x_max) = extent_limits(&local_scan, 1, clip_box.y_min_mm, clip_box.y_max_mm, 0);
     clip_box.x_min_mm = clip_box
         .x_min_mm
@@ -481,10 +482,8 @@ pub(super) fn upright_box(
         .x_max_mm
         .min((x_max - clearance).max(needed_x_max))
         .min(x_max - min_clearance);
-    let (y_min, y_max) = extent_limits(&local_scan, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
-    clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
-    clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
-    clip_box.check()?;
+    let kept = BREAST_LANDMARKS.map(|name| frame.to_local(landmarks.get(name)));
+    let notch_warnings = fit_top_and_bottom(&mut clip_box, scan, &local_scan, &kept, clearance)?;
     if let Some(name) = clip_box.left_out(frame, landmarks) {
         return Err(ClosedSurfaceError::InvalidInput(format!(
             "the scan does not extend {min_clearance} mm beyond the breasts: kept clear of \
@@ -497,7 +496,132 @@ pub(super) fn upright_box(
             name.as_str()
         )));
     }
-    Ok(clip_box)
+    Ok((clip_box, notch_warnings))
+}
+
+/// Top and bottom moved `clearance` inside the scan (`local_scan`: its positions in the
+/// frame), in the box's coordinates where the lateral planes are upright:
+/// 1. inside the scan's height at every x of the box;
+/// 2. off the scan's border where it reaches into the box from outside it: a notch of
+///    skin the cameras did not see cut into the scan's edge (the upward-facing skin over
+///    a clavicle), which step 1 does not see because the skin behind the notch reaches
+///    higher. The border would otherwise end inside the box and the clipped scan would
+///    have no closed border on the planes. Neither plane passes the points to keep
+///    (`kept`, frame coordinates) with [`LANDMARK_MARGIN_MM`].
+///
+/// Only the border the clipping keeps counts: that of the largest piece of the scan
+/// inside the box ([`clipped_piece`]). A strip of the scan behind a lateral plane (the
+/// side of a torso that curves back behind its widest point) and specks apart from the
+/// scan are dropped by the clipping, and their borders do not count. A border loop
+/// wholly inside the box is a hole, not a notch, left for the clipping to report. A
+/// plane moved through a hole makes it a notch, so the loops are looked at again
+/// until the planes stay.
+///
+/// Returns a warning per plane moved off a notch, naming where (file coordinates).
+fn fit_top_and_bottom(
+    clip_box: &mut ClipBox,
+    scan: &TriMesh,
+    local_scan: &[DVec3],
+    kept: &[DVec3],
+    clearance: f64,
+) -> Result<Vec<String>, ClosedSurfaceError> {
+    let boxed: Vec<DVec3> = local_scan.iter().map(|&p| clip_box.to_box(p)).collect();
+    let (y_min, y_max) = extent_limits(&boxed, 0, clip_box.x_min_mm, clip_box.x_max_mm, 1);
+    clip_box.y_min_mm = clip_box.y_min_mm.max(y_min + clearance);
+    clip_box.y_max_mm = clip_box.y_max_mm.min(y_max - clearance);
+    clip_box.check()?;
+
+    let kept_heights = kept.iter().map(|p| p.y);
+    let lowest_kept = kept_heights.clone().fold(f64::INFINITY, f64::min) - LANDMARK_MARGIN_MM;
+    let highest_kept = kept_heights.fold(f64::NEG_INFINITY, f64::max) + LANDMARK_MARGIN_MM;
+    let (first_top, first_bottom) = (clip_box.y_max_mm, clip_box.y_min_mm);
+    // The scan vertex that set each plane last: top, bottom.
+    let mut set_by: [Option<u32>; 2] = [None, None];
+    let topology = Topology::new(scan);
+    let borders = topology.boundary_loops(scan);
+    // A plane moves only inwards and never past the points to keep; the passes are
+    // capped (a moved plane can bring in a hole or, splitting the piece, another
+    // border), and a box the cap leaves unsettled is the clipping's to report.
+    for _ in 0..MAX_NOTCH_PASSES {
+        let (top, bottom) = (clip_box.y_max_mm, clip_box.y_min_mm);
+        let across_box = |p: &DVec3| (clip_box.x_min_mm..=clip_box.x_max_mm).contains(&p.x);
+        let inside = |p: &DVec3| across_box(p) && (bottom..=top).contains(&p.y);
+        let in_piece = clipped_piece(&topology, scan, &boxed, clip_box);
+        let (mut new_top, mut new_bottom) = ((top, None), (bottom, None));
+        for border in &borders {
+            if border.iter().all(|&v| inside(&boxed[v as usize])) {
+                continue;
+            }
+            let counted = (border.iter().copied())
+                .filter(|&v| in_piece[v as usize] && across_box(&boxed[v as usize]));
+            for v in counted {
+                let y = boxed[v as usize].y;
+                if (highest_kept..top + clearance).contains(&y) && y - clearance < new_top.0 {
+                    new_top = (y - clearance, Some(v));
+                } else if (bottom - clearance..lowest_kept).contains(&y)
+                    && y + clearance > new_bottom.0
+                {
+                    new_bottom = (y + clearance, Some(v));
+                }
+            }
+        }
+        clip_box.y_max_mm = new_top.0.max(highest_kept.min(top));
+        clip_box.y_min_mm = new_bottom.0.min(lowest_kept.max(bottom));
+        set_by[0] = new_top.1.or(set_by[0]);
+        set_by[1] = new_bottom.1.or(set_by[1]);
+        if (clip_box.y_max_mm, clip_box.y_min_mm) == (top, bottom) {
+            break;
+        }
+    }
+    clip_box.check()?;
+    let moved = [
+        ("top", "down", first_top - clip_box.y_max_mm),
+        ("bottom", "up", clip_box.y_min_mm - first_bottom),
+    ];
+    Ok((moved.iter().zip(set_by))
+        .filter(|((_, _, moved_mm), _)| *moved_mm > 0.0)
+        .filter_map(|(&(plane, way, moved_mm), v)| {
+            let near = scan.positions[v? as usize];
+            Some(format!(
+                "the scan's border reaches into the clip box near ({:.1}, {:.1}, \
+                 {:.1}) mm (skin the cameras did not see?): its {plane} was moved \
+                 {moved_mm:.1} mm {way} to stay {clearance} mm clear of it",
+                near.x, near.y, near.z
+            ))
+        })
+        .collect())
+}
+
+/// Most passes [`fit_top_and_bottom`] makes over the scan's border loops: one, and one
+/// more per hole a moved plane may bring in, a few on any scan.
+const MAX_NOTCH_PASSES: usize = 8;
+
+/// Per vertex of `scan`: whether it is a corner of the piece the clipping keeps, near
+/// enough for [`fit_top_and_bottom`]: the largest connected piece of the triangles with
+/// a corner inside the box (`boxed`: the scan's positions in the box's coordinates).
+fn clipped_piece(
+    topology: &Topology,
+    scan: &TriMesh,
+    boxed: &[DVec3],
+    clip_box: &ClipBox,
+) -> Vec<bool> {
+    let inside = |p: DVec3| {
+        (clip_box.x_min_mm..=clip_box.x_max_mm).contains(&p.x)
+            && (clip_box.y_min_mm..=clip_box.y_max_mm).contains(&p.y)
+    };
+    let (component, count) = topology.triangle_components_among(|t| {
+        scan.triangles[t].iter().any(|&v| inside(boxed[v as usize]))
+    });
+    let largest = super::clip::largest_component(&component, count);
+    let mut in_piece = vec![false; scan.positions.len()];
+    for (triangle, &c) in scan.triangles.iter().zip(&component) {
+        if c == largest {
+            for &v in triangle {
+                in_piece[v as usize] = true;
+            }
+        }
+    }
+    in_piece
 }
 
 /// A plane of the clip box: `axis` 0 (x) or 1 (y) of the frame; the kept side is

@@ -317,3 +317,145 @@ fn an_error_with_no_place_names_both_grazing_planes() {
     assert_eq!(text.matches(inner.as_str()).count(), 1, "{text}");
     assert_eq!(error.place(), None);
 }
+
+/// Landmarks on [`cylinder_patch`]: clavicles at y = 40 mm, nipples at y = -60 mm, fold
+/// points at -90 to -100 mm (left at +x).
+fn cylinder_landmarks() -> Landmarks {
+    use crate::landmarks::LandmarkName::*;
+    Landmarks::new(|name| {
+        let (x, y) = match name {
+            Pj => (0.0, 40.0),
+            Pcl => (70.0, 40.0),
+            Pcr => (-70.0, 40.0),
+            Pnl => (60.0, -60.0),
+            Pnr => (-60.0, -60.0),
+            PSMFl => (60.0, -100.0),
+            PSMFr => (-60.0, -100.0),
+            PSMFml => (20.0, -90.0),
+            PSMFmr => (-20.0, -90.0),
+            PSMFll => (90.0, -80.0),
+            PSMFlr => (-90.0, -80.0),
+            Px => (0.0, -80.0),
+        };
+        DVec3::new(x, y, (RADIUS_MM * RADIUS_MM - x * x).sqrt() - RADIUS_MM)
+    })
+}
+
+/// The triangles of `mesh` whose three corners satisfy `cut`, removed.
+fn without(mut mesh: TriMesh, cut: impl Fn(DVec3) -> bool) -> TriMesh {
+    let positions = mesh.positions.clone();
+    mesh.triangles
+        .retain(|tri| !tri.iter().all(|&v| cut(positions[v as usize])));
+    mesh
+}
+
+/// Bands of unseen skin cut into the scan from its edge, like the upward-facing skin over
+/// a clavicle that a standing scan misses: across the upper chest (y -20 to -14 mm, from
+/// x = 30 mm out to the scan's left edge) and below the folds (y -130 to -126 mm, from
+/// x = -30 mm to the right edge). The scan goes on beyond each band, so its height at
+/// every x does not show them. The box at the clavicles would end the clipped scan's
+/// border inside the box; the top moves to the clearance (10 mm) below the upper band,
+/// y = -30 mm, the bottom to 10 mm above the lower one, y = -116 mm, and the surface
+/// closes.
+#[test]
+fn the_top_and_bottom_planes_stay_clear_of_notches_in_the_scan_edge() {
+    let notched = without(cylinder_patch(), |p| {
+        (p.x >= 30.0 && (-20.0..=-14.0).contains(&p.y))
+            || (p.x <= -30.0 && (-130.0..=-126.0).contains(&p.y))
+    });
+    let frame = identity_frame();
+    let landmarks = cylinder_landmarks();
+    let options = ClosedSurfaceOptions::default();
+    let clip = ClipBox::around_breasts(&notched, &frame, &landmarks, &options).unwrap();
+    assert_eq!((clip.y_min_mm, clip.y_max_mm), (-116.0, -30.0), "{clip:?}");
+    let surface =
+        build_closed_surface_in_box(&notched, &cylinder_patch(), &frame, &clip, 15.0).unwrap();
+    assert_closed(&surface);
+    // The box at the clavicles fails as the occluded phantom did.
+    let at_clavicles = ClipBox {
+        y_max_mm: 40.0,
+        ..clip
+    };
+    let error =
+        build_closed_surface_in_box(&notched, &cylinder_patch(), &frame, &at_clavicles, 15.0)
+            .unwrap_err();
+    assert!(
+        matches!(error, ClosedSurfaceError::RunsOffBorder { .. }),
+        "{error}"
+    );
+
+    // The moves are said, with where.
+    let fit = ClipBox::around_breasts_and_footprints(&notched, &frame, &landmarks, &[], &options)
+        .unwrap();
+    assert_eq!(fit.clip_box, clip);
+    let [top, bottom] = &fit.notch_warnings[..] else {
+        panic!("{:?}", fit.notch_warnings);
+    };
+    assert!(top.contains("top was moved 70.0 mm down"), "{top}");
+    assert!(bottom.contains("bottom was moved 24.0 mm up"), "{bottom}");
+
+    // A hole wholly inside the box (y -40 mm) does not move it: that is a hole for the
+    // breast model to close. Nor does a hole above the box (y -22 mm, its border clear
+    // of the triangles the top cuts), nor a speck apart from the scan across the new top
+    // (the clipping drops both).
+    let with_hole = without(notched.clone(), |p| {
+        p.distance(DVec3::new(-40.0, -40.0, p.z)) < 3.0
+    });
+    let hole_above = without(notched.clone(), |p| {
+        p.distance(DVec3::new(-40.0, -22.0, p.z)) < 3.0
+    });
+    let mut speck = grid(3, 5, 2.0);
+    speck.map_positions(|p| DVec3::new(p.x - 60.0, p.y - 35.0, 20.0));
+    let mut with_speck = notched.clone();
+    let first = with_speck.positions.len() as u32;
+    with_speck.positions.extend(&speck.positions);
+    with_speck
+        .triangles
+        .extend(speck.triangles.iter().map(|tri| tri.map(|v| v + first)));
+    for scan in [&with_hole, &hole_above, &with_speck] {
+        assert_eq!(
+            ClipBox::around_breasts(scan, &frame, &landmarks, &options).unwrap(),
+            clip
+        );
+    }
+    // A hole the new top would pass through is a notch of that box: the top moves on,
+    // below it, and the surface closes.
+    let hole_at_top = without(notched, |p| p.distance(DVec3::new(-40.0, -30.0, p.z)) < 3.0);
+    let lower = ClipBox::around_breasts(&hole_at_top, &frame, &landmarks, &options).unwrap();
+    assert!(lower.y_max_mm <= -40.0, "{lower:?}");
+    let surface =
+        build_closed_surface_in_box(&hole_at_top, &cylinder_patch(), &frame, &lower, 15.0).unwrap();
+    assert_closed(&surface);
+}
+
+/// The side of a torso that curves back behind its widest point, as on the front half of
+/// a torso (the default phantom): the scan goes on from its right edge (x = -120 mm)
+/// back and inwards to x = -100 mm, inside the box's right plane (x = -110 mm, the
+/// clearance inside the widest point), its free edge at every height of the box. The
+/// clipping drops that strip as a piece apart from the rest, so its edge is no notch:
+/// the box is the one without it, and the surface closes.
+#[test]
+fn a_strip_behind_a_lateral_plane_moves_neither_top_nor_bottom() {
+    let mut with_strip = grid(130, 100, 2.0);
+    with_strip.map_positions(|p| {
+        let x = p.x - 140.0;
+        let y = p.y - 150.0;
+        let edge_z = (RADIUS_MM * RADIUS_MM - 120.0 * 120.0).sqrt() - RADIUS_MM;
+        if x >= -120.0 {
+            DVec3::new(x, y, (RADIUS_MM * RADIUS_MM - x * x).sqrt() - RADIUS_MM)
+        } else {
+            let back = -120.0 - x;
+            DVec3::new(-120.0 + back, y, edge_z - 3.0 * back)
+        }
+    });
+    let frame = identity_frame();
+    let landmarks = cylinder_landmarks();
+    let options = ClosedSurfaceOptions::default();
+    let plain = ClipBox::around_breasts(&cylinder_patch(), &frame, &landmarks, &options).unwrap();
+    let clip = ClipBox::around_breasts(&with_strip, &frame, &landmarks, &options).unwrap();
+    assert_eq!(clip, plain);
+    assert_eq!(clip.x_min_mm, -110.0, "{clip:?}");
+    let surface =
+        build_closed_surface_in_box(&with_strip, &cylinder_patch(), &frame, &clip, 15.0).unwrap();
+    assert_closed(&surface);
+}
