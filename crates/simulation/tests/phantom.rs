@@ -830,3 +830,45 @@ fn the_skin_over_a_thin_pocket_slides_over_the_implant() {
     let inverted = sim.inverted_elements();
     assert!(inverted.is_empty(), "{} inverted elements", inverted.len());
 }
+
+/// Stage 2 turns the forces that held the implant's vertices (and the skin on sliders)
+/// in stage 1 into dead loads and releases those vertices (paper V-B); the implant's
+/// weight is the only new load. With a weightless implant the loads are the reactions
+/// of stage 1's equilibrium, so nothing moves: stage 2 leaves stage 1's answer where it
+/// is, to the solvers' tolerance (relative residual 1e-3 on displacements of tens of
+/// millimetres; 0.05 mm allows for both stages' residuals), with held skin and with
+/// sliding skin. A wrong reaction (a vertex left out of the dead loads, a force of the
+/// wrong level or sign) moves the released tissue by millimetres.
+#[test]
+fn a_weightless_implant_leaves_stage_one_where_it_is() {
+    let patient = common::small_hanging_phantom();
+    let shape = *Catalog::builtin().get("R-MOD-115").unwrap().shape();
+    for skin_slides in [false, true] {
+        let mut sim = patient.session(SimulationOptions {
+            skin_slides,
+            implant_density_kg_m3: 0.0,
+            ..SimulationOptions::default()
+        });
+        for side in Side::BOTH {
+            sim.set_implant(side, shape, Placement::default()).unwrap();
+        }
+        let stage_one = sim.run(true).unwrap();
+        assert!(stage_one.implant.converged, "{stage_one:?}");
+        let u_one = sim.displacement().to_vec();
+        let report = sim.run(false).unwrap();
+        let gravity = report.gravity.expect("a gravity stage");
+        assert!(gravity.converged, "{report:?}");
+        let moved_mm = (sim.displacement().iter().zip(&u_one))
+            .map(|(u, u1)| u.distance(*u1))
+            .fold(0.0, f64::max);
+        let largest_mm = u_one.iter().map(|u| u.length()).fold(0.0, f64::max);
+        println!(
+            "skin slides {skin_slides}: stage 2 with a weightless implant moved the tissue \
+             by at most {moved_mm:.4} mm (stage 1 moved it up to {largest_mm:.1} mm), in {} \
+             cycles",
+            gravity.cycles
+        );
+        assert!(largest_mm > 10.0);
+        assert!(moved_mm < 0.05, "skin slides {skin_slides}: {moved_mm} mm");
+    }
+}
