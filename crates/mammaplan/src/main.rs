@@ -585,7 +585,8 @@ struct PhantomArgs {
     /// Breast ptosis, 0 (none) to 1 (marked).
     #[arg(long, default_value_t = PhantomParams::default().ptosis, value_parser = unit_interval)]
     ptosis: f64,
-    /// Scanner noise along the normals, standard deviation in mm.
+    /// Scanner noise along the normals, standard deviation in mm (damped where it would
+    /// fold the scan through itself, in the crease under a large, hanging breast).
     #[arg(long, default_value_t = 0.0, value_parser = non_negative)]
     noise_mm: f64,
     /// Natural left/right asymmetry, 0 (none) to 1 (noticeable).

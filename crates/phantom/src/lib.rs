@@ -39,6 +39,7 @@
 
 mod breast;
 mod grid;
+mod noise;
 mod occlusion;
 mod shape;
 mod surface;
@@ -53,7 +54,6 @@ use glam::DVec3;
 use grid::Grid;
 use mesh::{Topology, TriMesh};
 use rand::{Rng, SeedableRng};
-use rand_distr::Normal;
 use rand_pcg::Pcg64;
 use std::str::FromStr;
 use surface::TorsoSurface;
@@ -142,6 +142,8 @@ pub struct PhantomParams {
     /// Breast ptosis, 0 = none .. 1 = marked (nipple near the fold level); clamped.
     pub ptosis: f64,
     /// Standard deviation of Gaussian measurement noise along the normals (mm); 0 = none.
+    /// Damped where it would make the scan cross itself (the crease under a large,
+    /// hanging breast).
     pub noise_mm: f64,
     /// Natural asymmetry, 0 = symmetric .. 1 = noticeable (one breast about 9% larger
     /// and its nipple 6 mm lower; the seed picks the side); clamped.
@@ -260,13 +262,8 @@ pub fn generate(params: &PhantomParams) -> Phantom {
     } else {
         0.0
     };
-    if noise_mm > 0.0
-        && let Ok(normal_distribution) = Normal::new(0.0, noise_mm)
-    {
-        let normals = scan.vertex_normals();
-        for (position, normal) in scan.positions.iter_mut().zip(normals) {
-            *position += normal * rng.sample(normal_distribution);
-        }
+    if noise_mm > 0.0 {
+        noise::add_noise(&mut scan, &full_skin, noise_mm, &mut rng);
     }
 
     // Grid lines pass through every landmark, so each landmark is a vertex.
