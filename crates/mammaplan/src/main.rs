@@ -178,6 +178,9 @@ enum Command {
         /// gives a residual reduction of at least 5 per cycle at about twice the cost).
         #[arg(long, value_name = "W", default_value_t = 0.0, value_parser = unit_interval)]
         prolongation_smoothing: f64,
+        /// The skin over thin pockets on sliders, as `simulate --skin-slides`.
+        #[arg(long)]
+        skin_slides: bool,
         #[arg(long)]
         json: bool,
     },
@@ -758,11 +761,13 @@ fn run(command: Command, progress: &TerminalProgress) -> Result<()> {
             elements,
             export_system,
             prolongation_smoothing,
+            skin_slides,
             json,
         } => {
             let report = plan::bench::bench(
                 &elements,
                 prolongation_smoothing,
+                skin_slides,
                 export_system.as_deref(),
                 progress,
             )?;

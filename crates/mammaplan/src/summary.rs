@@ -365,9 +365,14 @@ fn simulation_figures(report: &plan::simulate::SimulateReport) -> String {
 /// The benchmark table.
 pub fn bench(report: &plan::bench::BenchReport) -> String {
     let mut out = format!(
-        "implant {} on both sides of the phantom, prolongation smoothing {}\n{:>9} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9}\n",
+        "implant {} on both sides of the phantom, prolongation smoothing {}{}\n{:>9} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>10} {:>9}\n",
         report.implant,
         report.prolongation_smoothing,
+        if report.skin_slides {
+            ", skin on sliders"
+        } else {
+            ""
+        },
         "elements",
         "levels",
         "setup ms",

@@ -212,6 +212,8 @@ fn bench_reports_its_rows_and_exports_the_system() {
     ]);
     assert!(output.status.success(), "{}", stderr(&output));
     let report: serde_json::Value = serde_json::from_slice(&output.stdout).unwrap();
+    // held skin unless `--skin-slides` is given
+    assert_eq!(report["skin_slides"], false, "{report}");
     let row = &report["rows"][0];
     for field in [
         "elements",

@@ -113,18 +113,23 @@ pub struct BenchReport {
     pub implant: &'static str,
     /// The multigrid's prolongation smoothing ω_P (0: the barycentric prolongation).
     pub prolongation_smoothing: f64,
+    /// The skin over thin pockets on sliders (`simulate --skin-slides`).
+    pub skin_slides: bool,
     pub rows: Vec<BenchRow>,
     /// Where `--export-system` wrote the finest system of the first row, if asked.
     pub exported_system: Option<PathBuf>,
 }
 
 /// Runs the benchmark rows with the multigrid's prolongation smoothing
-/// `prolongation_smoothing` (see `fem::multigrid::MultigridOptions`); with `export_dir`,
+/// `prolongation_smoothing` (see `fem::multigrid::MultigridOptions`) and the skin over
+/// thin pockets on sliders if `skin_slides` (`simulation::SimulationOptions::skin_slides`);
+/// with `export_dir`,
 /// the first row's finest eliminated system (after the first cycle's assembly) is
 /// written there as Matrix Market `A.mtx`, `b.mtx`.
 pub fn bench(
     elements: &[usize],
     prolongation_smoothing: f64,
+    skin_slides: bool,
     export_dir: Option<&Path>,
     progress: &dyn Progress,
 ) -> Result<BenchReport> {
@@ -149,6 +154,7 @@ pub fn bench(
         )?;
         let mut options = SimulationOptions::default();
         options.multigrid.prolongation_smoothing = prolongation_smoothing;
+        options.skin_slides = skin_slides;
         let newton_krylov_iterations = options.newton_krylov_iterations;
         let mut session = Session::new(marked, model, implant::Catalog::builtin(), options)?;
         // the paper's cycles for Table I; the session's own for the converged answer
@@ -250,6 +256,7 @@ pub fn bench(
     Ok(BenchReport {
         implant: DEMO_IMPLANT,
         prolongation_smoothing,
+        skin_slides,
         rows,
         exported_system: export_dir.map(Path::to_path_buf),
     })

@@ -383,6 +383,9 @@ pub struct Simulation {
     /// Stage 1 stalled: Newton-Krylov steps for the rest of the stage
     /// ([`SimulationOptions::newton_krylov_iterations`]).
     newton_krylov: bool,
+    /// The relative residual the cycles aim for: [`Simulation::solve`]'s tolerance while
+    /// it runs, the options' otherwise (when Newton-Krylov steps pay depends on it).
+    aimed_tolerance: f64,
     /// Potential energy at the current displacement, when known, and the last step.
     last_energy: Option<f64>,
     last_step: f64,

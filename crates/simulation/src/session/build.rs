@@ -121,6 +121,7 @@ impl Simulation {
             stage_one_search: false,
             stage_one_residuals: Vec::new(),
             newton_krylov: false,
+            aimed_tolerance: options.relative_tolerance,
             gravity_guess: None,
             warmup_left: 0,
             last_energy: None,

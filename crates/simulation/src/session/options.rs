@@ -129,6 +129,14 @@ pub const STALL_WINDOW: usize = 2;
 /// (docs/dev/converged.md).
 pub const STALL_CONTRACTION: f64 = 0.5;
 
+/// What a Newton-Krylov step costs, in warped cycles (its full-tangent assembly and two
+/// symmetric V-cycles: 1.8-2.1 times a warped cycle, docs/dev/converged.md).
+pub const NEWTON_KRYLOV_COST: f64 = 2.0;
+
+/// The residual's ratio after a Newton-Krylov step to the one before (5-7 fold reductions
+/// measured where stage 1 stalls; the lesser taken, docs/dev/converged.md).
+pub const NEWTON_KRYLOV_CONTRACTION: f64 = 0.2;
+
 /// Furthest the bed may be moved in front of the fill-in (mm).
 pub const MAX_FORWARD_SHIFT_MM: f64 = 10.0;
 
@@ -223,7 +231,9 @@ pub struct SimulationOptions {
     /// Dearer per cycle, so only once the cheap cycles converge more slowly than these
     /// steps would in the same time ([`STALL_CONTRACTION`]): near the answer, and
     /// against the free lateral faces of a model, where tissue is stretched and turned,
-    /// they settle into an oscillation (docs/dev/converged.md). 0: never.
+    /// they settle into an oscillation (docs/dev/converged.md). Not while the warped
+    /// cycles, at their last rate, would reach the solve's tolerance at no more cost
+    /// ([`NEWTON_KRYLOV_COST`], [`NEWTON_KRYLOV_CONTRACTION`]). 0: never.
     pub newton_krylov_iterations: usize,
     /// The finest level's safeguard against inverted elements (see
     /// [`fem::InversionBarrier`]; `None`: the paper's plain corotated energy). Default

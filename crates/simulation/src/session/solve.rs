@@ -417,8 +417,9 @@ impl Simulation {
                 self.stage_one_residuals.remove(0);
             }
             self.stage_one_residuals.push(relative);
-            self.newton_krylov |=
-                self.options.newton_krylov_iterations > 0 && stalled(&self.stage_one_residuals);
+            self.newton_krylov |= self.options.newton_krylov_iterations > 0
+                && stalled(&self.stage_one_residuals)
+                && newton_krylov_pays(&self.stage_one_residuals, self.aimed_tolerance);
         }
         self.stage_cycles += 1;
         Ok(CycleInfo {
@@ -443,14 +444,20 @@ impl Simulation {
         let start = Instant::now();
         let mut cycles = 0;
         let mut relative = f64::INFINITY;
-        while cycles < max_cycles {
-            let info = self.cycle()?;
-            cycles += 1;
-            relative = info.relative_residual;
-            if relative < relative_tolerance && !info.linear {
-                break;
+        self.aimed_tolerance = relative_tolerance;
+        let solved = (|| {
+            while cycles < max_cycles {
+                let info = self.cycle()?;
+                cycles += 1;
+                relative = info.relative_residual;
+                if relative < relative_tolerance && !info.linear {
+                    break;
+                }
             }
-        }
+            Ok::<(), SimulationError>(())
+        })();
+        self.aimed_tolerance = self.options.relative_tolerance;
+        solved?;
         Ok(SolveReport {
             stage: self.stage(),
             cycles,
@@ -593,6 +600,30 @@ fn stalled(residuals: &[f64]) -> bool {
     }
 }
 
+/// Whether Newton-Krylov steps would bring stage 1 to `tolerance` at less cost than
+/// warped cycles converging at their last rate (`residuals`: the relative residuals
+/// before the last corotated cycles, oldest first). The cycle after the last one starts
+/// from the last residual times that rate, whichever kind it is; counted in warped
+/// cycles, a Newton-Krylov step costs [`NEWTON_KRYLOV_COST`] and contracts by
+/// [`NEWTON_KRYLOV_CONTRACTION`], and the cycle whose residual meets the tolerance is
+/// still run. A tie goes to the steps: a stalling iteration's rate only gets worse.
+fn newton_krylov_pays(residuals: &[f64], tolerance: f64) -> bool {
+    let [.., before, last] = residuals else {
+        return false;
+    };
+    let rate = last / before;
+    // a residual that grew, held or is not a number will not converge at this rate
+    if rate.is_nan() || rate >= 1.0 {
+        return true;
+    }
+    let next = last * rate;
+    let cycles_after_next =
+        |contraction: f64| ((tolerance / next).ln() / contraction.ln()).ceil().max(0.0);
+    let warped = cycles_after_next(rate) + 1.0;
+    let newton_krylov = NEWTON_KRYLOV_COST * (cycles_after_next(NEWTON_KRYLOV_CONTRACTION) + 1.0);
+    warped >= newton_krylov
+}
+
 impl GravityStage {
     /// One cycle of stage 2: one iteration of conjugate gradients preconditioned by a
     /// symmetric V-cycle on the tangent system of the stage-1 state; `u` becomes stage
@@ -638,5 +669,35 @@ mod tests {
         // only the window counts: the first entry here is before it
         assert!(stalled(&[9.0, 1.0, 0.9, 0.8]));
         assert!(!stalled(&[1.0, 1.0, 0.3, 0.1]));
+    }
+
+    /// Costs counted by hand, in warped cycles, with the cycle that meets the tolerance
+    /// run too: at the rate 0.75 from 1.6e-3 the next cycle starts at 1.2e-3 and the one
+    /// after at 9e-4 (two warped cycles against two Newton-Krylov steps' four); at 0.9
+    /// from 3e-3, eleven warped cycles against two steps' four; rates of 1 or more never
+    /// converge; below the tolerance already, nothing pays.
+    #[test]
+    fn newton_krylov_steps_pay_only_where_warped_cycles_would_take_longer() {
+        assert_eq!(NEWTON_KRYLOV_COST, 2.0);
+        assert_eq!(NEWTON_KRYLOV_CONTRACTION, 0.2);
+        let tolerance = 1e-3;
+        assert!(!newton_krylov_pays(&[2.1333e-3, 1.6e-3], tolerance));
+        assert!(!newton_krylov_pays(
+            &[2.096e-3, 1.378e-3, 1.064e-3],
+            tolerance
+        ));
+        assert!(newton_krylov_pays(&[3.33e-3, 3e-3], tolerance));
+        assert!(newton_krylov_pays(&[3e-3, 3e-3], tolerance));
+        assert!(newton_krylov_pays(&[2e-3, 3e-3], tolerance));
+        assert!(!newton_krylov_pays(&[2e-4, 1.9e-4], tolerance));
+        // the tighter the tolerance, the more the steps pay
+        assert!(newton_krylov_pays(&[2.096e-3, 1.378e-3, 1.064e-3], 1e-6));
+        // rate 0.47 from 1.5e-2: 7.0e-3, 3.3e-3, 1.5e-3, 7.3e-4 (four warped cycles)
+        // against 7.0e-3, 1.4e-3, 2.8e-4 (three steps, six)
+        assert!(!newton_krylov_pays(&[3.2e-2, 1.5e-2], tolerance));
+        // a tie: rate 0.72 from 3.1e-3, 2.2e-3, 1.6e-3, 1.2e-3, 8.3e-4 (four warped
+        // cycles) against 2.2e-3, 4.5e-4 (two steps, four)
+        assert!(newton_krylov_pays(&[4.3e-3, 3.1e-3], tolerance));
+        assert!(!newton_krylov_pays(&[1.0], tolerance));
     }
 }
