@@ -5,9 +5,10 @@
 //!
 //! Run with `cargo test --release -p plan --test model -- --nocapture` for the figures.
 
+use anatomy::breast::Side;
 use mesh::{Topology, manifold_report, self_intersections};
 use phantom::PhantomParams;
-use plan::model::{ModelOptions, ModelReport, build_model, write_model};
+use plan::model::{ModelOptions, ModelReport, build_model, load_model, write_model};
 use plan::{MarkedScan, Scan, Silent};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -292,4 +293,64 @@ fn refined_level_around_the_fill_ins() {
     // The VTU holds positions in shortest round-trip form, so the lengths agree exactly.
     assert_eq!(longest, refined.longest_edge_in_band_mm);
     assert!(longest <= refinement.max_edge_mm, "{longest}");
+}
+
+/// A model folder of a scan with holes reopens as the model it holds. The default
+/// phantom scanned with occlusion lacks the underside of each breast, which the model
+/// reconstructs; `mammaplan simulate` rebuilds the model from the scan and landmark
+/// files and the folder's control points (`load_model`), and must get the same
+/// reconstruction, breast volumes, closed surface and tetrahedra to the bit (meshing is
+/// deterministic; a difference would move the prediction between `model` and
+/// `simulate`).
+#[test]
+fn a_model_folder_of_a_scan_with_holes_reopens_as_the_same_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let phantom = phantom::generate(&PhantomParams {
+        occlusion: true,
+        ..PhantomParams::default()
+    });
+    let scan_path = dir.path().join("scan.ply");
+    let landmarks_path = dir.path().join("landmarks.json");
+    mesh::io::write_mesh(&scan_path, &phantom.scan).unwrap();
+    phantom
+        .landmarks
+        .write(&landmarks_path, serde_json::Map::new())
+        .unwrap();
+    let marked = MarkedScan::load_in(&scan_path, None, &landmarks_path, None, &Silent).unwrap();
+    let model = build_model(&marked, &ModelOptions::default(), &Silent).unwrap();
+    let folder = dir.path().join("model");
+    write_model(&folder, &model, &Silent).unwrap();
+    let (_, reopened) = load_model(&folder, &Silent).unwrap();
+
+    assert!(!model.breasts.holes_closed.is_empty(), "the scan has holes");
+    for side in Side::BOTH {
+        let (built, again) = (model.breasts.breast(side), reopened.breasts.breast(side));
+        assert!(
+            built.reconstructed.area_share > 0.01,
+            "{side}: nothing reconstructed"
+        );
+        assert_eq!(built.control_points, again.control_points, "{side}");
+        assert_eq!(
+            built.reconstructed.vertex_flags, again.reconstructed.vertex_flags,
+            "{side}"
+        );
+        assert_eq!(
+            built.volume_ml.to_bits(),
+            again.volume_ml.to_bits(),
+            "{side}"
+        );
+    }
+    assert_eq!(
+        model.closed_surface.mesh.positions,
+        reopened.closed_surface.mesh.positions
+    );
+    assert_eq!(
+        model.closed_surface.mesh.triangles,
+        reopened.closed_surface.mesh.triangles
+    );
+    assert_eq!(model.tets.levels.len(), reopened.tets.levels.len());
+    for (built, again) in model.tets.levels.iter().zip(&reopened.tets.levels) {
+        assert_eq!(built.mesh.positions, again.mesh.positions);
+        assert_eq!(built.mesh.tets, again.mesh.tets);
+    }
 }
