@@ -622,3 +622,22 @@ pub fn report(report: &plan::report::ReportSummary) -> String {
         parts.join(", ")
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table's header says which skin was benchmarked.
+    #[test]
+    fn the_bench_table_names_sliding_skin() {
+        let report = |skin_slides| plan::bench::BenchReport {
+            implant: "catalog:R-MOD-120",
+            prolongation_smoothing: 0.0,
+            skin_slides,
+            rows: Vec::new(),
+            exported_system: None,
+        };
+        assert!(bench(&report(true)).contains("prolongation smoothing 0, skin on sliders\n"));
+        assert!(bench(&report(false)).contains("prolongation smoothing 0\n"));
+    }
+}

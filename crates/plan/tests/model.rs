@@ -323,6 +323,10 @@ fn a_model_folder_of_a_scan_with_holes_reopens_as_the_same_model() {
     let (_, reopened) = load_model(&folder, &Silent).unwrap();
 
     assert!(!model.breasts.holes_closed.is_empty(), "the scan has holes");
+    assert_eq!(
+        model.breasts.holes_closed.len(),
+        reopened.breasts.holes_closed.len()
+    );
     for side in Side::BOTH {
         let (built, again) = (model.breasts.breast(side), reopened.breasts.breast(side));
         assert!(
@@ -332,6 +336,15 @@ fn a_model_folder_of_a_scan_with_holes_reopens_as_the_same_model() {
         assert_eq!(built.control_points, again.control_points, "{side}");
         assert_eq!(
             built.reconstructed.vertex_flags, again.reconstructed.vertex_flags,
+            "{side}"
+        );
+        // the breast's skin, reconstructed underside included, and the fill-in behind it
+        assert_eq!(
+            built.patch.mesh.positions, again.patch.mesh.positions,
+            "{side}"
+        );
+        assert_eq!(
+            built.fill.mesh.positions, again.fill.mesh.positions,
             "{side}"
         );
         assert_eq!(

@@ -23,7 +23,8 @@
 //! # Stages
 //! 1. [`Stage::Implant`]: the Dirichlet problem of the template, solved by
 //!    [`Multigrid::cycle`] (rotation update, reassembly, one V(2,1)-cycle; Newton-Krylov
-//!    steps once these stall, see [`SimulationOptions::newton_krylov_iterations`]) on the
+//!    steps once these stall and the steps pay, see
+//!    [`SimulationOptions::newton_krylov_iterations`]) on the
 //!    corotated formulation. The scan as captured is the rest state: the tissue's own
 //!    weight is already in it, so no body force acts.
 //! 2. [`Stage::Gravity`] (paper V-B): the implant vertices are released; the force that
@@ -380,7 +381,7 @@ pub struct Simulation {
     /// its best multiple ([`PcgIteration::from_guess`]): after a small change of the
     /// implants it is close to the new one.
     gravity_guess: Option<Vec<DVec3>>,
-    /// Stage 1 stalled: Newton-Krylov steps for the rest of the stage
+    /// Stage 1 stalled where the steps pay: Newton-Krylov steps for the rest of the stage
     /// ([`SimulationOptions::newton_krylov_iterations`]).
     newton_krylov: bool,
     /// The relative residual the cycles aim for: [`Simulation::solve`]'s tolerance while

@@ -125,16 +125,18 @@ pub const MAX_HALVINGS: usize = 5;
 pub const STALL_WINDOW: usize = 2;
 
 /// The ratio of the residual after a warped cycle to the one before, above which a
-/// Newton-Krylov step (dearer per cycle, faster per millisecond there) takes over
-/// (docs/dev/converged.md).
+/// Newton-Krylov step (dearer per cycle, faster per millisecond there) takes over if it
+/// pays ([`NEWTON_KRYLOV_COST`]; docs/dev/converged.md).
 pub const STALL_CONTRACTION: f64 = 0.5;
 
-/// What a Newton-Krylov step costs, in warped cycles (its full-tangent assembly and two
-/// symmetric V-cycles: 1.8-2.1 times a warped cycle, docs/dev/converged.md).
+/// What a Newton-Krylov step costs, in warped cycles, with the default two conjugate
+/// gradient iterations (its full-tangent assembly and two symmetric V-cycles): measured
+/// at 1.5-2.8 times a warped cycle in session 27 and 1.6-2.1 in session 43
+/// (docs/dev/converged.md).
 pub const NEWTON_KRYLOV_COST: f64 = 2.0;
 
-/// The residual's ratio after a Newton-Krylov step to the one before (5-7 fold reductions
-/// measured where stage 1 stalls; the lesser taken, docs/dev/converged.md).
+/// The residual's ratio after a Newton-Krylov step to the one before: reductions of 4.6-7
+/// fold measured where stage 1 stalls (session 27, docs/dev/converged.md), rounded to 5.
 pub const NEWTON_KRYLOV_CONTRACTION: f64 = 0.2;
 
 /// Furthest the bed may be moved in front of the fill-in (mm).
@@ -232,8 +234,9 @@ pub struct SimulationOptions {
     /// steps would in the same time ([`STALL_CONTRACTION`]): near the answer, and
     /// against the free lateral faces of a model, where tissue is stretched and turned,
     /// they settle into an oscillation (docs/dev/converged.md). Not while the warped
-    /// cycles, at their last rate, would reach the solve's tolerance at no more cost
-    /// ([`NEWTON_KRYLOV_COST`], [`NEWTON_KRYLOV_CONTRACTION`]). 0: never.
+    /// cycles, at their last rate, would reach the tolerance aimed at
+    /// ([`Simulation::solve`]'s while it runs, else [`SimulationOptions::relative_tolerance`])
+    /// at less cost ([`NEWTON_KRYLOV_COST`], [`NEWTON_KRYLOV_CONTRACTION`]). 0: never.
     pub newton_krylov_iterations: usize,
     /// The finest level's safeguard against inverted elements (see
     /// [`fem::InversionBarrier`]; `None`: the paper's plain corotated energy). Default

@@ -442,22 +442,10 @@ impl Simulation {
         relative_tolerance: f64,
     ) -> Result<SolveReport, SimulationError> {
         let start = Instant::now();
-        let mut cycles = 0;
-        let mut relative = f64::INFINITY;
-        self.aimed_tolerance = relative_tolerance;
-        let solved = (|| {
-            while cycles < max_cycles {
-                let info = self.cycle()?;
-                cycles += 1;
-                relative = info.relative_residual;
-                if relative < relative_tolerance && !info.linear {
-                    break;
-                }
-            }
-            Ok::<(), SimulationError>(())
-        })();
-        self.aimed_tolerance = self.options.relative_tolerance;
-        solved?;
+        let aimed_before = std::mem::replace(&mut self.aimed_tolerance, relative_tolerance);
+        let cycled = self.cycle_until(max_cycles, relative_tolerance);
+        self.aimed_tolerance = aimed_before;
+        let (cycles, relative) = cycled?;
         Ok(SolveReport {
             stage: self.stage(),
             cycles,
@@ -465,6 +453,23 @@ impl Simulation {
             converged: relative < relative_tolerance,
             time_ms: elapsed_ms(start),
         })
+    }
+
+    /// [`Simulation::solve`]'s loop: the cycles run and the last relative residual.
+    fn cycle_until(
+        &mut self,
+        max_cycles: usize,
+        relative_tolerance: f64,
+    ) -> Result<(usize, f64), SimulationError> {
+        let mut relative = f64::INFINITY;
+        for cycles in 1..=max_cycles {
+            let info = self.cycle()?;
+            relative = info.relative_residual;
+            if relative < relative_tolerance && !info.linear {
+                return Ok((cycles, relative));
+            }
+        }
+        Ok((max_cycles, relative))
     }
 
     /// Switches to stage 2 (paper V-B) from the current (stage-1) displacement: the
@@ -600,7 +605,7 @@ fn stalled(residuals: &[f64]) -> bool {
     }
 }
 
-/// Whether Newton-Krylov steps would bring stage 1 to `tolerance` at less cost than
+/// Whether Newton-Krylov steps would bring stage 1 to `tolerance` at no more cost than
 /// warped cycles converging at their last rate (`residuals`: the relative residuals
 /// before the last corotated cycles, oldest first). The cycle after the last one starts
 /// from the last residual times that rate, whichever kind it is; counted in warped
@@ -612,8 +617,9 @@ fn newton_krylov_pays(residuals: &[f64], tolerance: f64) -> bool {
         return false;
     };
     let rate = last / before;
-    // a residual that grew, held or is not a number will not converge at this rate
-    if rate.is_nan() || rate >= 1.0 {
+    // a residual that grew, held or is not a number will not converge at this rate, nor
+    // will any to a tolerance that is not positive
+    if rate.is_nan() || rate >= 1.0 || tolerance.is_nan() || tolerance <= 0.0 {
         return true;
     }
     let next = last * rate;
@@ -675,7 +681,7 @@ mod tests {
     /// run too: at the rate 0.75 from 1.6e-3 the next cycle starts at 1.2e-3 and the one
     /// after at 9e-4 (two warped cycles against two Newton-Krylov steps' four); at 0.9
     /// from 3e-3, eleven warped cycles against two steps' four; rates of 1 or more never
-    /// converge; below the tolerance already, nothing pays.
+    /// converge; below the tolerance and still falling, nothing pays.
     #[test]
     fn newton_krylov_steps_pay_only_where_warped_cycles_would_take_longer() {
         assert_eq!(NEWTON_KRYLOV_COST, 2.0);
@@ -698,6 +704,13 @@ mod tests {
         // a tie: rate 0.72 from 3.1e-3, 2.2e-3, 1.6e-3, 1.2e-3, 8.3e-4 (four warped
         // cycles) against 2.2e-3, 4.5e-4 (two steps, four)
         assert!(newton_krylov_pays(&[4.3e-3, 3.1e-3], tolerance));
+        // the rate is the last pair's (0.83, not the window's first 0.9), counted from the
+        // next cycle's start: 1.25e-3, 1.04e-3, 8.7e-4 (three warped cycles) against
+        // 1.25e-3, 2.5e-4 (two steps, four); counted from the last residual, or at 0.9,
+        // it would be a tie
+        assert!(!newton_krylov_pays(&[2.0e-3, 1.8e-3, 1.5e-3], tolerance));
+        assert!(newton_krylov_pays(&[f64::NAN, 1e-3], tolerance));
+        assert!(newton_krylov_pays(&[2e-3, 1e-3], 0.0));
         assert!(!newton_krylov_pays(&[1.0], tolerance));
     }
 }
