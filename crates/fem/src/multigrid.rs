@@ -168,6 +168,8 @@ pub struct CycleReport {
     /// The factor `α` the V-cycle's correction was scaled by (1 without
     /// [`MultigridOptions::optimal_step`] or with the corotated formulation).
     pub step_scale: f64,
+    /// Whether the cycle kept the latest assembly's operators ([`Multigrid::lagged_cycle`]).
+    pub operators_lagged: bool,
 }
 
 /// Bounds of the energy-optimal scale of an interactive cycle's correction: outside
@@ -230,7 +232,9 @@ pub struct Multigrid {
     rs: Vec<Vec<DVec3>>,
     /// Per-level displacement used for the rotations (all vertices).
     us: Vec<Vec<DVec3>>,
-    assembled: bool,
+    /// The formulation of the latest assembly, if its operators still hold (`None`
+    /// before any, and after a change of constraints, tangent, material or sliders).
+    assembled: Option<Formulation>,
     times: PhaseTimes,
 }
 
@@ -395,7 +399,7 @@ impl Multigrid {
     pub fn set_tangent(&mut self, tangent: Tangent) {
         if self.options.tangent != tangent {
             self.options.tangent = tangent;
-            self.assembled = false;
+            self.assembled = None;
         }
     }
 
@@ -435,7 +439,7 @@ impl Multigrid {
             return result;
         }
         self.update_active();
-        self.assembled = false;
+        self.assembled = None;
         result
     }
 
@@ -476,6 +480,7 @@ impl Multigrid {
         element: usize,
         material: crate::material::Material,
     ) -> Result<(), FemError> {
+        self.assembled = None;
         self.levels[0].model.set_material(element, material)
     }
 
@@ -484,6 +489,7 @@ impl Multigrid {
     ///
     /// Errors: see [`FemModel::set_sliders`].
     pub fn set_sliders(&mut self, sliders: &[crate::slider::Slider]) -> Result<(), FemError> {
+        self.assembled = None;
         self.levels[0].model.set_sliders(sliders)
     }
 
@@ -595,7 +601,7 @@ impl Multigrid {
         times.coarsest_factorisation_ms = ms(t2.elapsed());
         times.vcycle_ms = self.times.vcycle_ms;
         self.times = times;
-        self.assembled = true;
+        self.assembled = Some(formulation);
         Ok(())
     }
 
@@ -631,7 +637,10 @@ impl Multigrid {
 
     /// The V-cycle with `post_smooth` steps after the coarse correction.
     fn vcycle_in_pool(&mut self, x: &mut [DVec3], b: &[DVec3], post_smooth: usize) {
-        assert!(self.assembled, "Multigrid::vcycle before assemble");
+        assert!(
+            self.assembled.is_some(),
+            "Multigrid::vcycle before assemble"
+        );
         let n0 = self.levels[0].unknowns;
         assert_eq!(x.len(), n0);
         assert_eq!(b.len(), n0);
@@ -749,12 +758,55 @@ impl Multigrid {
         f_ext: &[DVec3],
         formulation: Formulation,
     ) -> Result<CycleReport, FemError> {
+        self.step(u, f_ext, formulation, None)
+    }
+
+    /// [`Multigrid::cycle`] on the operators of the latest assembly (every level's matrix,
+    /// smoother data and coarsest factor kept, i.e. lagged): only the right-hand side
+    /// `f_ext - f_int(u)` is formed, at `u`'s own rotations, so the iteration still
+    /// converges to the equilibrium, at a rate that depends on how far the rotations
+    /// moved since the operators were assembled. About half a cycle's cost (the element
+    /// pass and the V-cycle). A fresh cycle instead if the operators do not hold (no
+    /// assembly yet, or one of another formulation, or a change of constraints,
+    /// tangent, material or sliders since), or if the residual at `u` is not below
+    /// `residual_limit_mn` (mN; the iteration is not contracting, so the operators are
+    /// renewed; the element pass is then done twice). [`CycleReport::operators_lagged`]
+    /// says which.
+    pub fn lagged_cycle(
+        &mut self,
+        u: &mut [DVec3],
+        f_ext: &[DVec3],
+        formulation: Formulation,
+        residual_limit_mn: f64,
+    ) -> Result<CycleReport, FemError> {
+        let limit = (self.assembled == Some(formulation)).then_some(residual_limit_mn);
+        self.step(u, f_ext, formulation, limit)
+    }
+
+    /// A cycle; with `lag_below_mn`, the operators are kept if the residual is below it
+    /// (the caller checked that they hold for `formulation`).
+    fn step(
+        &mut self,
+        u: &mut [DVec3],
+        f_ext: &[DVec3],
+        formulation: Formulation,
+        lag_below_mn: Option<f64>,
+    ) -> Result<CycleReport, FemError> {
         self.levels[0].model.check_vertex_field("displacement", u)?;
         let sys = self.system();
         let u_free: Vec<DVec3> = sys.free.iter().map(|&v| u[v as usize]).collect();
         let imposed = sys.expand(&u_free);
         u.copy_from_slice(&imposed);
-        self.assemble(u, f_ext, formulation)?;
+        let mut reuse_operators = false;
+        if let Some(limit) = lag_below_mn {
+            let level = &mut self.levels[0];
+            let system = (level.system.as_mut()).expect("the finest level has its system");
+            system.assemble_forces(&level.model, u, f_ext, formulation)?;
+            reuse_operators = norm(&system.rhs) < limit;
+        }
+        if !reuse_operators {
+            self.assemble(u, f_ext, formulation)?;
+        }
         let b = self.system().rhs.clone();
         let residual_before = norm(&b);
         let mut du = vec![DVec3::ZERO; b.len()];
@@ -773,6 +825,7 @@ impl Multigrid {
         Ok(CycleReport {
             residual_before,
             step_scale,
+            operators_lagged: reuse_operators,
         })
     }
 }

@@ -625,8 +625,59 @@ impl ReducedSystem {
         if !f_ext.is_empty() {
             model.check_vertex_field("external force", f_ext)?;
         }
-        let ne = model.element_count();
         let full = formulation == Formulation::Corotated && tangent == Tangent::Full;
+        self.element_pass(model, u, formulation, full);
+        // out of `self` while its rows are written, so the gathers can borrow the rest
+        let mut matrix = std::mem::take(&mut self.matrix);
+        let mut rhs = std::mem::take(&mut self.rhs);
+        let BlockCsr {
+            row_ptr,
+            cols,
+            values,
+        } = &mut matrix;
+        let gather = RowGather {
+            forces: self.force_gather(model, u, f_ext),
+            full,
+            membranes: &self.membranes,
+            twists: &self.twists,
+            row_ptr,
+            cols,
+            incident_slots: &self.incident_slots,
+        };
+        let simd = blocks::simd_available();
+        // the upper block triangle and the right-hand side, row by row: each block sums
+        // its elements' contributions in element order (deterministic)
+        self.upper
+            .rows_mut(row_ptr, values)
+            .into_par_iter()
+            .zip(rhs.par_iter_mut())
+            .enumerate()
+            .for_each(|(i, (vals, r))| {
+                #[cfg(target_arch = "x86_64")]
+                if simd {
+                    // SAFETY: the processor has AVX2 and FMA (`simd_available`)
+                    return unsafe { gather.row_avx2(i, vals, r) };
+                }
+                let _ = simd;
+                gather.row::<blocks::Scalar>(i, vals, r);
+            });
+        self.upper.mirror(&mut matrix);
+        (self.matrix, self.rhs) = (matrix, rhs);
+        self.update_slider_force_norm(model, u);
+        Ok(())
+    }
+
+    /// The element pass of an assembly: each element's rotation, rotated gradients and
+    /// forces (with the [`Tangent::Full`] twists when `full`), and the membranes' states
+    /// and corner forces.
+    fn element_pass(
+        &mut self,
+        model: &FemModel,
+        u: &[DVec3],
+        formulation: Formulation,
+        full: bool,
+    ) {
+        let ne = model.element_count();
         let elements = model.elements();
         let core = |e: usize, rotated_grad, force, barrier_stiffness| ElementCore {
             rotated_grad,
@@ -668,45 +719,54 @@ impl ReducedSystem {
                 model.membrane_corner_forces(e, states, |k, force| c.force[k] += force);
             });
         }
-        let BlockCsr {
-            row_ptr,
-            cols,
-            values,
-        } = &mut self.matrix;
-        let gather = RowGather {
+    }
+
+    /// The right-hand side `r_f = f_ext - f_int(u)` of [`ReducedSystem::assemble`] at the
+    /// warped rotations of `u`, leaving the matrix as the latest assembly left it: the
+    /// residual of a cycle that reuses the operators (a lagged cycle).
+    pub fn assemble_forces(
+        &mut self,
+        model: &FemModel,
+        u: &[DVec3],
+        f_ext: &[DVec3],
+        formulation: Formulation,
+    ) -> Result<(), FemError> {
+        model.check_vertex_field("displacement", u)?;
+        if !f_ext.is_empty() {
+            model.check_vertex_field("external force", f_ext)?;
+        }
+        self.element_pass(model, u, formulation, false);
+        let mut rhs = std::mem::take(&mut self.rhs);
+        let gather = self.force_gather(model, u, f_ext);
+        rhs.par_iter_mut()
+            .enumerate()
+            .for_each(|(i, r)| *r = gather.row(i));
+        self.rhs = rhs;
+        self.update_slider_force_norm(model, u);
+        Ok(())
+    }
+
+    /// What a row's right-hand side reads, from the latest element pass.
+    fn force_gather<'a>(
+        &'a self,
+        model: &'a FemModel,
+        u: &'a [DVec3],
+        f_ext: &'a [DVec3],
+    ) -> ForceGather<'a> {
+        ForceGather {
             model,
             u,
             f_ext,
-            full,
             cores: &self.cores,
-            membranes: &self.membranes,
-            twists: &self.twists,
-            row_ptr,
-            cols,
             eliminated: &self.eliminated,
             incident_ptr: &self.incident_ptr,
             incident: &self.incident,
-            incident_slots: &self.incident_slots,
             free: &self.free,
-        };
-        let simd = blocks::simd_available();
-        // the upper block triangle and the right-hand side, row by row: each block sums
-        // its elements' contributions in element order (deterministic)
-        self.upper
-            .rows_mut(row_ptr, values)
-            .into_par_iter()
-            .zip(self.rhs.par_iter_mut())
-            .enumerate()
-            .for_each(|(i, (vals, r))| {
-                #[cfg(target_arch = "x86_64")]
-                if simd {
-                    // SAFETY: the processor has AVX2 and FMA (`simd_available`)
-                    return unsafe { gather.row_avx2(i, vals, r) };
-                }
-                let _ = simd;
-                gather.row::<blocks::Scalar>(i, vals, r);
-            });
-        self.upper.mirror(&mut self.matrix);
+        }
+    }
+
+    /// [`ReducedSystem::reaction_norm_squared`]'s sliders' share.
+    fn update_slider_force_norm(&mut self, model: &FemModel, u: &[DVec3]) {
         self.slider_force_norm_squared = (model.sliders().iter())
             .filter(|s| {
                 let v = s.vertex as usize;
@@ -714,27 +774,57 @@ impl ReducedSystem {
             })
             .map(|s| s.force(u[s.vertex as usize]).length_squared())
             .sum();
-        Ok(())
+    }
+}
+
+/// What a block row's right-hand side `f_ext - f_int(u)` reads: the element pass's
+/// forces (membranes included) and the sliders.
+struct ForceGather<'a> {
+    model: &'a FemModel,
+    u: &'a [DVec3],
+    f_ext: &'a [DVec3],
+    cores: &'a [ElementCore],
+    eliminated: &'a [bool],
+    incident_ptr: &'a [usize],
+    incident: &'a [u32],
+    free: &'a [u32],
+}
+
+impl ForceGather<'_> {
+    /// Block row `i`'s right-hand side (zero for a held unknown): its elements' forces
+    /// summed in element order (deterministic).
+    #[inline]
+    fn row(&self, i: usize) -> DVec3 {
+        if self.eliminated[i] {
+            return DVec3::ZERO;
+        }
+        let v = self.free[i] as usize;
+        let mut f = if self.f_ext.is_empty() {
+            DVec3::ZERO
+        } else {
+            self.f_ext[v]
+        };
+        for &k in &self.incident[self.incident_ptr[i]..self.incident_ptr[i + 1]] {
+            f -= self.cores[(k >> 2) as usize].force[(k & 3) as usize];
+        }
+        if let Some(slider) = self.model.sliders.at(v) {
+            f -= slider.force(self.u[v]);
+        }
+        f
     }
 }
 
 /// What [`ReducedSystem::assemble`]'s row gather reads: the element pass's results and
 /// the pattern's element-to-slot maps.
 struct RowGather<'a> {
-    model: &'a FemModel,
-    u: &'a [DVec3],
-    f_ext: &'a [DVec3],
+    /// The elements' forces and the pattern's incidences, shared with the right-hand side.
+    forces: ForceGather<'a>,
     full: bool,
-    cores: &'a [ElementCore],
     membranes: &'a [MembraneState],
     twists: &'a [DMat3],
     row_ptr: &'a [usize],
     cols: &'a [u32],
-    eliminated: &'a [bool],
-    incident_ptr: &'a [usize],
-    incident: &'a [u32],
     incident_slots: &'a [[u32; 4]],
-    free: &'a [u32],
 }
 
 impl RowGather<'_> {
@@ -743,36 +833,34 @@ impl RowGather<'_> {
     #[inline(always)]
     fn row<K: BlockKernels>(&self, i: usize, vals: &mut [[f64; 9]], r: &mut DVec3) {
         vals.fill([0.0; 9]);
-        if self.eliminated[i] {
+        if self.forces.eliminated[i] {
             // a held unknown: identity diagonal block, zero row and right-hand side
             vals[0] = IDENTITY_BLOCK;
             *r = DVec3::ZERO;
             return;
         }
         let ucols = &self.cols[self.row_ptr[i + 1] - vals.len()..self.row_ptr[i + 1]];
-        let mut f = if self.f_ext.is_empty() {
-            DVec3::ZERO
-        } else {
-            self.f_ext[self.free[i] as usize]
-        };
-        for k in self.incident_ptr[i]..self.incident_ptr[i + 1] {
-            let e = (self.incident[k] >> 2) as usize;
-            let a = (self.incident[k] & 3) as usize;
-            let c = &self.cores[e];
-            f -= c.force[a];
+        for k in self.forces.incident_ptr[i]..self.forces.incident_ptr[i + 1] {
+            let e = (self.forces.incident[k] >> 2) as usize;
+            let a = (self.forces.incident[k] & 3) as usize;
+            let c = &self.forces.cores[e];
             let ha = c.rotated_grad[a].to_array();
             let lambda_ha = (c.rotated_grad[a] * c.vol_lambda).to_array();
             let mu_ha = (c.rotated_grad[a] * c.vol_mu).to_array();
             // the inversion barrier acts on few elements: its directions are
             // recomputed here rather than stored for all
-            let barrier = (c.barrier_stiffness != 0.0)
-                .then(|| self.model.volume_gradients(e, self.u).map(|g| g.to_array()));
+            let barrier = (c.barrier_stiffness != 0.0).then(|| {
+                self.forces
+                    .model
+                    .volume_gradients(e, self.forces.u)
+                    .map(|g| g.to_array())
+            });
             // [hₐ]ₓ C of the twist term, where the element has one
             let twist_a = (self.full && self.twists[e] != DMat3::ZERO)
                 .then(|| cross_matrix(c.rotated_grad[a]) * self.twists[e]);
             for (b, &s) in self.incident_slots[k].iter().enumerate() {
                 // a held unknown's column stays zero (eliminated)
-                if s == NOT_FREE || self.eliminated[ucols[s as usize] as usize] {
+                if s == NOT_FREE || self.forces.eliminated[ucols[s as usize] as usize] {
                     continue;
                 }
                 let out = &mut vals[s as usize];
@@ -790,15 +878,13 @@ impl RowGather<'_> {
             }
             self.add_membrane_blocks(e, a, k, vals, ucols);
         }
-        let v = self.free[i] as usize;
-        if let Some(slider) = self.model.sliders.at(v) {
+        if let Some(slider) = self.forces.model.sliders.at(self.forces.free[i] as usize) {
             // the diagonal block comes first in the row's upper part
             for (o, x) in vals[0].iter_mut().zip(slider.block()) {
                 *o += x;
             }
-            f -= slider.force(self.u[v]);
         }
-        *r = f;
+        *r = self.forces.row(i);
     }
 
     /// Adds the blocks of element `e`'s membranes for its corner `a` (incidence `k`) to
@@ -812,14 +898,14 @@ impl RowGather<'_> {
         vals: &mut [[f64; 9]],
         ucols: &[u32],
     ) {
-        for m in self.model.membranes_of(e) {
-            let corners = self.model.membrane_corners(m);
+        for m in self.forces.model.membranes_of(e) {
+            let corners = self.forces.model.membrane_corners(m);
             let Some(i) = corners.iter().position(|&c| c as usize == a) else {
                 continue;
             };
             for (j, &b) in corners.iter().enumerate() {
                 let s = self.incident_slots[k][b as usize];
-                if s == NOT_FREE || self.eliminated[ucols[s as usize] as usize] {
+                if s == NOT_FREE || self.forces.eliminated[ucols[s as usize] as usize] {
                     continue;
                 }
                 // row-major: the transpose's columns are the block's rows

@@ -83,16 +83,6 @@ fn levels(meshes: &[TetMesh], finest: &Constraints) -> Vec<(FemModel, Constraint
         .collect()
 }
 
-fn rel_diff(a: &[DVec3], b: &[DVec3]) -> f64 {
-    let d: f64 = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| (*x - *y).length_squared())
-        .sum();
-    let n: f64 = b.iter().map(|x| x.length_squared()).sum();
-    (d / n).sqrt()
-}
-
 /// The reference: a reduced system built from scratch with all the constraints, assembled
 /// at `u` (all vertices); returns the reduced system and its direct solution.
 fn reference(

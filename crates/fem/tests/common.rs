@@ -1,7 +1,10 @@
 //! Shared helpers of the integration tests.
 #![allow(dead_code)]
 
-use fem::{FemModel, Formulation, Material, box_is_boundary, box_mesh};
+use fem::multigrid::{Multigrid, MultigridOptions};
+use fem::{
+    Constraints, FemModel, Formulation, Material, STANDARD_GRAVITY_M_S2, box_is_boundary, box_mesh,
+};
 use glam::{DMat3, DVec3};
 use tetra::TetMesh;
 
@@ -87,4 +90,46 @@ pub fn squeezed_box() -> (FemModel, Vec<DVec3>) {
         .map(|(k, x)| DVec3::new(0.2 * x.z, 0.05 * (k % 3) as f64, -0.6 * x.z))
         .collect();
     (model, u)
+}
+
+/// Relative 2-norm of `a - b` over `b`.
+pub fn rel_diff(a: &[DVec3], b: &[DVec3]) -> f64 {
+    let d: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length_squared())
+        .sum();
+    let n: f64 = b.iter().map(|x| x.length_squared()).sum();
+    (d / n).sqrt()
+}
+
+/// A multigrid hierarchy over boxes of `size` (mm) of 3 kPa tissue (Poisson ratio
+/// 0.45) with the given cell counts, finest first (the finest jittered by 0.15 cells,
+/// the coarser regular), each level held by `constraints_for` its mesh; and the finest
+/// level's gravity forces (along -z).
+pub fn box_hierarchy(
+    size: DVec3,
+    cells: &[[usize; 3]],
+    constraints_for: impl Fn(&TetMesh) -> Constraints,
+    options: MultigridOptions,
+) -> (Multigrid, Vec<DVec3>) {
+    let material = Material::new(3.0, 0.45);
+    let mut levels = Vec::new();
+    let mut gravity = Vec::new();
+    for (l, &n) in cells.iter().enumerate() {
+        let mesh = if l == 0 {
+            jittered_box(DVec3::ZERO, size, n, 0.15)
+        } else {
+            box_mesh(DVec3::ZERO, size, n)
+        };
+        let model = FemModel::homogeneous(&mesh, material).unwrap();
+        if l == 0 {
+            gravity = model
+                .gravity_forces(DVec3::new(0.0, 0.0, -STANDARD_GRAVITY_M_S2))
+                .unwrap();
+        }
+        levels.push((model, constraints_for(&mesh)));
+    }
+    let mg = Multigrid::new(levels, options).unwrap();
+    (mg, gravity)
 }

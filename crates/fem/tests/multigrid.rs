@@ -12,10 +12,7 @@ mod common;
 
 use common::*;
 use fem::multigrid::{Multigrid, MultigridOptions};
-use fem::{
-    Constraints, DirectSolver, FemError, FemModel, Formulation, Material, STANDARD_GRAVITY_M_S2,
-    box_mesh,
-};
+use fem::{Constraints, DirectSolver, FemError, FemModel, Formulation, Material, box_mesh};
 use glam::DVec3;
 use tetra::TetMesh;
 
@@ -44,35 +41,7 @@ fn hierarchy(
     depth_mm: f64,
     options: MultigridOptions,
 ) -> (Multigrid, Vec<DVec3>) {
-    let material = Material::new(3.0, 0.45);
-    let mut levels = Vec::new();
-    let mut gravity = Vec::new();
-    for (l, &n) in cells.iter().enumerate() {
-        let mesh = if l == 0 {
-            jittered_box(DVec3::ZERO, SIZE, n, 0.15)
-        } else {
-            box_mesh(DVec3::ZERO, SIZE, n)
-        };
-        let model = FemModel::homogeneous(&mesh, material).unwrap();
-        if l == 0 {
-            gravity = model
-                .gravity_forces(DVec3::new(0.0, 0.0, -STANDARD_GRAVITY_M_S2))
-                .unwrap();
-        }
-        levels.push((model, constraints_for(&mesh, depth_mm)));
-    }
-    let mg = Multigrid::new(levels, options).unwrap();
-    (mg, gravity)
-}
-
-fn rel_diff(a: &[DVec3], b: &[DVec3]) -> f64 {
-    let d: f64 = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| (*x - *y).length_squared())
-        .sum();
-    let n: f64 = b.iter().map(|x| x.length_squared()).sum();
-    (d / n).sqrt()
+    box_hierarchy(SIZE, cells, |mesh| constraints_for(mesh, depth_mm), options)
 }
 
 const TWO_LEVELS: &[[usize; 3]] = &[[20, 12, 12], [7, 4, 4]];

@@ -62,6 +62,7 @@
 //! displacement is kept as the warm start, and so is the last gravity correction, for the
 //! next one.
 
+mod anderson;
 mod build;
 mod carried;
 mod options;
@@ -70,6 +71,7 @@ mod solve;
 
 pub use options::*;
 
+use anderson::AndersonMixing;
 use build::field_locator;
 pub use carried::CARRIED_CONTROL_POINT_SPACING_MM;
 use carried::{ScanFeet, closed_volume, points_along_loop};
@@ -215,6 +217,9 @@ pub struct CycleInfo {
     /// A Newton-Krylov step of a stalled stage 1 (see
     /// [`SimulationOptions::newton_krylov_iterations`]).
     pub newton_krylov: bool,
+    /// A stage-1 cycle on the last assembly's operators (see
+    /// [`SimulationOptions::lagged_operators`]).
+    pub lagged: bool,
     /// Wall-clock time of the cycle, a rebuild included (ms).
     pub time_ms: f64,
 }
@@ -365,6 +370,8 @@ pub struct Simulation {
     /// implant vertices' dead load goes into stage 2's right-hand side directly.
     f_ext: Vec<DVec3>,
     last_relative_residual: f64,
+    /// Stage 1's residual before its last cycle (mN).
+    last_residual_mn: f64,
     stage_cycles: usize,
     /// The constraints or loads changed since the last cycle (no line search then).
     fresh: bool,
@@ -376,6 +383,8 @@ pub struct Simulation {
     /// Stage 1's relative residuals before its last corotated cycles, at most
     /// [`STALL_WINDOW`] + 1 (the stall test's).
     stage_one_residuals: Vec<f64>,
+    /// Stage 1's lagged cycles since its operators were last assembled.
+    anderson: AndersonMixing,
     /// The last gravity correction (mm, per finest vertex): stage 2's displacement minus
     /// stage 1's when the session last left stage 2. The next correction starts from
     /// its best multiple ([`PcgIteration::from_guess`]): after a small change of the
@@ -424,6 +433,12 @@ impl Simulation {
         if iterations == 0 {
             self.newton_krylov = false;
         }
+    }
+
+    /// Sets [`SimulationOptions::lagged_operators`]; off, every further cycle reassembles
+    /// (for timing the paper's cycles alone).
+    pub fn set_lagged_operators(&mut self, lagged: bool) {
+        self.options.lagged_operators = lagged;
     }
 
     /// The finest level (rest state).

@@ -35,8 +35,9 @@ fn implant_stage(
 }
 
 /// Where the warped cycles settle at a plateau, the session switches to Newton-Krylov
-/// steps and reaches the tolerance in at most 14 cycles (measured 14; 16 without the
-/// switch, the last after a halved step; measured by the probe above). Its answer is the
+/// steps and reaches the tolerance in at most 15 cycles (measured 15, four of them on
+/// kept operators at about 0.4 of a fresh cycle's time; 14 with every cycle fresh, and
+/// 16 without the switch, the last after a halved step; measured by the probe above). Its answer is the
 /// equilibrium: the skin lies within 0.1 mm (the `converged_ms` criterion of
 /// `mammaplan bench`) of the same session solved on to a relative residual of 1e-7.
 /// With the switch turned off afterwards, the next cycle is a warped one.
@@ -44,7 +45,7 @@ fn implant_stage(
 fn a_stalled_implant_stage_converges_by_newton_krylov_steps() {
     let patient = common::small_hanging_phantom();
     let (mut sim, cycles, converged, switched) =
-        implant_stage(patient, SimulationOptions::default(), 14);
+        implant_stage(patient, SimulationOptions::default(), 15);
     println!("with the switch: {cycles} cycles, converged {converged}, switched {switched}");
     assert!(converged && switched);
     let answer = sim.scan_positions();

@@ -186,7 +186,7 @@ impl Multigrid {
             bs,
             rs,
             us,
-            assembled: false,
+            assembled: None,
             times: PhaseTimes::default(),
         })
     }

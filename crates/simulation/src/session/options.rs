@@ -139,6 +139,21 @@ pub const NEWTON_KRYLOV_COST: f64 = 2.0;
 /// fold measured where stage 1 stalls (session 27, docs/dev/converged.md), rounded to 5.
 pub const NEWTON_KRYLOV_CONTRACTION: f64 = 0.2;
 
+/// The relative residual below which stage 1's warped cycles keep their operators
+/// ([`SimulationOptions::lagged_operators`]): past the first cycles after a change, where
+/// the rotations still move by much (lagged from 0.2, the cycles stalled into
+/// Newton-Krylov steps; docs/dev/converged.md).
+pub const LAGGED_OPERATORS_BELOW: f64 = 0.05;
+
+/// What a cycle on kept operators costs, in warped cycles: its element pass and V-cycle
+/// without the assemblies (9-10 ms against 19-21 ms at 60,000 elements, session 44,
+/// docs/dev/converged.md).
+pub const LAGGED_CYCLE_COST: f64 = 0.5;
+
+/// How many earlier steps the lagged cycles mix ([`crate::session`]'s Anderson mixing):
+/// 2 took one lagged cycle off the bench's change, 3 no more (docs/dev/converged.md).
+pub const ANDERSON_DEPTH: usize = 2;
+
 /// Furthest the bed may be moved in front of the fill-in (mm).
 pub const MAX_FORWARD_SHIFT_MM: f64 = 10.0;
 
@@ -238,6 +253,13 @@ pub struct SimulationOptions {
     /// ([`Simulation::solve`]'s while it runs, else [`SimulationOptions::relative_tolerance`])
     /// at less cost ([`NEWTON_KRYLOV_COST`], [`NEWTON_KRYLOV_CONTRACTION`]). 0: never.
     pub newton_krylov_iterations: usize,
+    /// Once stage 1's relative residual is below [`LAGGED_OPERATORS_BELOW`] and falling,
+    /// its warped cycles keep the operators of the last assembly (only the forces are
+    /// evaluated at the new rotations, so the answer is the same equilibrium), their
+    /// steps mixed with the last [`ANDERSON_DEPTH`] (Anderson mixing); a cycle whose
+    /// residual did not fall is followed by a fresh one. Off: every cycle reassembles, as
+    /// the paper's interactive cycle does.
+    pub lagged_operators: bool,
     /// The finest level's safeguard against inverted elements (see
     /// [`fem::InversionBarrier`]; `None`: the paper's plain corotated energy). Default
     /// [`DEFAULT_INVERSION_BARRIER`].
@@ -286,6 +308,7 @@ impl Default for SimulationOptions {
             line_search: true,
             linear_warmup_cycles: 6,
             newton_krylov_iterations: 2,
+            lagged_operators: true,
             max_cycles: DEFAULT_MAX_CYCLES,
             relative_tolerance: DEFAULT_RELATIVE_TOLERANCE,
             falloff_mm: DEFAULT_FALLOFF_MM,

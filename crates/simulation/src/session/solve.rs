@@ -351,6 +351,7 @@ impl Simulation {
                 step: 1.0,
                 linear: false,
                 newton_krylov: false,
+                lagged: false,
                 time_ms: elapsed_ms(start),
             });
         }
@@ -370,10 +371,26 @@ impl Simulation {
                 self.options.multigrid.krylov_iterations,
             )
         };
+        let lag = !fresh && !newton_krylov && self.lags(formulation);
         let mg = &mut self.multigrid.insert(kept).multigrid;
         mg.set_tangent(tangent);
         mg.set_krylov_iterations(krylov_iterations);
-        let report = mg.cycle(&mut self.u, &self.f_ext, formulation)?;
+        let report = if lag {
+            let start = self.u.clone();
+            // only while the residual keeps falling
+            let limit = self.last_residual_mn;
+            let report = mg.lagged_cycle(&mut self.u, &self.f_ext, formulation, limit)?;
+            if report.operators_lagged {
+                self.anderson.mix(&start, &mut self.u);
+            }
+            report
+        } else {
+            mg.cycle(&mut self.u, &self.f_ext, formulation)?
+        };
+        if !report.operators_lagged {
+            // a new map: the steps of the old one do not mix with its
+            self.anderson.clear();
+        }
         if let Some(u_old) = u_old {
             // backtracking on the potential energy (the corotated forces are conservative)
             let model = mg.model();
@@ -410,6 +427,7 @@ impl Simulation {
             self.stage_one_search = true;
         }
         self.last_relative_residual = relative;
+        self.last_residual_mn = report.residual_before;
         // the residual before a fresh cycle is the change's, not the iteration's: the
         // window starts after it
         if formulation == Formulation::Corotated && !fresh {
@@ -417,9 +435,14 @@ impl Simulation {
                 self.stage_one_residuals.remove(0);
             }
             self.stage_one_residuals.push(relative);
+            let cycle_cost = if self.lags(formulation) {
+                LAGGED_CYCLE_COST
+            } else {
+                1.0
+            };
             self.newton_krylov |= self.options.newton_krylov_iterations > 0
                 && stalled(&self.stage_one_residuals)
-                && newton_krylov_pays(&self.stage_one_residuals, self.aimed_tolerance);
+                && newton_krylov_pays(&self.stage_one_residuals, self.aimed_tolerance, cycle_cost);
         }
         self.stage_cycles += 1;
         Ok(CycleInfo {
@@ -430,8 +453,20 @@ impl Simulation {
             step: self.last_step,
             linear: formulation == Formulation::Linear,
             newton_krylov,
+            lagged: report.operators_lagged,
             time_ms: elapsed_ms(start),
         })
+    }
+
+    /// Whether stage 1's next warped cycle (not the first after a change) keeps the
+    /// operators: [`SimulationOptions::lagged_operators`] on, and the residuals before
+    /// the last two corotated cycles below [`LAGGED_OPERATORS_BELOW`] and falling.
+    fn lags(&self, formulation: Formulation) -> bool {
+        let falling_below = match self.stage_one_residuals[..] {
+            [.., before, last] => last < before && last < LAGGED_OPERATORS_BELOW,
+            _ => false,
+        };
+        self.options.lagged_operators && formulation == Formulation::Corotated && falling_below
     }
 
     /// Cycles the current stage until the relative residual before a cycle is below
@@ -609,10 +644,11 @@ fn stalled(residuals: &[f64]) -> bool {
 /// warped cycles converging at their last rate (`residuals`: the relative residuals
 /// before the last corotated cycles, oldest first). The cycle after the last one starts
 /// from the last residual times that rate, whichever kind it is; counted in warped
-/// cycles, a Newton-Krylov step costs [`NEWTON_KRYLOV_COST`] and contracts by
+/// cycles, the next cycles cost `cycle_cost` each (1, or [`LAGGED_CYCLE_COST`] on kept
+/// operators), a Newton-Krylov step costs [`NEWTON_KRYLOV_COST`] and contracts by
 /// [`NEWTON_KRYLOV_CONTRACTION`], and the cycle whose residual meets the tolerance is
 /// still run. A tie goes to the steps: a stalling iteration's rate only gets worse.
-fn newton_krylov_pays(residuals: &[f64], tolerance: f64) -> bool {
+fn newton_krylov_pays(residuals: &[f64], tolerance: f64, cycle_cost: f64) -> bool {
     let [.., before, last] = residuals else {
         return false;
     };
@@ -625,7 +661,7 @@ fn newton_krylov_pays(residuals: &[f64], tolerance: f64) -> bool {
     let next = last * rate;
     let cycles_after_next =
         |contraction: f64| ((tolerance / next).ln() / contraction.ln()).ceil().max(0.0);
-    let warped = cycles_after_next(rate) + 1.0;
+    let warped = cycle_cost * (cycles_after_next(rate) + 1.0);
     let newton_krylov = NEWTON_KRYLOV_COST * (cycles_after_next(NEWTON_KRYLOV_CONTRACTION) + 1.0);
     warped >= newton_krylov
 }
@@ -687,30 +723,46 @@ mod tests {
         assert_eq!(NEWTON_KRYLOV_COST, 2.0);
         assert_eq!(NEWTON_KRYLOV_CONTRACTION, 0.2);
         let tolerance = 1e-3;
-        assert!(!newton_krylov_pays(&[2.1333e-3, 1.6e-3], tolerance));
+        assert!(!newton_krylov_pays(&[2.1333e-3, 1.6e-3], tolerance, 1.0));
         assert!(!newton_krylov_pays(
             &[2.096e-3, 1.378e-3, 1.064e-3],
-            tolerance
+            tolerance,
+            1.0
         ));
-        assert!(newton_krylov_pays(&[3.33e-3, 3e-3], tolerance));
-        assert!(newton_krylov_pays(&[3e-3, 3e-3], tolerance));
-        assert!(newton_krylov_pays(&[2e-3, 3e-3], tolerance));
-        assert!(!newton_krylov_pays(&[2e-4, 1.9e-4], tolerance));
+        assert!(newton_krylov_pays(&[3.33e-3, 3e-3], tolerance, 1.0));
+        assert!(newton_krylov_pays(&[3e-3, 3e-3], tolerance, 1.0));
+        assert!(newton_krylov_pays(&[2e-3, 3e-3], tolerance, 1.0));
+        assert!(!newton_krylov_pays(&[2e-4, 1.9e-4], tolerance, 1.0));
         // the tighter the tolerance, the more the steps pay
-        assert!(newton_krylov_pays(&[2.096e-3, 1.378e-3, 1.064e-3], 1e-6));
+        assert!(newton_krylov_pays(
+            &[2.096e-3, 1.378e-3, 1.064e-3],
+            1e-6,
+            1.0
+        ));
         // rate 0.47 from 1.5e-2: 7.0e-3, 3.3e-3, 1.5e-3, 7.3e-4 (four warped cycles)
         // against 7.0e-3, 1.4e-3, 2.8e-4 (three steps, six)
-        assert!(!newton_krylov_pays(&[3.2e-2, 1.5e-2], tolerance));
+        assert!(!newton_krylov_pays(&[3.2e-2, 1.5e-2], tolerance, 1.0));
         // a tie: rate 0.72 from 3.1e-3, 2.2e-3, 1.6e-3, 1.2e-3, 8.3e-4 (four warped
         // cycles) against 2.2e-3, 4.5e-4 (two steps, four)
-        assert!(newton_krylov_pays(&[4.3e-3, 3.1e-3], tolerance));
+        assert!(newton_krylov_pays(&[4.3e-3, 3.1e-3], tolerance, 1.0));
+        // the same on kept operators at half a warped cycle each: four cycles cost two
+        // warped ones, against the steps' four
+        assert!(!newton_krylov_pays(
+            &[4.3e-3, 3.1e-3],
+            tolerance,
+            LAGGED_CYCLE_COST
+        ));
         // the rate is the last pair's (0.83, not the window's first 0.9), counted from the
         // next cycle's start: 1.25e-3, 1.04e-3, 8.7e-4 (three warped cycles) against
         // 1.25e-3, 2.5e-4 (two steps, four); counted from the last residual, or at 0.9,
         // it would be a tie
-        assert!(!newton_krylov_pays(&[2.0e-3, 1.8e-3, 1.5e-3], tolerance));
-        assert!(newton_krylov_pays(&[f64::NAN, 1e-3], tolerance));
-        assert!(newton_krylov_pays(&[2e-3, 1e-3], 0.0));
-        assert!(!newton_krylov_pays(&[1.0], tolerance));
+        assert!(!newton_krylov_pays(
+            &[2.0e-3, 1.8e-3, 1.5e-3],
+            tolerance,
+            1.0
+        ));
+        assert!(newton_krylov_pays(&[f64::NAN, 1e-3], tolerance, 1.0));
+        assert!(newton_krylov_pays(&[2e-3, 1e-3], 0.0, 1.0));
+        assert!(!newton_krylov_pays(&[1.0], tolerance, 1.0));
     }
 }
