@@ -50,7 +50,9 @@
 //! current displacement, one V-cycle on the correction from zero, i.e. warm-started from
 //! the current displacement, the correction scaled as [`MultigridOptions::optimal_step`]
 //! says, or a few conjugate gradient iterations as [`MultigridOptions::krylov_iterations`]
-//! says: with the full tangent, an inexact Newton-Krylov step); [`Multigrid::vcycle`] is one V-cycle on the assembled finest system;
+//! says: with the full tangent, an inexact Newton-Krylov step); [`Multigrid::lagged_cycle`]
+//! is such a step on the operators of the last assembly, only the forces renewed;
+//! [`Multigrid::vcycle`] is one V-cycle on the assembled finest system;
 //! [`Multigrid::pcg`] is conjugate gradients preconditioned by one symmetric V(ν₁, ν₁)
 //! cycle ([`PcgIteration`]).
 //!
@@ -108,7 +110,7 @@ pub struct MultigridOptions {
     /// default) keeps the barycentric `P`. Galerkin only; 0.5 measured best (see the
     /// module documentation), at a much higher coarse-operator cost.
     pub prolongation_smoothing: f64,
-    /// The corotated tangent assembled every cycle: the paper's warped stiffness
+    /// The corotated tangent of every assembly: the paper's warped stiffness
     /// `R K Rᵀ` (default), or [`Tangent::Full`] with the positive part of the geometric
     /// term (a Newton-like step where tissue is stretched and turned hard).
     pub tangent: Tangent,
@@ -355,7 +357,9 @@ impl Multigrid {
         &self.levels[0].model
     }
 
-    /// The finest level's reduced system of the latest [`Multigrid::assemble`].
+    /// The finest level's reduced system: the matrix of the latest
+    /// [`Multigrid::assemble`], the right-hand side and element forces of the latest
+    /// cycle (a [`Multigrid::lagged_cycle`] renews only these).
     pub fn system(&self) -> &ReducedSystem {
         self.levels[0]
             .system
@@ -388,6 +392,7 @@ impl Multigrid {
     ///
     /// Errors: the vertex is free or out of range, or `d` is not finite.
     pub fn set_prescribed(&mut self, vertex: u32, d: DVec3) -> Result<(), FemError> {
+        self.assembled = None;
         self.finest_mut().set_prescribed(vertex, d)
     }
 
@@ -526,6 +531,9 @@ impl Multigrid {
         if self.system().held_count() == 0 {
             return Err(FemError::NoConstraints);
         }
+        // until this assembly completes, no operators hold (an error part-way leaves
+        // some levels renewed and others not)
+        self.assembled = None;
         self.us[0].copy_from_slice(u);
         let mut times = PhaseTimes::default();
         for l in 0..self.levels.len() {

@@ -22,7 +22,8 @@
 //!
 //! # Stages
 //! 1. [`Stage::Implant`]: the Dirichlet problem of the template, solved by
-//!    [`Multigrid::cycle`] (rotation update, reassembly, one V(2,1)-cycle; Newton-Krylov
+//!    [`Multigrid::cycle`] (rotation update, reassembly, one V(2,1)-cycle; near the
+//!    answer the forces alone on kept operators, [`Multigrid::lagged_cycle`]; Newton-Krylov
 //!    steps once these stall and the steps pay, see
 //!    [`SimulationOptions::newton_krylov_iterations`]) on the
 //!    corotated formulation. The scan as captured is the rest state: the tissue's own

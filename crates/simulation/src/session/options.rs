@@ -257,8 +257,8 @@ pub struct SimulationOptions {
     /// its warped cycles keep the operators of the last assembly (only the forces are
     /// evaluated at the new rotations, so the answer is the same equilibrium), their
     /// steps mixed with the last [`ANDERSON_DEPTH`] (Anderson mixing); a cycle whose
-    /// residual did not fall is followed by a fresh one. Off: every cycle reassembles, as
-    /// the paper's interactive cycle does.
+    /// starting residual is not below the last one's is itself a fresh one. Off: every
+    /// cycle reassembles, as the paper's interactive cycle does.
     pub lagged_operators: bool,
     /// The finest level's safeguard against inverted elements (see
     /// [`fem::InversionBarrier`]; `None`: the paper's plain corotated energy). Default

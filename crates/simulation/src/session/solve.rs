@@ -280,8 +280,10 @@ impl Simulation {
         }
     }
 
-    /// One interactive step: rotation update, reassembly and one V(2,1)-cycle of the
-    /// current stage (a Newton-Krylov step in a stalled stage 1, one preconditioned
+    /// One interactive step: rotation update, reassembly (or, near stage 1's answer, the
+    /// forces alone on kept operators, [`SimulationOptions::lagged_operators`]) and one
+    /// V(2,1)-cycle of the current stage (a Newton-Krylov step in a stalled stage 1, one
+    /// preconditioned
     /// conjugate gradient iteration in stage 2), warm-started from the current
     /// displacement (giving stage 1's multigrid the new constraints first if they
     /// changed, building it at the session's first cycle).
@@ -459,8 +461,10 @@ impl Simulation {
     }
 
     /// Whether stage 1's next warped cycle (not the first after a change) keeps the
-    /// operators: [`SimulationOptions::lagged_operators`] on, and the residuals before
-    /// the last two corotated cycles below [`LAGGED_OPERATORS_BELOW`] and falling.
+    /// operators: [`SimulationOptions::lagged_operators`] on, and the residual before
+    /// the last corotated cycle below [`LAGGED_OPERATORS_BELOW`] and below the one
+    /// before it (`lagged_cycle`'s limit then also asks the residual at the cycle's
+    /// start to be below the last).
     fn lags(&self, formulation: Formulation) -> bool {
         let falling_below = match self.stage_one_residuals[..] {
             [.., before, last] => last < before && last < LAGGED_OPERATORS_BELOW,
