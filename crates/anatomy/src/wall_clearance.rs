@@ -521,21 +521,32 @@ mod tests {
     /// halved back towards the scan.
     #[test]
     fn a_sliver_against_the_plane_moves_with_its_border_corners() {
-        let wall = TriMesh::new(
-            vec![
-                DVec3::ZERO,
-                DVec3::new(0.0, 1.0, 0.0),
-                DVec3::new(0.1, 0.5, 0.5),
-            ],
-            vec![[0, 1, 2]],
-        );
-        let on_plane = FixedAxes { x: true, y: false };
-        let fixed = [on_plane, on_plane, FixedAxes::default()];
+        let wall = edge_on_lateral_plane(DVec3::new(0.1, 0.5, 0.5));
+        let fixed = [LATERAL, LATERAL, FixedAxes::default()];
         let border_push = DVec3::new(0.0, 0.0, 0.8);
         let mut push = vec![border_push, border_push, DVec3::ZERO];
         assert_eq!(turned_over(&wall, &moved(&wall, &push)), 1);
         guard(&wall, &fixed, &mut push);
         assert_eq!(push, vec![border_push; 3]);
+    }
+
+    /// The box's corner: a wall vertex on a lateral and the bottom plane (x and y fixed)
+    /// pushed 0.9 mm back, beside one on the lateral plane alone pushed 1.0 mm along it
+    /// and 0.5 mm back; together they turn their triangle over. They move as one by the
+    /// longest push, chosen before each drops what it keeps: the corner keeps its x and
+    /// y and takes that push's 0.5 mm depth (less than its own 0.9, the documented
+    /// cost), the other keeps its own push, and the triangle no longer turns over.
+    #[test]
+    fn a_corner_of_two_planes_takes_only_the_depth_of_the_longest_push() {
+        let wall = edge_on_lateral_plane(DVec3::new(0.1, 0.5, 0.5));
+        let corner = FixedAxes { x: true, y: true };
+        let fixed = [corner, LATERAL, FixedAxes::default()];
+        let along = DVec3::new(0.0, 1.0, 0.5);
+        let mut push = vec![DVec3::new(0.0, 0.0, 0.9), along, DVec3::ZERO];
+        assert_eq!(turned_over(&wall, &moved(&wall, &push)), 1);
+        guard(&wall, &fixed, &mut push);
+        assert_eq!(push, vec![DVec3::new(0.0, 0.0, 0.5), along, DVec3::ZERO]);
+        assert_eq!(turned_over(&wall, &moved(&wall, &push)), 0);
     }
 
     /// A border edge on a lateral clip plane (x fixed), 1 mm long, whose first corner is
@@ -548,16 +559,8 @@ mod tests {
     /// mm).
     #[test]
     fn a_border_edge_folded_back_by_the_push_moves_as_one() {
-        let wall = TriMesh::new(
-            vec![
-                DVec3::ZERO,
-                DVec3::new(0.0, 1.0, 0.0),
-                DVec3::new(0.2, 0.5, -1.0),
-            ],
-            vec![[0, 1, 2]],
-        );
-        let on_plane = FixedAxes { x: true, y: false };
-        let fixed = [on_plane, on_plane, FixedAxes::default()];
+        let wall = edge_on_lateral_plane(DVec3::new(0.2, 0.5, -1.0));
+        let fixed = [LATERAL, LATERAL, FixedAxes::default()];
         let longer = DVec3::new(0.0, 1.5, 0.0);
         let mut push = vec![longer, DVec3::ZERO, DVec3::new(0.0, 0.0, 1.2)];
         let edge = |p: &[DVec3]| p[1] - p[0];
@@ -577,16 +580,8 @@ mod tests {
     /// before any push that is a fold, so its corners move as one.
     #[test]
     fn a_border_edge_turned_over_several_rounds_moves_as_one() {
-        let start = TriMesh::new(
-            vec![
-                DVec3::ZERO,
-                DVec3::new(0.0, 1.0, 0.0),
-                DVec3::new(1.0, 0.5, -0.5),
-            ],
-            vec![[0, 1, 2]],
-        );
-        let on_plane = FixedAxes { x: true, y: false };
-        let fixed = [on_plane, on_plane, FixedAxes::default()];
+        let start = edge_on_lateral_plane(DVec3::new(1.0, 0.5, -0.5));
+        let fixed = [LATERAL, LATERAL, FixedAxes::default()];
         let turned_by = |degrees: f64| {
             let r = degrees.to_radians();
             DVec3::new(0.0, r.cos(), r.sin())
@@ -624,9 +619,8 @@ mod tests {
             ],
             vec![[0, 1, 3], [1, 2, 4]],
         );
-        let on_plane = FixedAxes { x: true, y: false };
         let inner = FixedAxes::default();
-        let fixed = [on_plane, on_plane, on_plane, inner, inner];
+        let fixed = [LATERAL, LATERAL, LATERAL, inner, inner];
         let mut push = vec![
             DVec3::new(0.0, 1.5, 0.0),
             DVec3::ZERO,
@@ -644,6 +638,15 @@ mod tests {
             assert!((after[b] - after[a]).dot(start) > 0.0, "{push:?}");
         }
         assert_eq!(turned_over(&wall, &after), 0);
+    }
+
+    /// On a lateral clip plane: x fixed.
+    const LATERAL: FixedAxes = FixedAxes { x: true, y: false };
+
+    /// One wall triangle: the border edge from the origin to (0, 1, 0), on the lateral
+    /// plane x = 0, and `inner`.
+    fn edge_on_lateral_plane(inner: DVec3) -> TriMesh {
+        TriMesh::new(vec![DVec3::ZERO, DVec3::Y, inner], vec![[0, 1, 2]])
     }
 
     /// [`without_turning_over`] on a wall no earlier round has pushed.

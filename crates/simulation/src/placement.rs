@@ -159,6 +159,22 @@ impl Anchor {
     pub fn uv_of(&self, local: DVec2) -> DVec2 {
         self.uv + self.to_uv * local
     }
+
+    /// The anchor of a flat bed `z = 0` with `(u, v) = (x, y)`, at the origin, the
+    /// implant's axes along x and y (tests' fixture).
+    #[cfg(test)]
+    pub(crate) fn flat() -> Anchor {
+        Anchor {
+            uv: DVec2::ZERO,
+            position: DVec3::ZERO,
+            normal: DVec3::Z,
+            x_axis: DVec3::X,
+            y_axis: DVec3::Y,
+            to_local: DMat2::IDENTITY,
+            to_uv: DMat2::IDENTITY,
+            shift_mm: 0.0,
+        }
+    }
 }
 
 /// Tangent vectors `(S_u, S_v)` of the bed at `uv` by central differences (one-sided

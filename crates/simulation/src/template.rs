@@ -148,7 +148,7 @@ impl SideCandidates {
 }
 
 /// The displacement template of one implant.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct ImplantTemplate {
     /// Implant (front) vertices with their displacement (mm): `z'` along the bed normal,
     /// all scaled by one factor so that the fill-in elements gain the covered volume.
@@ -814,3 +814,6 @@ fn displaced_volumes(mesh: &TetMesh, t: u32, d: [DVec3; 4]) -> (f64, f64) {
     let moved = tetra::quality::signed_volume([p[0] + d[0], p[1] + d[1], p[2] + d[2], p[3] + d[3]]);
     (rest, moved)
 }
+
+#[cfg(test)]
+mod tests;

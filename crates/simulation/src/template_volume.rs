@@ -149,7 +149,7 @@ pub fn covered_volume_ml(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::{DMat2, DVec3};
+    use glam::DVec3;
 
     /// A prism of three tetrahedra across the flat bed z = 0 over the triangle (0,0),
     /// (6,0), (0,6), from z = -2 to z = 4, at the centre of a 120 mm round implant: the
@@ -159,7 +159,7 @@ mod tests {
     /// changes by a fraction of a millimetre over 6 mm.
     #[test]
     fn the_sections_of_a_prism_tile_its_base() {
-        let anchor = flat_anchor();
+        let anchor = Anchor::flat();
         let shape = implant::ImplantShape::from(implant::RoundImplant::new(120.0, 10.0).unwrap());
         let thickness = SmoothedThickness::new(shape, 0.0);
         let base = [
@@ -218,7 +218,7 @@ mod tests {
     /// over the grid's 24 x 24 mm by a fine midpoint rule (1e-3, as above).
     #[test]
     fn the_covered_volume_shares_crossings_and_tiles_the_bed() {
-        let anchor = flat_anchor();
+        let anchor = Anchor::flat();
         let shape = implant::ImplantShape::from(implant::RoundImplant::new(120.0, 10.0).unwrap());
         let thickness = SmoothedThickness::new(shape, 0.0);
         let n = 4;
@@ -283,19 +283,6 @@ mod tests {
     }
 
     /// Implant coordinates equal to the bed's `(u, v)`.
-    fn flat_anchor() -> Anchor {
-        Anchor {
-            uv: DVec2::ZERO,
-            position: DVec3::ZERO,
-            normal: DVec3::Z,
-            x_axis: DVec3::X,
-            y_axis: DVec3::Y,
-            to_local: DMat2::IDENTITY,
-            to_uv: DMat2::IDENTITY,
-            shift_mm: 0.0,
-        }
-    }
-
     fn section_volume(feet: &[Foot; 4], anchor: &Anchor, thickness: &SmoothedThickness) -> f64 {
         bed_section_volume_mm3(feet.map(|f| f.height_mm), |front, back| {
             let p = bed_crossing(&feet[front], &feet[back], anchor);

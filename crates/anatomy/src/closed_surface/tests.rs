@@ -1,5 +1,6 @@
+use super::clip::Side;
 use super::clip::simple_cycles;
-use super::stitch::{PolygonDefect, triangulate_in_plane};
+use super::stitch::{PolygonDefect, bands, triangulate_in_plane};
 use super::*;
 use glam::DMat3;
 use mesh::self_intersections;
@@ -290,6 +291,69 @@ fn a_section_that_crosses_itself_is_refused_where_it_does() {
         error.to_string().ends_with("(near (1, 2, 3) mm)"),
         "{error}"
     );
+}
+
+/// The scan's and the wall's border, side by side on the four clip planes: on each a
+/// scan chain from in-plane (0, 0) over (20, `dips[k]`) to (40, 0) (along the plane,
+/// anterior), and a wall chain straight from (0, -10) to (40, -10), the same corners.
+/// Returns the positions (scan's chains first, the wall's from the offset) and the
+/// sides of each.
+fn borders_on_planes(dips: [f64; 4]) -> (Vec<DVec3>, [Side; 4], [Side; 4], u32) {
+    let on_plane = |plane: usize, along: f64, z: f64| match plane {
+        0 => DVec3::new(-20.0, along, z),
+        1 => DVec3::new(20.0, along, z),
+        2 => DVec3::new(along, -20.0, z),
+        _ => DVec3::new(along, 20.0, z),
+    };
+    let mut positions = Vec::new();
+    for (plane, dip) in dips.iter().enumerate() {
+        for (along, z) in [(0.0, 0.0), (20.0, *dip), (40.0, 0.0)] {
+            positions.push(on_plane(plane, along, z));
+        }
+    }
+    let offset = positions.len() as u32;
+    for plane in 0..4 {
+        for along in [0.0, 40.0] {
+            positions.push(on_plane(plane, along, -10.0));
+        }
+    }
+    let front = std::array::from_fn(|plane| Side {
+        plane,
+        chain: (0..3).map(|k| 3 * plane as u32 + k).collect(),
+    });
+    let back = std::array::from_fn(|plane| Side {
+        plane,
+        chain: vec![2 * plane as u32, 2 * plane as u32 + 1],
+    });
+    (positions, front, back, offset)
+}
+
+/// Where the scan's section dips behind the wall's on the left plane (to 15 mm, the
+/// wall lying 10 mm behind), the bands are refused: the error names the left plane and
+/// the crossing, at the middle of one of the three edges that cross (the two of the
+/// scan's dip and the wall's). With the dip above the wall on every plane, each band is
+/// the five-cornered polygon's three triangles.
+#[test]
+fn scan_and_wall_sections_that_cross_are_refused_on_their_plane() {
+    let to_file = |p: DVec3| p.to_array();
+    let (positions, front, back, offset) = borders_on_planes([5.0, -15.0, 5.0, 5.0]);
+    let error = bands(&positions, &front, &back, offset, to_file).unwrap_err();
+    let ClosedSurfaceError::Stitch { what, near_mm } = &error else {
+        panic!("{error}");
+    };
+    assert!(
+        what.starts_with("on the left plane") && what.contains("cross"),
+        "{what}"
+    );
+    let middles = [[20.0, 10.0, -7.5], [20.0, 30.0, -7.5], [20.0, 20.0, -10.0]];
+    assert!(
+        near_mm.is_some_and(|at| middles.contains(&at)),
+        "{near_mm:?}"
+    );
+
+    let (positions, front, back, offset) = borders_on_planes([5.0; 4]);
+    let triangles = bands(&positions, &front, &back, offset, to_file).unwrap();
+    assert_eq!(triangles.len(), 4 * 3);
 }
 
 /// A box error with no place, both lateral planes left grazing: both are named, each

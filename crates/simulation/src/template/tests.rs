@@ -1,0 +1,180 @@
+use super::*;
+use tetra::quality::signed_volume;
+
+/// Side of the fixture's grid squares (mm).
+const SQUARE_MM: f64 = 6.0;
+/// Squares along each side of the fixture's grid, centred on the implant.
+const SQUARES: usize = 12;
+/// Heights of the fixture's vertex layers over the bed (mm): one behind it, two in front.
+const LAYERS_MM: [f64; 3] = [-3.0, 3.0, 9.0];
+
+/// A slab of tissue over the flat bed `z = 0`: a 72 x 72 mm grid centred on the anchor,
+/// each square split into two triangles and each triangle's prism between neighbouring
+/// layers into three positively oriented tetrahedra. Every vertex is a candidate with
+/// its foot straight below it. Returns the mesh, its candidates and their feet.
+fn slab() -> (TetMesh, SideCandidates, BedFeet) {
+    let n = SQUARES;
+    let index = |i: usize, j: usize, layer: usize| ((layer * (n + 1) + i) * (n + 1) + j) as u32;
+    let mut positions = vec![DVec3::ZERO; (n + 1) * (n + 1) * LAYERS_MM.len()];
+    for (layer, &z) in LAYERS_MM.iter().enumerate() {
+        for i in 0..=n {
+            for j in 0..=n {
+                let half = 0.5 * SQUARE_MM * n as f64;
+                let (x, y) = (SQUARE_MM * i as f64 - half, SQUARE_MM * j as f64 - half);
+                positions[index(i, j, layer) as usize] = DVec3::new(x, y, z);
+            }
+        }
+    }
+    let mut tets = Vec::new();
+    for layer in 0..LAYERS_MM.len() - 1 {
+        for i in 0..n {
+            for j in 0..n {
+                for triangle in [
+                    [(i, j), (i + 1, j), (i, j + 1)],
+                    [(i + 1, j), (i + 1, j + 1), (i, j + 1)],
+                ] {
+                    let b = triangle.map(|(a, c)| index(a, c, layer));
+                    let t = triangle.map(|(a, c)| index(a, c, layer + 1));
+                    for mut tet in [
+                        [b[0], b[1], b[2], t[0]],
+                        [b[1], b[2], t[0], t[1]],
+                        [b[2], t[0], t[1], t[2]],
+                    ] {
+                        if signed_volume(tet.map(|v| positions[v as usize])) < 0.0 {
+                            tet.swap(0, 1);
+                        }
+                        tets.push(tet);
+                    }
+                }
+            }
+        }
+    }
+    let feet = BedFeet {
+        side: Side::Left,
+        feet: (positions.iter())
+            .map(|p| {
+                Some(Foot {
+                    uv: p.truncate(),
+                    height_mm: p.z,
+                    normal: DVec3::Z,
+                })
+            })
+            .collect(),
+    };
+    let candidates = SideCandidates {
+        vertices: (0..positions.len() as u32).collect(),
+        positions: positions.clone(),
+        tets: (tets.iter().enumerate())
+            .map(|(t, &tet)| (t as u32, tet))
+            .collect(),
+    };
+    (TetMesh { positions, tets }, candidates, feet)
+}
+
+/// The template of a 50 mm round implant of 8 mm projection on [`slab`], with a layer
+/// reaching the top vertices and `slides` as given.
+fn slab_template(slides: Option<&[bool]>, on_wall: &[bool]) -> ImplantTemplate {
+    let (mesh, candidates, feet) = slab();
+    let shape = ImplantShape::from(implant::RoundImplant::new(50.0, 8.0).unwrap());
+    let rules = TemplateRules {
+        hold_bed: true,
+        layer_mm: 10.0,
+        on_wall,
+        slides,
+    };
+    let thickness = SmoothedThickness::new(shape, 0.0);
+    build_template(
+        &mesh,
+        &candidates,
+        &feet,
+        &Anchor::flat(),
+        &thickness,
+        &rules,
+    )
+    .unwrap()
+}
+
+/// The pushed vertices of `template` with their displacements, by vertex.
+fn pushed_by_vertex(template: &ImplantTemplate) -> Vec<(u32, DVec3)> {
+    let mut pushed: Vec<(u32, DVec3)> = template.pushed_vertices().copied().collect();
+    pushed.sort_unstable_by_key(|&(v, _)| v);
+    pushed
+}
+
+/// `slides: Some` with no vertex on the skin is `None`: the same template, field by
+/// field and bit for bit (nothing slides, so nothing else may differ).
+#[test]
+fn sliding_with_no_skin_is_holding() {
+    let count = slab().0.positions.len();
+    let on_wall = vec![false; count];
+    let held = slab_template(None, &on_wall);
+    assert!(!held.implant_vertices.is_empty() && !held.implant_elements.is_empty());
+    assert_eq!(slab_template(Some(&vec![false; count]), &on_wall), held);
+}
+
+/// Sliding skin only changes which pushed vertices are held. The skin here is the top
+/// layer and, from x = 12 mm on, the middle one (where tissue thins to the side; the
+/// template reads only the mask), and one skin vertex over the footprint is on the wall.
+/// Against the held template:
+/// - the pushed vertices and their displacements are the same, bit for bit: the same
+///   displacements enter the scaling to the covered volume, so the factor is the same;
+/// - the sliding ones are exactly the pushed skin vertices off the wall;
+/// - the implant elements split into those with no sliding corner and the sliding ones.
+#[test]
+fn sliding_skin_moves_the_same_vertices_by_the_same_amount() {
+    let (mesh, ..) = slab();
+    let on_skin: Vec<bool> = (mesh.positions.iter())
+        .map(|p| p.z == LAYERS_MM[2] || (p.z == LAYERS_MM[1] && p.x >= 12.0))
+        .collect();
+    let walled = (mesh.positions.iter())
+        .position(|p| *p == DVec3::new(12.0, 0.0, LAYERS_MM[1]))
+        .unwrap();
+    let mut on_wall = vec![false; mesh.positions.len()];
+    on_wall[walled] = true;
+    let held = slab_template(None, &on_wall);
+    let sliding = slab_template(Some(&on_skin), &on_wall);
+
+    assert_eq!(pushed_by_vertex(&sliding), pushed_by_vertex(&held));
+    assert_eq!(sliding.scale, held.scale);
+    assert_eq!(sliding.template_volume_ml, held.template_volume_ml);
+    assert_eq!(sliding.covered_volume_ml, held.covered_volume_ml);
+    assert_eq!(sliding.fixed_vertices, held.fixed_vertices);
+
+    let slides = |v: u32| on_skin[v as usize] && !on_wall[v as usize];
+    let mut expected_skin: Vec<u32> = (held.implant_vertices.iter())
+        .map(|&(v, _)| v)
+        .filter(|&v| slides(v))
+        .collect();
+    expected_skin.sort_unstable();
+    let mut skin: Vec<u32> = sliding.skin_vertices.iter().map(|&(v, _)| v).collect();
+    skin.sort_unstable();
+    assert!(!skin.is_empty());
+    assert_eq!(skin, expected_skin);
+    assert!(
+        sliding
+            .implant_vertices
+            .iter()
+            .any(|&(v, _)| v as usize == walled)
+    );
+
+    let with_sliding_corner = |t: u32| mesh.tets[t as usize].iter().any(|&v| slides(v));
+    assert!(!sliding.sliding_elements.is_empty() && !sliding.implant_elements.is_empty());
+    assert!(
+        sliding
+            .sliding_elements
+            .iter()
+            .all(|&t| with_sliding_corner(t))
+    );
+    assert!(
+        !sliding
+            .implant_elements
+            .iter()
+            .any(|&t| with_sliding_corner(t))
+    );
+    let mut elements = [sliding.implant_elements, sliding.sliding_elements].concat();
+    elements.sort_unstable();
+    let mut held_elements = held.implant_elements.clone();
+    held_elements.sort_unstable();
+    assert_eq!(elements, held_elements);
+    assert!(held.skin_vertices.is_empty() && held.sliding_elements.is_empty());
+}
