@@ -531,21 +531,22 @@ mod tests {
     }
 
     /// The box's corner: a wall vertex on a lateral and the bottom plane (x and y fixed)
-    /// pushed 0.9 mm back, beside one on the lateral plane alone pushed 1.0 mm along it
-    /// and 0.5 mm back; together they turn their triangle over. They move as one by the
-    /// longest push, chosen before each drops what it keeps: the corner keeps its x and
-    /// y and takes that push's 0.5 mm depth (less than its own 0.9, the documented
-    /// cost), the other keeps its own push, and the triangle no longer turns over.
+    /// pushed 0.9 mm away from the scan (-z), beside one on the lateral plane alone
+    /// pushed 1.0 mm along it and 0.5 mm away; together they turn their triangle over.
+    /// They move as one by the longest push, chosen before each drops what it keeps: the
+    /// corner keeps its x and y and takes that push's 0.5 mm in z (less than its own
+    /// 0.9, the documented cost; choosing after dropping would keep 0.9), the other
+    /// keeps its own push, and the triangle no longer turns over.
     #[test]
     fn a_corner_of_two_planes_takes_only_the_depth_of_the_longest_push() {
-        let wall = edge_on_lateral_plane(DVec3::new(0.1, 0.5, 0.5));
+        let wall = edge_on_lateral_plane(DVec3::new(0.1, 0.5, -0.5));
         let corner = FixedAxes { x: true, y: true };
         let fixed = [corner, LATERAL, FixedAxes::default()];
-        let along = DVec3::new(0.0, 1.0, 0.5);
-        let mut push = vec![DVec3::new(0.0, 0.0, 0.9), along, DVec3::ZERO];
+        let along = DVec3::new(0.0, 1.0, -0.5);
+        let mut push = vec![DVec3::new(0.0, 0.0, -0.9), along, DVec3::ZERO];
         assert_eq!(turned_over(&wall, &moved(&wall, &push)), 1);
         guard(&wall, &fixed, &mut push);
-        assert_eq!(push, vec![DVec3::new(0.0, 0.0, 0.5), along, DVec3::ZERO]);
+        assert_eq!(push, vec![DVec3::new(0.0, 0.0, -0.5), along, DVec3::ZERO]);
         assert_eq!(turned_over(&wall, &moved(&wall, &push)), 0);
     }
 

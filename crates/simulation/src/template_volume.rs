@@ -282,7 +282,8 @@ mod tests {
         );
     }
 
-    /// Implant coordinates equal to the bed's `(u, v)`.
+    /// The implant's volume over the bed section of the element with `feet` (mm³), as
+    /// `covered_volume_ml` takes it for each element.
     fn section_volume(feet: &[Foot; 4], anchor: &Anchor, thickness: &SmoothedThickness) -> f64 {
         bed_section_volume_mm3(feet.map(|f| f.height_mm), |front, back| {
             let p = bed_crossing(&feet[front], &feet[back], anchor);

@@ -331,8 +331,10 @@ fn borders_on_planes(dips: [f64; 4]) -> (Vec<DVec3>, [Side; 4], [Side; 4], u32) 
 /// Where the scan's section dips behind the wall's on the left plane (to 15 mm, the
 /// wall lying 10 mm behind), the bands are refused: the error names the left plane and
 /// the crossing, at the middle of one of the three edges that cross (the two of the
-/// scan's dip and the wall's). With the dip above the wall on every plane, each band is
-/// the five-cornered polygon's three triangles.
+/// scan's dip and the wall's). With the dip between the scan's ends and the wall on
+/// every plane, each band is its five-cornered polygon's three triangles (n - 2): the
+/// polygon is not convex, so the triangulation of its corners has a fourth triangle,
+/// outside it, which must be dropped.
 #[test]
 fn scan_and_wall_sections_that_cross_are_refused_on_their_plane() {
     let to_file = |p: DVec3| p.to_array();
@@ -351,7 +353,7 @@ fn scan_and_wall_sections_that_cross_are_refused_on_their_plane() {
         "{near_mm:?}"
     );
 
-    let (positions, front, back, offset) = borders_on_planes([5.0; 4]);
+    let (positions, front, back, offset) = borders_on_planes([-5.0; 4]);
     let triangles = bands(&positions, &front, &back, offset, to_file).unwrap();
     assert_eq!(triangles.len(), 4 * 3);
 }

@@ -8,24 +8,36 @@ const SQUARES: usize = 12;
 /// Heights of the fixture's vertex layers over the bed (mm): one behind it, two in front.
 const LAYERS_MM: [f64; 3] = [-3.0, 3.0, 9.0];
 
+/// A tetrahedron far from the slab, first in [`slab`]'s mesh and no candidate, so that
+/// mesh and candidate numbers of vertices and elements differ (the template reads both).
+const OUTLIER: [DVec3; 4] = [
+    DVec3::new(500.0, 0.0, 100.0),
+    DVec3::new(510.0, 0.0, 100.0),
+    DVec3::new(500.0, 10.0, 100.0),
+    DVec3::new(500.0, 0.0, 110.0),
+];
+
 /// A slab of tissue over the flat bed `z = 0`: a 72 x 72 mm grid centred on the anchor,
 /// each square split into two triangles and each triangle's prism between neighbouring
-/// layers into three positively oriented tetrahedra. Every vertex is a candidate with
-/// its foot straight below it. Returns the mesh, its candidates and their feet.
+/// layers into three positively oriented tetrahedra (the same split in every prism, so
+/// neighbouring rows do not share faces: only the template's per-element rules read the
+/// mesh here, no solver). Every slab vertex is a candidate with its foot straight below
+/// it; the mesh starts with [`OUTLIER`]. Returns the mesh, its candidates and their feet.
 fn slab() -> (TetMesh, SideCandidates, BedFeet) {
     let n = SQUARES;
     let index = |i: usize, j: usize, layer: usize| ((layer * (n + 1) + i) * (n + 1) + j) as u32;
-    let mut positions = vec![DVec3::ZERO; (n + 1) * (n + 1) * LAYERS_MM.len()];
+    let mut grid = vec![DVec3::ZERO; (n + 1) * (n + 1) * LAYERS_MM.len()];
     for (layer, &z) in LAYERS_MM.iter().enumerate() {
         for i in 0..=n {
             for j in 0..=n {
                 let half = 0.5 * SQUARE_MM * n as f64;
                 let (x, y) = (SQUARE_MM * i as f64 - half, SQUARE_MM * j as f64 - half);
-                positions[index(i, j, layer) as usize] = DVec3::new(x, y, z);
+                grid[index(i, j, layer) as usize] = DVec3::new(x, y, z);
             }
         }
     }
-    let mut tets = Vec::new();
+    // in the grid's numbering, which is the candidates'
+    let mut grid_tets = Vec::new();
     for layer in 0..LAYERS_MM.len() - 1 {
         for i in 0..n {
             for j in 0..n {
@@ -40,18 +52,25 @@ fn slab() -> (TetMesh, SideCandidates, BedFeet) {
                         [b[1], b[2], t[0], t[1]],
                         [b[2], t[0], t[1], t[2]],
                     ] {
-                        if signed_volume(tet.map(|v| positions[v as usize])) < 0.0 {
+                        if signed_volume(tet.map(|v| grid[v as usize])) < 0.0 {
                             tet.swap(0, 1);
                         }
-                        tets.push(tet);
+                        grid_tets.push(tet);
                     }
                 }
             }
         }
     }
+    let first = OUTLIER.len() as u32;
+    let mesh = TetMesh {
+        positions: [&OUTLIER[..], &grid].concat(),
+        tets: (std::iter::once([0, 1, 2, 3]))
+            .chain(grid_tets.iter().map(|tet| tet.map(|v| v + first)))
+            .collect(),
+    };
     let feet = BedFeet {
         side: Side::Left,
-        feet: (positions.iter())
+        feet: (grid.iter())
             .map(|p| {
                 Some(Foot {
                     uv: p.truncate(),
@@ -62,13 +81,13 @@ fn slab() -> (TetMesh, SideCandidates, BedFeet) {
             .collect(),
     };
     let candidates = SideCandidates {
-        vertices: (0..positions.len() as u32).collect(),
-        positions: positions.clone(),
-        tets: (tets.iter().enumerate())
-            .map(|(t, &tet)| (t as u32, tet))
+        vertices: (first..first + grid.len() as u32).collect(),
+        positions: grid,
+        tets: (grid_tets.iter().enumerate())
+            .map(|(t, &tet)| (t as u32 + 1, tet))
             .collect(),
     };
-    (TetMesh { positions, tets }, candidates, feet)
+    (mesh, candidates, feet)
 }
 
 /// The template of a 50 mm round implant of 8 mm projection on [`slab`], with a layer
@@ -112,9 +131,10 @@ fn sliding_with_no_skin_is_holding() {
     assert_eq!(slab_template(Some(&vec![false; count]), &on_wall), held);
 }
 
-/// Sliding skin only changes which pushed vertices are held. The skin here is the top
-/// layer and, from x = 12 mm on, the middle one (where tissue thins to the side; the
-/// template reads only the mask), and one skin vertex over the footprint is on the wall.
+/// Where nothing folds, as on this slab, sliding skin only changes which pushed vertices
+/// are held. The skin here is the top layer and, from x = 12 mm on, the middle one (where
+/// tissue thins to the side; the template reads only the mask), and one skin vertex over
+/// the footprint is on the wall.
 /// Against the held template:
 /// - the pushed vertices and their displacements are the same, bit for bit: the same
 ///   displacements enter the scaling to the covered volume, so the factor is the same;
