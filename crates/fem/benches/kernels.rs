@@ -1,6 +1,7 @@
 //! Kernels of the static solve and of the multigrid on structured boxes of about 15,000
 //! and 60,000 tetrahedra, Poisson ratio 0.45, bottom face fixed and top face pushed
-//! sideways: corotated assembly (warped and full tangent), one sparse Cholesky
+//! sideways: corotated assembly (warped and full tangent, and the full tangent on a
+//! stretched state, where its twist term acts in every element), one sparse Cholesky
 //! refactorisation and solve (symbolic factorisation reused), and for the multigrid
 //! (three Galerkin levels, default options): assembly of every level, the coarse
 //! operators alone (the Galerkin products of an assembly, as timed by
@@ -61,6 +62,14 @@ fn setup(n: [usize; 3]) -> (FemModel, ReducedSystem, Vec<DVec3>) {
     (model, system, u)
 }
 
+/// A displacement that stretches by 10, 6 and 3 % along the axes and turns by 0.5 rad
+/// (every element alike; each still goes through its own polar decomposition).
+fn stretched_and_turned(rest: &[DVec3]) -> Vec<DVec3> {
+    let turn = glam::DMat3::from_axis_angle(DVec3::new(0.3, -1.0, 0.5).normalize(), 0.5);
+    let f = turn * glam::DMat3::from_diagonal(DVec3::new(1.1, 1.06, 1.03));
+    rest.iter().map(|&x| f * x - x).collect()
+}
+
 /// The multigrid over the box with `n` cells and two coarser boxes (about half and a
 /// quarter of the cells per axis, not nested).
 fn multigrid(n: [usize; 3]) -> Multigrid {
@@ -101,6 +110,23 @@ fn kernels(c: &mut Criterion) {
                     .assemble(
                         &model,
                         black_box(&u),
+                        &[],
+                        Formulation::Corotated,
+                        Tangent::Full,
+                    )
+                    .unwrap()
+            })
+        });
+        // every element stretched along all axes and turned: the full tangent's twist
+        // term without any clamp (the sheared state above is compressed throughout, which
+        // the twist term skips)
+        let stretched = stretched_and_turned(model.rest_positions());
+        c.bench_function(&format!("assemble_full_stretched_{ne}"), |b| {
+            b.iter(|| {
+                system
+                    .assemble(
+                        &model,
+                        black_box(&stretched),
                         &[],
                         Formulation::Corotated,
                         Tangent::Full,

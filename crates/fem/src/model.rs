@@ -675,7 +675,8 @@ impl FemModel {
     /// `C = ¼ Σₖ cᵢⱼ uₖ uₖᵀ`: one symmetric 3x3 per element instead of twelve vectors. Zero
     /// without the eigendecomposition where an upper bound of every pair's stress sum
     /// (Gershgorin's on the largest principal strain) is not positive: compressed
-    /// elements cost no more than in the warped assembly.
+    /// elements cost no more than in the warped assembly. Where no clamp acts, without
+    /// it too ([`unclamped_twist`]).
     #[inline]
     fn twist_stiffness(&self, e: usize, r: DMat3, du: DMat3) -> DMat3 {
         let el = &self.elements[e];
@@ -695,6 +696,9 @@ impl FemModel {
         if 4.0 * el.vol_mu * largest_strain_bound + 2.0 * el.vol_lambda * trace <= 0.0 {
             return DMat3::ZERO;
         }
+        if let Some(c) = unclamped_twist(el.vol_lambda, el.vol_mu, r, strain) {
+            return c;
+        }
         let (principal_strains, v) = symmetric_eigen_closed_form(strain);
         let s = principal_strains.map(|e| 1.0 + e);
         let trs = s[0] + s[1] + s[2] - 3.0;
@@ -702,7 +706,7 @@ impl FemModel {
         let axes = r * v;
         let mut c = DMat3::ZERO;
         for (i, j, k) in [(0usize, 1usize, 2usize), (0, 2, 1), (1, 2, 0)] {
-            let coef = 2.0 * (vsig[i] + vsig[j]).max(0.0) / (s[i] + s[j]).max(0.1);
+            let coef = 2.0 * (vsig[i] + vsig[j]).max(0.0) / (s[i] + s[j]).max(MIN_PAIR_STRETCH);
             if coef > 0.0 {
                 let uk = axes.col(k);
                 c += outer(uk, uk) * (0.25 * coef);
@@ -901,6 +905,41 @@ fn cofactor_matrix(f: DMat3) -> DMat3 {
     )
 }
 
+/// [`FemModel::twist_stiffness`]'s `C` where none of its clamps acts, without the
+/// eigendecomposition, else `None`. With `S = I + ε` (`strain` = ε) and the volume
+/// times stress `Σ̂ = 2Vμ ε + Vλ tr(ε) I` (`vol_mu` = Vμ, `vol_lambda` = Vλ), the pair
+/// sums `σ̂ᵢ + σ̂ⱼ` and `sᵢ + sⱼ` are the eigenvalues, on the third axis `vₖ`, of
+/// `A = tr(Σ̂) I - Σ̂` and `B = tr(S) I - S`. Where `A` is positive definite and `B - 0.1
+/// I` too (Sylvester's criterion), every pair has `cᵢⱼ = 2 (σ̂ᵢ + σ̂ⱼ) / (sᵢ + sⱼ)`, so
+/// `C = ½ R A B⁻¹ Rᵀ` (`A` and `B` commute; the product is symmetrised against rounding).
+#[inline]
+fn unclamped_twist(vol_lambda: f64, vol_mu: f64, r: DMat3, strain: DMat3) -> Option<DMat3> {
+    let trace = strain.x_axis.x + strain.y_axis.y + strain.z_axis.z;
+    let a = DMat3::from_diagonal(DVec3::splat(2.0 * (vol_mu + vol_lambda) * trace))
+        - strain * (2.0 * vol_mu);
+    let b = DMat3::from_diagonal(DVec3::splat(2.0 + trace)) - strain;
+    let b_above_clamp = b - DMat3::from_diagonal(DVec3::splat(MIN_PAIR_STRETCH));
+    if !(positive_definite(a) && positive_definite(b_above_clamp)) {
+        return None;
+    }
+    let ratio = a * b.inverse();
+    let symmetric = (ratio + ratio.transpose()) * 0.5;
+    Some(r * symmetric * r.transpose() * 0.5)
+}
+
+/// The least pair sum of principal stretches `sᵢ + sⱼ` that divides a twist mode's
+/// stress in [`FemModel::twist_stiffness`] (a nearly flattened element would otherwise
+/// get an unbounded stiffness).
+const MIN_PAIR_STRETCH: f64 = 0.1;
+
+/// Whether the symmetric `m` is positive definite: its leading principal minors are
+/// positive (Sylvester's criterion).
+#[inline]
+fn positive_definite(m: DMat3) -> bool {
+    let (m00, m01, m11) = (m.x_axis.x, m.y_axis.x, m.y_axis.y);
+    m00 > 0.0 && m00 * m11 - m01 * m01 > 0.0 && m.determinant() > 0.0
+}
+
 /// `a bᵀ`.
 #[inline]
 pub(crate) fn outer(a: DVec3, b: DVec3) -> DMat3 {
@@ -913,13 +952,41 @@ mod tests {
     use crate::polar::rotation_variant_svd;
     use crate::system::cross_matrix;
 
+    /// Sylvester's criterion against matrices built from their eigenvalues: `Q diag(d) Qᵀ`
+    /// is positive definite exactly when every `d` is, for rotations `Q` that mix all
+    /// axes (eigenvalues at least 0.05 from zero, far beyond rounding).
+    #[test]
+    fn positive_definite_is_the_sign_of_the_least_eigenvalue() {
+        let levels = [-2.0, -0.05, 0.05, 0.7, 3.0];
+        let rotations = [
+            DMat3::IDENTITY,
+            DMat3::from_axis_angle(DVec3::new(0.3, -1.0, 0.5).normalize(), 0.7),
+            DMat3::from_axis_angle(DVec3::new(1.0, 1.0, 1.0).normalize(), 2.1),
+        ];
+        let mut checked = 0;
+        for q in rotations {
+            for a in levels {
+                for b in levels {
+                    for c in levels {
+                        let m = q * DMat3::from_diagonal(DVec3::new(a, b, c)) * q.transpose();
+                        let expected = a > 0.0 && b > 0.0 && c > 0.0;
+                        assert_eq!(positive_definite(m), expected, "{a} {b} {c} {q}");
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(checked, 3 * 125);
+    }
+
     /// The compact twist stiffness `C` gives, block by block, the sum it replaces:
     /// `Σ cᵢⱼ tᵢⱼ,ₐ tᵢⱼ,_bᵀ` with `tᵢⱼ,ₐ = ½ (uᵢ (gₐ·vⱼ) - uⱼ (gₐ·vᵢ))` from the rotation-
     /// variant SVD (an independent decomposition), to 1e-9 of the largest block entry
     /// (both are rounding-exact formulas; the closed-form eigenvectors carry about 1e-12
-    /// here, the spectra being well separated). Over stretched, compressed (where the
-    /// Gershgorin bound skips the element: both are zero), mixed (some pairs clamped to
-    /// zero), sheared and rotated deformations, and an inverted element.
+    /// here, the spectra being well separated). Over stretched (no clamp acts: `C` in
+    /// closed form without the eigendecomposition), compressed (where the Gershgorin
+    /// bound skips the element: both are zero), mixed (some pairs clamped to zero),
+    /// sheared and rotated deformations, and an inverted element.
     #[test]
     fn compact_twist_equals_the_pairwise_sum() {
         let mesh = TetMesh {
@@ -948,6 +1015,7 @@ mod tests {
             ("inverted", q * stretch([1.7, 1.5, -0.05])),
         ];
         let mut skipped = 0;
+        let mut unclamped = Vec::new();
         for (name, f) in cases {
             let u: Vec<DVec3> = mesh
                 .positions
@@ -958,6 +1026,11 @@ mod tests {
             let r = polar_rotation(DMat3::IDENTITY + du);
             let c = model.twist_stiffness(0, r, du);
             skipped += usize::from(c == DMat3::ZERO);
+            let f = r.transpose() * (DMat3::IDENTITY + du);
+            let strain = (f + f.transpose()) * 0.5 - DMat3::IDENTITY;
+            if unclamped_twist(el.vol_lambda, el.vol_mu, r, strain).is_some() {
+                unclamped.push(name);
+            }
             let (r_svd, v, s) = rotation_variant_svd(DMat3::IDENTITY + du);
             assert!(
                 (r - r_svd).abs().to_cols_array().iter().all(|x| *x < 1e-12),
@@ -992,7 +1065,12 @@ mod tests {
                 "{name}: {worst} of {largest}"
             );
         }
-        // the compressed case is skipped without the eigendecomposition
+        // the compressed case is skipped without the eigendecomposition; where every
+        // pair's stress sum is positive (the inverted element's too: principal strains
+        // 0.7, 0.5, -1.05 under ν = 0.45) and no stretch sum under 0.1, the closed form
+        // serves
         assert!(skipped >= 1, "{skipped}");
+        println!("without the eigendecomposition: {unclamped:?}");
+        assert_eq!(unclamped, ["stretched", "sheared", "inverted"]);
     }
 }
