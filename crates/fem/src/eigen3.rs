@@ -1,5 +1,6 @@
 //! Closed-form eigendecomposition of a symmetric 3x3 matrix, for the principal
-//! stretches of [`crate::Tangent::Full`]'s geometric term where one of its clamps acts.
+//! stretches of [`crate::Tangent::Full`]'s geometric term where its closed form without
+//! them does not apply (`model::unclamped_twist`).
 //!
 //! Eigenvalues by the trigonometric solution of the characteristic cubic (Smith, "Eigen
 //! values of a symmetric 3 × 3 matrix", Commun. ACM 4, 1961); each eigenvector of a

@@ -680,8 +680,7 @@ impl FemModel {
     #[inline]
     fn twist_stiffness(&self, e: usize, r: DMat3, du: DMat3) -> DMat3 {
         let el = &self.elements[e];
-        let f = r.transpose() * (DMat3::IDENTITY + du);
-        let strain = (f + f.transpose()) * 0.5 - DMat3::IDENTITY;
+        let strain = corotated_strain(r, du);
         let a = strain.to_cols_array_2d();
         let trace = a[0][0] + a[1][1] + a[2][2];
         let largest_strain_bound = (0..3)
@@ -696,7 +695,7 @@ impl FemModel {
         if 4.0 * el.vol_mu * largest_strain_bound + 2.0 * el.vol_lambda * trace <= 0.0 {
             return DMat3::ZERO;
         }
-        if let Some(c) = unclamped_twist(el.vol_lambda, el.vol_mu, r, strain) {
+        if let Some(c) = unclamped_twist(el.vol_lambda, el.vol_mu, r, strain, trace) {
             return c;
         }
         let (principal_strains, v) = symmetric_eigen_closed_form(strain);
@@ -905,16 +904,29 @@ fn cofactor_matrix(f: DMat3) -> DMat3 {
     )
 }
 
+/// The symmetric strain `sym(Rᵀ(I + ∇u)) - I` of rotation `r` and displacement gradient
+/// `du` (exactly symmetric: the sum of a matrix and its transpose).
+#[inline]
+fn corotated_strain(r: DMat3, du: DMat3) -> DMat3 {
+    let f = r.transpose() * (DMat3::IDENTITY + du);
+    (f + f.transpose()) * 0.5 - DMat3::IDENTITY
+}
+
 /// [`FemModel::twist_stiffness`]'s `C` where none of its clamps acts, without the
-/// eigendecomposition, else `None`. With `S = I + ε` (`strain` = ε) and the volume
+/// eigendecomposition, else `None` (`trace` is `tr(ε)`). With `S = I + ε` (`strain` = ε) and the volume
 /// times stress `Σ̂ = 2Vμ ε + Vλ tr(ε) I` (`vol_mu` = Vμ, `vol_lambda` = Vλ), the pair
 /// sums `σ̂ᵢ + σ̂ⱼ` and `sᵢ + sⱼ` are the eigenvalues, on the third axis `vₖ`, of
 /// `A = tr(Σ̂) I - Σ̂` and `B = tr(S) I - S`. Where `A` is positive definite and `B - 0.1
 /// I` too (Sylvester's criterion), every pair has `cᵢⱼ = 2 (σ̂ᵢ + σ̂ⱼ) / (sᵢ + sⱼ)`, so
 /// `C = ½ R A B⁻¹ Rᵀ` (`A` and `B` commute; the product is symmetrised against rounding).
 #[inline]
-fn unclamped_twist(vol_lambda: f64, vol_mu: f64, r: DMat3, strain: DMat3) -> Option<DMat3> {
-    let trace = strain.x_axis.x + strain.y_axis.y + strain.z_axis.z;
+fn unclamped_twist(
+    vol_lambda: f64,
+    vol_mu: f64,
+    r: DMat3,
+    strain: DMat3,
+    trace: f64,
+) -> Option<DMat3> {
     let a = DMat3::from_diagonal(DVec3::splat(2.0 * (vol_mu + vol_lambda) * trace))
         - strain * (2.0 * vol_mu);
     let b = DMat3::from_diagonal(DVec3::splat(2.0 + trace)) - strain;
@@ -986,7 +998,8 @@ mod tests {
     /// here, the spectra being well separated). Over stretched (no clamp acts: `C` in
     /// closed form without the eigendecomposition), compressed (where the Gershgorin
     /// bound skips the element: both are zero), mixed (some pairs clamped to zero),
-    /// sheared and rotated deformations, and an inverted element.
+    /// sheared and rotated deformations, an inverted element, and a flattened one (a
+    /// stretch sum clamped, every stress sum positive).
     #[test]
     fn compact_twist_equals_the_pairwise_sum() {
         let mesh = TetMesh {
@@ -1013,6 +1026,8 @@ mod tests {
             ("mixed", q * stretch([1.2, 1.0, 0.78])),
             ("sheared", q * shear),
             ("inverted", q * stretch([1.7, 1.5, -0.05])),
+            // every pair's stress sum positive, but s₂ + s₃ = 0.09 under the 0.1 clamp
+            ("flattened", q * stretch([3.5, 0.06, 0.03])),
         ];
         let mut skipped = 0;
         let mut unclamped = Vec::new();
@@ -1026,9 +1041,9 @@ mod tests {
             let r = polar_rotation(DMat3::IDENTITY + du);
             let c = model.twist_stiffness(0, r, du);
             skipped += usize::from(c == DMat3::ZERO);
-            let f = r.transpose() * (DMat3::IDENTITY + du);
-            let strain = (f + f.transpose()) * 0.5 - DMat3::IDENTITY;
-            if unclamped_twist(el.vol_lambda, el.vol_mu, r, strain).is_some() {
+            let strain = corotated_strain(r, du);
+            let trace = strain.x_axis.x + strain.y_axis.y + strain.z_axis.z;
+            if unclamped_twist(el.vol_lambda, el.vol_mu, r, strain, trace).is_some() {
                 unclamped.push(name);
             }
             let (r_svd, v, s) = rotation_variant_svd(DMat3::IDENTITY + du);
@@ -1067,8 +1082,8 @@ mod tests {
         }
         // the compressed case is skipped without the eigendecomposition; where every
         // pair's stress sum is positive (the inverted element's too: principal strains
-        // 0.7, 0.5, -1.05 under ν = 0.45) and no stretch sum under 0.1, the closed form
-        // serves
+        // 0.7, 0.5, -1.05 under ν = 0.45) and no stretch sum under 0.1 (unlike the
+        // flattened element's), the closed form serves
         assert!(skipped >= 1, "{skipped}");
         println!("without the eigendecomposition: {unclamped:?}");
         assert_eq!(unclamped, ["stretched", "sheared", "inverted"]);
