@@ -913,12 +913,13 @@ fn corotated_strain(r: DMat3, du: DMat3) -> DMat3 {
 }
 
 /// [`FemModel::twist_stiffness`]'s `C` where none of its clamps acts, without the
-/// eigendecomposition, else `None` (`trace` is `tr(ε)`). With `S = I + ε` (`strain` = ε) and the volume
-/// times stress `Σ̂ = 2Vμ ε + Vλ tr(ε) I` (`vol_mu` = Vμ, `vol_lambda` = Vλ), the pair
-/// sums `σ̂ᵢ + σ̂ⱼ` and `sᵢ + sⱼ` are the eigenvalues, on the third axis `vₖ`, of
-/// `A = tr(Σ̂) I - Σ̂` and `B = tr(S) I - S`. Where `A` is positive definite and `B - 0.1
-/// I` too (Sylvester's criterion), every pair has `cᵢⱼ = 2 (σ̂ᵢ + σ̂ⱼ) / (sᵢ + sⱼ)`, so
-/// `C = ½ R A B⁻¹ Rᵀ` (`A` and `B` commute; the product is symmetrised against rounding).
+/// eigendecomposition, else `None`. With `S = I + ε` (`strain` = ε, `trace` = tr(ε))
+/// and the volume times stress `Σ̂ = 2Vμ ε + Vλ tr(ε) I` (`vol_mu` = Vμ, `vol_lambda` =
+/// Vλ), the pair sums `σ̂ᵢ + σ̂ⱼ` and `sᵢ + sⱼ` are the eigenvalues, on the third axis
+/// `vₖ`, of `A = tr(Σ̂) I - Σ̂` and `B = tr(S) I - S`. Where `A` is positive definite and
+/// `B - 0.1 I` too (Sylvester's criterion), every pair has `cᵢⱼ = 2 (σ̂ᵢ + σ̂ⱼ) / (sᵢ +
+/// sⱼ)`, so `C = ½ R A B⁻¹ Rᵀ` (`A` and `B` commute; the product is symmetrised against
+/// rounding).
 #[inline]
 fn unclamped_twist(
     vol_lambda: f64,
