@@ -495,6 +495,46 @@ pub struct TemplateRules<'a> {
     /// Per finest vertex: on the skin, which the template does not hold but lets slide
     /// ([`ImplantTemplate::skin_vertices`]); `None`: the skin is held like any vertex.
     pub slides: Option<&'a [bool]>,
+    /// Where the pocket ends below: nothing under the planned fold is pushed.
+    pub fold: FoldPlane,
+}
+
+/// The planned fold as a horizontal plane of the standing frame. The pocket ends there
+/// and the fold's attachment holds the skin, so no part of the implant, its mollified rim
+/// included (which reaches one radius beyond the outline), pushes tissue below it; over
+/// the plane the push rises smoothly to the implant's thickness within `taper_mm`.
+#[derive(Debug, Clone, Copy)]
+pub struct FoldPlane {
+    /// A point at the planned fold's height (file frame, mm).
+    pub point: DVec3,
+    /// Up, against gravity (file frame, unit).
+    pub up: DVec3,
+    /// Height over the plane from which the full thickness is laid off (mm, positive).
+    /// The session uses [`FOLD_TAPER_SPACINGS`] finest spacings.
+    pub taper_mm: f64,
+}
+
+/// The width of [`FoldPlane`]'s taper in finest spacings. The taper's steepest slope,
+/// 1.5 over its width, is then one over a spacing: no steeper than a linear ramp over one
+/// element, and smooth at both ends. A cut without taper, or a ramp over one spacing,
+/// left the skin under the held fold converging slowly and turned elements over
+/// (docs/dev/standing-frame.md).
+pub const FOLD_TAPER_SPACINGS: f64 = 1.5;
+
+impl FoldPlane {
+    /// How far `p` (file frame) lies above the planned fold (mm; negative below).
+    pub fn height_mm(&self, p: DVec3) -> f64 {
+        (p - self.point).dot(self.up)
+    }
+
+    /// The share of the implant's thickness laid off over the bed point `p` (file frame): 0
+    /// below the plane, 1 from `taper_mm` over it, `3t² - 2t³` between (`t` the height
+    /// over `taper_mm`). Taken at the foot on the bed, so that it is the same all along
+    /// the bed normal and the prescribed map stays one that does not fold elements over.
+    pub fn share(&self, p: DVec3) -> f64 {
+        let t = (self.height_mm(p) / self.taper_mm).clamp(0.0, 1.0);
+        t * t * (3.0 - 2.0 * t)
+    }
 }
 
 /// Builds the template of the implant whose mollified thickness is `thickness`,
@@ -528,8 +568,9 @@ pub fn build_template(
         layer_mm,
         on_wall,
         slides,
+        fold,
     } = *rules;
-    let classes = classify(feet, anchor, thickness);
+    let classes = classify(candidates, feet, anchor, thickness, &fold);
     let mut state = vec![0u8; classes.len()];
     let mut template = ImplantTemplate {
         layer_mm,
@@ -668,14 +709,26 @@ const FIXED: u8 = 2;
 const FOLLOWS: u8 = 3;
 
 /// Where each candidate vertex lies: over the bed or not, in front of it or behind, with
-/// the implant's mollified `thickness` there.
-fn classify(feet: &BedFeet, anchor: &Anchor, thickness: &SmoothedThickness) -> Vec<Class> {
-    feet.feet
-        .par_iter()
-        .map(|foot| match foot {
+/// the implant's mollified `thickness` there, times its share over the `fold`.
+fn classify(
+    candidates: &SideCandidates,
+    feet: &BedFeet,
+    anchor: &Anchor,
+    thickness: &SmoothedThickness,
+    fold: &FoldPlane,
+) -> Vec<Class> {
+    (feet.feet.par_iter())
+        .zip(&candidates.positions)
+        .map(|(foot, &p)| match foot {
             None => Class::Off,
             Some(f) => {
-                let z = thickness.at(anchor.local(f.uv));
+                // at the foot, so that the push is constant along each bed normal
+                let share = fold.share(p - f.normal * f.height_mm);
+                let z = if share > 0.0 {
+                    share * thickness.at(anchor.local(f.uv))
+                } else {
+                    0.0
+                };
                 if in_front(f.height_mm) {
                     Class::Front(z, f.normal, f.height_mm)
                 } else {

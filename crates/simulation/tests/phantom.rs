@@ -656,9 +656,12 @@ fn the_behind_nipple_rule_starts_from_behind_the_nipple() {
 /// mm, the simulated fold (`Simulation::simulated_fold`, the lowest skin pushed forward
 /// on the section through PSMF) lies below the planned fold by at most one finest
 /// spacing and the 2 mm threshold of the junction (the skin is held from the planned
-/// fold to one spacing below it, and the mollified rim pushes the skin just above),
-/// never above it by more than 1 mm, and the 10 mm lowering takes it at least 4 mm
-/// lower. Without the held skin the fold sagged 16 mm below PSMF at a 10 mm lowering.
+/// fold to one spacing below it, and the push ends at the planned fold), never above it
+/// by more than 1 mm, and the 10 mm lowering takes it 7-13 mm lower (the issue's
+/// range; measured 1.0 and 10.1 mm below the native fold). Without the held skin the
+/// fold sagged 16 mm below PSMF at a 10 mm lowering; with the mollified rim reaching
+/// under the planned fold it lay 7.0 mm below the native one with no lowering, and the
+/// lowering moved it 5.5 mm.
 #[test]
 fn a_lowered_fold_takes_the_simulated_fold_down() {
     use simulation::pocket::{FoldLowering, PocketLimits};
@@ -694,7 +697,10 @@ fn a_lowered_fold_takes_the_simulated_fold_down() {
             "{below} vs {planned}"
         );
     }
-    assert!(lowered - at_native >= 4.0, "{at_native} {lowered}");
+    assert!(
+        (7.0..=13.0).contains(&(lowered - at_native)),
+        "{at_native} {lowered}"
+    );
 }
 
 /// A restart from a solved displacement starts at its equilibrium: the residual before

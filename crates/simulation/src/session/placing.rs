@@ -195,6 +195,7 @@ impl Simulation {
                 layer_mm,
                 on_wall: &self.on_wall,
                 slides: self.options.skin_slides.then_some(&self.on_skin[..]),
+                fold: self.planned_fold(side, fold_lowering_mm),
             },
         )?;
         let fold_vertices = self.fold_line(side, fold_lowering_mm, &template);
@@ -215,6 +216,16 @@ impl Simulation {
         }))
     }
 
+    /// The planned fold of `side`, `fold_lowering_mm` below the native one's lowest point.
+    fn planned_fold(&self, side: Side, fold_lowering_mm: f64) -> FoldPlane {
+        let fold_y_mm = native_fold_y_mm(side, &self.frame, &self.landmarks) - fold_lowering_mm;
+        FoldPlane {
+            point: self.frame.to_file(DVec3::new(0.0, fold_y_mm, 0.0)),
+            up: self.frame.up(),
+            taper_mm: FOLD_TAPER_SPACINGS * self.spacing_mm,
+        }
+    }
+
     /// The skin vertices along the planned fold of `side` ([`PlacedImplant::fold_vertices`]):
     /// on the skin, up to one finest spacing below the planned fold's height (standing
     /// frame), across the width of the template's vertices below the implant's middle,
@@ -227,7 +238,7 @@ impl Simulation {
         template: &ImplantTemplate,
     ) -> Vec<u32> {
         let local = |v: u32| self.frame.to_local(self.finest.positions[v as usize]);
-        let fold_y_mm = native_fold_y_mm(side, &self.frame, &self.landmarks) - fold_lowering_mm;
+        let fold = self.planned_fold(side, fold_lowering_mm);
         let pushed: Vec<DVec3> = template.pushed_vertices().map(|&(v, _)| local(v)).collect();
         let Some(middle_y_mm) = pushed
             .iter()
@@ -258,8 +269,9 @@ impl Simulation {
         (0..self.finest.positions.len() as u32)
             .filter(|&v| self.on_skin[v as usize])
             .filter(|&v| {
-                let p = local(v);
-                p.y <= fold_y_mm && p.y > fold_y_mm - self.spacing_mm && p.x >= x_lo && p.x <= x_hi
+                let height_mm = fold.height_mm(self.finest.positions[v as usize]);
+                let x = local(v).x;
+                height_mm <= 0.0 && height_mm > -self.spacing_mm && x >= x_lo && x <= x_hi
             })
             .filter(|&v| !pushed_near(v))
             .collect()

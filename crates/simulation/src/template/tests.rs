@@ -90,9 +90,25 @@ fn slab() -> (TetMesh, SideCandidates, BedFeet) {
     (mesh, candidates, feet)
 }
 
+/// A planned fold far below [`slab`], which bounds nothing.
+const FOLD_BELOW_THE_SLAB: FoldPlane = FoldPlane {
+    point: DVec3::new(0.0, -1000.0, 0.0),
+    up: DVec3::Y,
+    taper_mm: SQUARE_MM,
+};
+
 /// The template of a 50 mm round implant of 8 mm projection on [`slab`], with a layer
 /// reaching the top vertices and `slides` as given.
 fn slab_template(slides: Option<&[bool]>, on_wall: &[bool]) -> ImplantTemplate {
+    slab_template_over(slides, on_wall, FOLD_BELOW_THE_SLAB)
+}
+
+/// [`slab_template`] over the planned `fold`.
+fn slab_template_over(
+    slides: Option<&[bool]>,
+    on_wall: &[bool],
+    fold: FoldPlane,
+) -> ImplantTemplate {
     let (mesh, candidates, feet) = slab();
     let shape = ImplantShape::from(implant::RoundImplant::new(50.0, 8.0).unwrap());
     let rules = TemplateRules {
@@ -100,6 +116,7 @@ fn slab_template(slides: Option<&[bool]>, on_wall: &[bool]) -> ImplantTemplate {
         layer_mm: 10.0,
         on_wall,
         slides,
+        fold,
     };
     let thickness = SmoothedThickness::new(shape, 0.0);
     build_template(
@@ -197,4 +214,49 @@ fn sliding_skin_moves_the_same_vertices_by_the_same_amount() {
     held_elements.sort_unstable();
     assert_eq!(elements, held_elements);
     assert!(held.skin_vertices.is_empty() && held.sliding_elements.is_empty());
+}
+
+/// The pocket ends at the planned fold. With the fold 10 mm below the implant's centre
+/// (its radius is 25 mm) and a 6 mm taper, no vertex under the fold is pushed; the row
+/// 4 mm over it is pushed by `3t² - 2t³` (t = 4/6, computed here) of its push without the
+/// fold; the rows from 6 mm up are pushed as without the fold. Each along the same
+/// normal: displacements agree to 1e-12 mm once each template's volume scale is
+/// divided out.
+#[test]
+fn the_push_ends_smoothly_at_the_planned_fold() {
+    let (mesh, ..) = slab();
+    let on_wall = vec![false; mesh.positions.len()];
+    let fold = FoldPlane {
+        point: DVec3::new(0.0, -10.0, 0.0),
+        up: DVec3::Y,
+        taper_mm: SQUARE_MM,
+    };
+    let height = |v: u32| mesh.positions[v as usize].y + 10.0;
+    let unbounded = slab_template(None, &on_wall);
+    let bounded = slab_template_over(None, &on_wall, fold);
+    let unscaled = |t: &ImplantTemplate| -> Vec<(u32, DVec3)> {
+        (pushed_by_vertex(t).into_iter())
+            .map(|(v, d)| (v, d / t.scale))
+            .collect()
+    };
+    let (all, over) = (unscaled(&unbounded), unscaled(&bounded));
+    assert!(all.iter().any(|&(v, _)| height(v) < 0.0));
+    assert!(all.iter().any(|&(v, _)| height(v) == 4.0));
+    let t: f64 = 4.0 / 6.0;
+    let expected: Vec<(u32, DVec3)> = (all.into_iter())
+        .filter(|&(v, _)| height(v) > 0.0)
+        .map(|(v, d)| {
+            let share = if height(v) < 6.0 {
+                3.0 * t * t - 2.0 * t * t * t
+            } else {
+                1.0
+            };
+            (v, d * share)
+        })
+        .collect();
+    assert_eq!(over.len(), expected.len());
+    for ((v, d), (w, e)) in over.iter().zip(&expected) {
+        assert_eq!(v, w);
+        assert!(d.distance(*e) < 1e-12, "{v}: {d} vs {e}");
+    }
 }
