@@ -20,7 +20,8 @@ impl ResolvedLength {
 #[cfg(test)]
 mod tests {
     use crate::session::{
-        DEFAULT_RIM_SMOOTHING, DEFAULT_SCAN_SMOOTHING, DEFAULT_TEMPLATE_LAYER, OUTSIDE_BLEND_RADIUS,
+        DEFAULT_RIM_SMOOTHING, DEFAULT_SCAN_SMOOTHING, DEFAULT_TEMPLATE_LAYER, FOLD_TAPER,
+        OUTSIDE_BLEND_RADIUS,
     };
 
     #[test]
@@ -33,11 +34,13 @@ mod tests {
             assert_eq!(DEFAULT_TEMPLATE_LAYER.on_mesh(spacing_mm), 7.0);
             assert_eq!(DEFAULT_SCAN_SMOOTHING.on_mesh(spacing_mm), 3.5);
             assert_eq!(OUTSIDE_BLEND_RADIUS.on_mesh(spacing_mm), 7.0);
+            assert_eq!(FOLD_TAPER.on_mesh(spacing_mm), 10.5);
         }
-        // A draft mesh of 10 mm keeps two spacings and one.
+        // A draft mesh of 10 mm keeps two spacings, one and one and a half.
         assert_eq!(DEFAULT_RIM_SMOOTHING.on_mesh(10.0), 20.0);
         assert_eq!(DEFAULT_TEMPLATE_LAYER.on_mesh(10.0), 10.0);
         assert_eq!(DEFAULT_SCAN_SMOOTHING.on_mesh(10.0), 5.0);
         assert_eq!(OUTSIDE_BLEND_RADIUS.on_mesh(10.0), 10.0);
+        assert_eq!(FOLD_TAPER.on_mesh(10.0), 15.0);
     }
 }

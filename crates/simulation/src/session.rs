@@ -90,9 +90,8 @@ use crate::pocket::{
 use crate::resolved_length::ResolvedLength;
 use crate::skin::SkinLayer;
 use crate::template::{
-    BedFeet, FOLD_TAPER_SPACINGS, FOOTPRINT_TOLERANCE_MM, FoldPlane, ImplantTemplate,
-    SideCandidates, SmoothedThickness, TemplateIndex, TemplateRules, build_template,
-    check_footprint, fit_footprint,
+    BedFeet, FOOTPRINT_TOLERANCE_MM, FoldPlane, ImplantTemplate, SideCandidates, SmoothedThickness,
+    TemplateIndex, TemplateRules, build_template, check_footprint, fit_footprint,
 };
 use anatomy::breast::{
     BreastModel, ControlPoints, QuadrantLines, QuadrantVolumes, Side, quadrant_volumes_ml,

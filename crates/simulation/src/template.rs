@@ -501,25 +501,20 @@ pub struct TemplateRules<'a> {
 
 /// The planned fold as a horizontal plane of the standing frame. The pocket ends there
 /// and the fold's attachment holds the skin, so no part of the implant, its mollified rim
-/// included (which reaches one radius beyond the outline), pushes tissue below it; over
-/// the plane the push rises smoothly to the implant's thickness within `taper_mm`.
+/// included (which reaches up to its radius beyond the outline), pushes tissue over bed
+/// points below it; over the plane the push rises smoothly to the implant's thickness
+/// within `taper_mm`. (Where the bed normal leans down, a pushed vertex in front of the
+/// bed can lie a little below the plane while its foot lies above it.)
 #[derive(Debug, Clone, Copy)]
 pub struct FoldPlane {
     /// A point at the planned fold's height (file frame, mm).
     pub point: DVec3,
     /// Up, against gravity (file frame, unit).
     pub up: DVec3,
-    /// Height over the plane from which the full thickness is laid off (mm, positive).
-    /// The session uses [`FOLD_TAPER_SPACINGS`] finest spacings.
+    /// Height over the plane from which the full thickness is laid off (mm, positive;
+    /// the session's is `FOLD_TAPER`).
     pub taper_mm: f64,
 }
-
-/// The width of [`FoldPlane`]'s taper in finest spacings. The taper's steepest slope,
-/// 1.5 over its width, is then one over a spacing: no steeper than a linear ramp over one
-/// element, and smooth at both ends. A cut without taper, or a ramp over one spacing,
-/// left the skin under the held fold converging slowly and turned elements over
-/// (docs/dev/standing-frame.md).
-pub const FOLD_TAPER_SPACINGS: f64 = 1.5;
 
 impl FoldPlane {
     /// How far `p` (file frame) lies above the planned fold (mm; negative below).
@@ -530,7 +525,8 @@ impl FoldPlane {
     /// The share of the implant's thickness laid off over the bed point `p` (file frame): 0
     /// below the plane, 1 from `taper_mm` over it, `3t² - 2t³` between (`t` the height
     /// over `taper_mm`). Taken at the foot on the bed, so that it is the same all along
-    /// the bed normal and the prescribed map stays one that does not fold elements over.
+    /// the bed normal: the prescribed map stays a function of the bed point alone, as
+    /// the paper's is, which as a continuous map folds nothing over.
     pub fn share(&self, p: DVec3) -> f64 {
         let t = (self.height_mm(p) / self.taper_mm).clamp(0.0, 1.0);
         t * t * (3.0 - 2.0 * t)

@@ -56,8 +56,9 @@ fn moved_implant_stage(
 /// Where the warped cycles crawl, the session switches to Newton-Krylov steps and
 /// reaches the tolerance sooner. On the small hanging phantom, with both implants moved
 /// up 10 mm after a solve, the warped cycles fall by about a tenth a cycle from 3e-3 on:
-/// 13 cycles to the tolerance without the switch, 11 with it (measured), some of them on
-/// kept operators. Its answer is the equilibrium: the skin lies within 0.1 mm (the
+/// 13 cycles to the tolerance without the switch, 11 with it (measured; at most 12
+/// asked, one cycle of slack, as whether a cycle keeps the operators compares parallel
+/// sums), some of them on kept operators. Its answer is the equilibrium: the skin lies within 0.1 mm (the
 /// `converged_ms` criterion of `mammaplan bench`) of the same session solved on to a
 /// relative residual of 1e-7. With the switch turned off afterwards, the next cycle is a
 /// warped one.
@@ -85,7 +86,7 @@ fn a_crawling_implant_stage_converges_sooner_by_newton_krylov_steps() {
     );
     assert!(warped.converged && !warped.switched);
     assert!(stage.converged && stage.switched && stage.lagged > 0);
-    assert!(stage.cycles < warped.cycles);
+    assert!(stage.cycles < warped.cycles && stage.cycles <= 12);
     let answer = sim.scan_positions();
     let tight = sim.solve(40, 1e-7).unwrap();
     assert!(tight.converged, "{tight:?}");

@@ -222,7 +222,7 @@ impl Simulation {
         FoldPlane {
             point: self.frame.to_file(DVec3::new(0.0, fold_y_mm, 0.0)),
             up: self.frame.up(),
-            taper_mm: FOLD_TAPER_SPACINGS * self.spacing_mm,
+            taper_mm: FOLD_TAPER.on_mesh(self.spacing_mm),
         }
     }
 

@@ -24,6 +24,13 @@ const OUTLIER: [DVec3; 4] = [
 /// mesh here, no solver). Every slab vertex is a candidate with its foot straight below
 /// it; the mesh starts with [`OUTLIER`]. Returns the mesh, its candidates and their feet.
 fn slab() -> (TetMesh, SideCandidates, BedFeet) {
+    slab_along(DVec3::Z)
+}
+
+/// [`slab`] with its layers laid off along the unit `normal` instead of `z`: the vertex
+/// over bed point `(x, y, 0)` at height `h` lies at `(x, y, 0) + h normal`, and its foot
+/// has that normal.
+fn slab_along(normal: DVec3) -> (TetMesh, SideCandidates, BedFeet) {
     let n = SQUARES;
     let index = |i: usize, j: usize, layer: usize| ((layer * (n + 1) + i) * (n + 1) + j) as u32;
     let mut grid = vec![DVec3::ZERO; (n + 1) * (n + 1) * LAYERS_MM.len()];
@@ -32,7 +39,7 @@ fn slab() -> (TetMesh, SideCandidates, BedFeet) {
             for j in 0..=n {
                 let half = 0.5 * SQUARE_MM * n as f64;
                 let (x, y) = (SQUARE_MM * i as f64 - half, SQUARE_MM * j as f64 - half);
-                grid[index(i, j, layer) as usize] = DVec3::new(x, y, z);
+                grid[index(i, j, layer) as usize] = DVec3::new(x, y, 0.0) + normal * z;
             }
         }
     }
@@ -72,10 +79,11 @@ fn slab() -> (TetMesh, SideCandidates, BedFeet) {
         side: Side::Left,
         feet: (grid.iter())
             .map(|p| {
+                let height_mm = p.z / normal.z;
                 Some(Foot {
-                    uv: p.truncate(),
-                    height_mm: p.z,
-                    normal: DVec3::Z,
+                    uv: (*p - normal * height_mm).truncate(),
+                    height_mm,
+                    normal,
                 })
             })
             .collect(),
@@ -259,4 +267,53 @@ fn the_push_ends_smoothly_at_the_planned_fold() {
         assert_eq!(v, w);
         assert!(d.distance(*e) < 1e-12, "{v}: {d} vs {e}");
     }
+}
+
+/// The share over the fold is taken at each vertex's foot: with the slab's layers laid
+/// off along a normal leaning 30 degrees down, the vertices over one bed point get the
+/// same push (to 1e-12 mm), although the top one (9 mm out, 4.5 mm lower than its foot)
+/// lies under the fold where its foot, 1 mm over it, does not. Taken at the vertex, the
+/// top one would get nothing.
+#[test]
+fn the_share_over_the_fold_is_the_same_along_a_bed_normal() {
+    let normal = DVec3::new(0.0, -0.5, 0.75f64.sqrt());
+    let (mesh, candidates, feet) = slab_along(normal);
+    let fold = FoldPlane {
+        point: DVec3::new(0.0, -7.0, 0.0),
+        up: DVec3::Y,
+        taper_mm: SQUARE_MM,
+    };
+    let shape = ImplantShape::from(implant::RoundImplant::new(50.0, 8.0).unwrap());
+    let on_wall = vec![false; mesh.positions.len()];
+    let template = build_template(
+        &mesh,
+        &candidates,
+        &feet,
+        &Anchor::flat(),
+        &SmoothedThickness::new(shape, 0.0),
+        &TemplateRules {
+            hold_bed: true,
+            layer_mm: 10.0,
+            on_wall: &on_wall,
+            slides: None,
+            fold,
+        },
+    )
+    .unwrap();
+    let push = |at: DVec3| {
+        let v = (mesh.positions.iter()).position(|p| p.distance(at) < 1e-9);
+        let v = v.expect("a slab vertex") as u32;
+        (template.pushed_vertices())
+            .find(|&&(w, _)| w == v)
+            .map(|&(_, d)| d)
+    };
+    let foot = DVec3::new(0.0, -6.0, 0.0);
+    let (middle, top) = (foot + normal * LAYERS_MM[1], foot + normal * LAYERS_MM[2]);
+    assert!(fold.height_mm(top) < 0.0 && fold.height_mm(foot) > 0.0);
+    let (middle_push, top_push) = (push(middle).unwrap(), push(top).unwrap());
+    assert!(middle_push.length() > 0.0);
+    assert!(
+        middle_push.distance(top_push) < 1e-12,
+        "{middle_push} {top_push}"
+    );
 }
