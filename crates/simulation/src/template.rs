@@ -495,7 +495,8 @@ pub struct TemplateRules<'a> {
     /// Per finest vertex: on the skin, which the template does not hold but lets slide
     /// ([`ImplantTemplate::skin_vertices`]); `None`: the skin is held like any vertex.
     pub slides: Option<&'a [bool]>,
-    /// Where the pocket ends below: nothing under the planned fold is pushed.
+    /// Where the pocket ends below: nothing over bed points under the planned fold is
+    /// pushed.
     pub fold: FoldPlane,
 }
 
