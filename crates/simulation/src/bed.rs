@@ -127,6 +127,8 @@ pub struct Foot {
     pub height_mm: f64,
     /// The bed's unit normal at the foot (anterior).
     pub normal: DVec3,
+    /// The foot itself, the bed point at `uv` (file frame, mm).
+    pub position: DVec3,
 }
 
 /// Most iterations of [`ImplantBed::foot`].
@@ -386,6 +388,7 @@ impl ImplantBed {
                     uv,
                     height_mm,
                     normal: at.normal,
+                    position: at.position,
                 });
             }
             // the triangle's tangent map J = [e1 e2] M⁻¹ from (u, v) to the bed
@@ -416,6 +419,7 @@ impl ImplantBed {
             uv,
             height_mm: (p - at.position).dot(at.normal),
             normal: at.normal,
+            position: at.position,
         })
     }
 

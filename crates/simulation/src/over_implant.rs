@@ -12,19 +12,21 @@
 
 use crate::bed::ImplantBed;
 use crate::placement::Anchor;
-use crate::template::SmoothedThickness;
+use crate::template::{FoldPlane, SmoothedThickness, laid_thickness_mm};
 use glam::DVec3;
 use mesh::TriMesh;
 use rayon::prelude::*;
 
 /// The triangles of `surface` (indices) whose corners all lie over the implant as its
-/// template lays it: their feet on `bed` ([`ImplantBed::foot`]) lie where `thickness`
-/// (the mollified thickness, anchored at `anchor`) is positive.
+/// template lays it: their feet on `bed` ([`ImplantBed::foot`]) lie where the template
+/// lays off a positive thickness ([`laid_thickness_mm`]: the mollified `thickness`
+/// anchored at `anchor`, above the planned `fold`).
 pub fn triangles_over_implant(
     surface: &TriMesh,
     bed: &ImplantBed,
     anchor: &Anchor,
     thickness: &SmoothedThickness,
+    fold: &FoldPlane,
 ) -> Vec<usize> {
     // A point over the implant lies within its reach along the bed (the bed's
     // parameters are lengths along it) and its height in front of the bed; the bound
@@ -35,7 +37,7 @@ pub fn triangles_over_implant(
             p.distance(anchor.position) <= bound_mm
                 && bed
                     .foot(p)
-                    .is_some_and(|foot| thickness.at(anchor.local(foot.uv)) > 0.0)
+                    .is_some_and(|foot| laid_thickness_mm(thickness, fold, anchor, &foot) > 0.0)
         })
         .collect();
     (surface.triangles.iter().enumerate())

@@ -145,7 +145,7 @@ impl PocketBounds {
             medial_x_mm: limits.midline_clearance_mm,
             lateral_x_mm: frame.to_local(landmarks.get(lateral)).x.abs()
                 + limits.lateral_beyond_fold_mm,
-            floor_y_mm: native_fold_y_mm(side, frame, landmarks) - fold_lowering_mm,
+            floor_y_mm: planned_fold_y_mm(side, frame, landmarks, fold_lowering_mm),
         }
     }
 
@@ -166,6 +166,17 @@ impl PocketBounds {
 /// The native fold's lowest point (PSMF): its height in the standing frame (mm).
 pub fn native_fold_y_mm(side: Side, frame: &AnatomicalFrame, landmarks: &Landmarks) -> f64 {
     frame.to_local(landmarks.get(fold_lowest(side))).y
+}
+
+/// The planned fold's height in the standing frame (mm): `fold_lowering_mm` below the
+/// native fold's lowest point.
+pub fn planned_fold_y_mm(
+    side: Side,
+    frame: &AnatomicalFrame,
+    landmarks: &Landmarks,
+    fold_lowering_mm: f64,
+) -> f64 {
+    native_fold_y_mm(side, frame, landmarks) - fold_lowering_mm
 }
 
 /// The straight distance from the nipple to the native fold's lowest point (mm).

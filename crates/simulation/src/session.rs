@@ -85,7 +85,7 @@ use crate::over_implant::{swept_prisms, swept_quad, triangles_over_implant};
 use crate::placement::{Anchor, AnchorRule, Placement, anchor_on_floor, resolve_anchor};
 use crate::pocket::{
     FoldLowering, PocketBounds, PocketLimits, fold_lowest, native_fold_y_mm, nipple_of,
-    nipple_to_fold_mm, pocket_surface,
+    nipple_to_fold_mm, planned_fold_y_mm, pocket_surface,
 };
 use crate::resolved_length::ResolvedLength;
 use crate::skin::SkinLayer;
@@ -190,6 +190,9 @@ pub struct PlacedImplant {
     pub template: ImplantTemplate,
     /// The implant's thickness as the template lays it (its rim mollified).
     pub thickness: SmoothedThickness,
+    /// The planned fold, `fold_lowering_mm` below the native one: the template lays
+    /// nothing off below it.
+    pub fold: FoldPlane,
     /// Skin vertices of the finest level along the planned fold, under the implant's
     /// lower half: held to the chest at every stage, as the inframammary fold's
     /// attachment (re-formed at the planned fold) holds the skin there.

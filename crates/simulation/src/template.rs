@@ -567,7 +567,7 @@ pub fn build_template(
         slides,
         fold,
     } = *rules;
-    let classes = classify(candidates, feet, anchor, thickness, &fold);
+    let classes = classify(feet, anchor, thickness, &fold);
     let mut state = vec![0u8; classes.len()];
     let mut template = ImplantTemplate {
         layer_mm,
@@ -706,26 +706,18 @@ const FIXED: u8 = 2;
 const FOLLOWS: u8 = 3;
 
 /// Where each candidate vertex lies: over the bed or not, in front of it or behind, with
-/// the implant's mollified `thickness` there, times its share over the `fold`.
+/// the thickness the template lays off there ([`laid_thickness_mm`]).
 fn classify(
-    candidates: &SideCandidates,
     feet: &BedFeet,
     anchor: &Anchor,
     thickness: &SmoothedThickness,
     fold: &FoldPlane,
 ) -> Vec<Class> {
     (feet.feet.par_iter())
-        .zip(&candidates.positions)
-        .map(|(foot, &p)| match foot {
+        .map(|foot| match foot {
             None => Class::Off,
             Some(f) => {
-                // at the foot, so that the push is constant along each bed normal
-                let share = fold.share(p - f.normal * f.height_mm);
-                let z = if share > 0.0 {
-                    share * thickness.at(anchor.local(f.uv))
-                } else {
-                    0.0
-                };
+                let z = laid_thickness_mm(thickness, fold, anchor, f);
                 if in_front(f.height_mm) {
                     Class::Front(z, f.normal, f.height_mm)
                 } else {
@@ -734,6 +726,23 @@ fn classify(
             }
         })
         .collect()
+}
+
+/// The thickness the template lays off along the bed's normal at `foot` (mm): the
+/// implant's mollified `thickness` anchored at `anchor`, times its share over the
+/// `fold` taken at the foot itself, so that it is the same all along the normal.
+pub fn laid_thickness_mm(
+    thickness: &SmoothedThickness,
+    fold: &FoldPlane,
+    anchor: &Anchor,
+    foot: &Foot,
+) -> f64 {
+    let share = fold.share(foot.position);
+    if share > 0.0 {
+        share * thickness.at(anchor.local(foot.uv))
+    } else {
+        0.0
+    }
 }
 
 /// Marks the corners of the fill-in elements (crossing the bed) in `state`, displaced in

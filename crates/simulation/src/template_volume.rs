@@ -181,6 +181,7 @@ mod tests {
                     uv: p.truncate(),
                     height_mm: p.z,
                     normal: DVec3::Z,
+                    position: p.truncate().extend(0.0),
                 });
                 section_volume(&feet, &anchor, &thickness)
             })
@@ -205,6 +206,7 @@ mod tests {
             uv: p.truncate(),
             height_mm: 1.0,
             normal: DVec3::Z,
+            position: p.truncate().extend(0.0),
         });
         let above = [above[0], above[1], above[2], above[0]];
         assert_eq!(section_volume(&above, &anchor, &thickness), 0.0);
@@ -227,10 +229,12 @@ mod tests {
         for i in 0..=n {
             for j in 0..=n {
                 for top in [false, true] {
+                    let uv = DVec2::new(6.0 * i as f64, 6.0 * j as f64);
                     feet[index(i, j, top) as usize] = Some(Foot {
-                        uv: DVec2::new(6.0 * i as f64, 6.0 * j as f64),
+                        uv,
                         height_mm: if top { 4.0 } else { -2.0 },
                         normal: DVec3::Z,
+                        position: uv.extend(0.0),
                     });
                 }
             }

@@ -360,6 +360,7 @@ impl Simulation {
                     &self.beds[s],
                     &implant.anchor,
                     &implant.thickness,
+                    &implant.fold,
                 );
                 let triangles: Vec<[u32; 3]> =
                     over.iter().map(|&t| self.base.triangles[t]).collect();

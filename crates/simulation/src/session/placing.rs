@@ -184,6 +184,7 @@ impl Simulation {
         let radius = self.options.rim_smoothing_on_mesh(self.spacing_mm);
         let layer_mm = self.options.template_layer_on_mesh(self.spacing_mm);
         let thickness = SmoothedThickness::new(shape, radius);
+        let fold = self.planned_fold(side, fold_lowering_mm);
         let template = build_template(
             &self.finest,
             &self.bed_choices[s][chosen].candidates,
@@ -195,10 +196,10 @@ impl Simulation {
                 layer_mm,
                 on_wall: &self.on_wall,
                 slides: self.options.skin_slides.then_some(&self.on_skin[..]),
-                fold: self.planned_fold(side, fold_lowering_mm),
+                fold,
             },
         )?;
-        let fold_vertices = self.fold_line(side, fold_lowering_mm, &template);
+        let fold_vertices = self.fold_line(&fold, &template);
         self.beds[s] = bed;
         self.feet[s] = feet;
         self.pocket_bounds[s] = bounds;
@@ -211,6 +212,7 @@ impl Simulation {
             fold_lowering_mm,
             template,
             thickness,
+            fold,
             fold_vertices,
             setup_ms: elapsed_ms(start),
         }))
@@ -218,7 +220,7 @@ impl Simulation {
 
     /// The planned fold of `side`, `fold_lowering_mm` below the native one's lowest point.
     fn planned_fold(&self, side: Side, fold_lowering_mm: f64) -> FoldPlane {
-        let fold_y_mm = native_fold_y_mm(side, &self.frame, &self.landmarks) - fold_lowering_mm;
+        let fold_y_mm = planned_fold_y_mm(side, &self.frame, &self.landmarks, fold_lowering_mm);
         FoldPlane {
             point: self.frame.to_file(DVec3::new(0.0, fold_y_mm, 0.0)),
             up: self.frame.up(),
@@ -226,19 +228,12 @@ impl Simulation {
         }
     }
 
-    /// The skin vertices along the planned fold of `side` ([`PlacedImplant::fold_vertices`]):
-    /// on the skin, up to one finest spacing below the planned fold's height (standing
-    /// frame), across the width of the template's vertices below the implant's middle,
+    /// The skin vertices along the planned `fold` ([`PlacedImplant::fold_vertices`]): on
+    /// the skin, up to one finest spacing below the fold's height (standing frame), across the width of the template's vertices below the implant's middle,
     /// and neither template vertices nor their neighbours (a held vertex next to one
     /// pushed by the implant folds the element between them over).
-    pub(super) fn fold_line(
-        &self,
-        side: Side,
-        fold_lowering_mm: f64,
-        template: &ImplantTemplate,
-    ) -> Vec<u32> {
+    pub(super) fn fold_line(&self, fold: &FoldPlane, template: &ImplantTemplate) -> Vec<u32> {
         let local = |v: u32| self.frame.to_local(self.finest.positions[v as usize]);
-        let fold = self.planned_fold(side, fold_lowering_mm);
         let pushed: Vec<DVec3> = template.pushed_vertices().map(|&(v, _)| local(v)).collect();
         let Some(middle_y_mm) = pushed
             .iter()
@@ -300,16 +295,14 @@ impl Simulation {
             (bed, feet)
         };
         // the pocket as planned for this implant (it was built for the deepest fold)
-        let bounds = choice.bounds.and_then(|_| {
-            let limits = self.options.pocket?[side as usize];
-            Some(PocketBounds::new(
-                side,
-                &self.frame,
-                &self.landmarks,
-                &limits,
-                fold_lowering_mm,
-            ))
-        });
+        let limits = choice
+            .bounds
+            .and(self.options.pocket)
+            .map(|l| l[side as usize]);
+        let bounds_lowered = |lowering_mm| {
+            limits.map(|l| PocketBounds::new(side, &self.frame, &self.landmarks, &l, lowering_mm))
+        };
+        let bounds = bounds_lowered(fold_lowering_mm);
         let limit_error = |error| pocket_limit_error(side, bounds.as_ref(), error);
         let default_uv = self.default_uv_on(side, &bed, shape, bounds.as_ref())?;
         let requested = resolve_anchor(&bed, &self.frame, default_uv, placement)?;
@@ -363,6 +356,8 @@ impl Simulation {
             _ if bounds.is_some() => fold_lowering_mm,
             _ => 0.0,
         };
+        // the bounds the pocket ends with: at the fold the implant got
+        let bounds = bounds_lowered(fold_lowering_mm);
         Ok((bed, feet, bounds, requested, anchor, fold_lowering_mm))
     }
 

@@ -80,10 +80,12 @@ fn slab_along(normal: DVec3) -> (TetMesh, SideCandidates, BedFeet) {
         feet: (grid.iter())
             .map(|p| {
                 let height_mm = p.z / normal.z;
+                let position = *p - normal * height_mm;
                 Some(Foot {
-                    uv: (*p - normal * height_mm).truncate(),
+                    uv: position.truncate(),
                     height_mm,
                     normal,
+                    position,
                 })
             })
             .collect(),
