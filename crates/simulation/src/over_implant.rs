@@ -6,8 +6,7 @@
 //! wider than the breast's base. After the operation the breast lies over the implant
 //! there too (its new fold is the planned one), so the breast after surgery is measured
 //! over the native breast and the chest skin over the implant (as the template lays it,
-//! its rim mollified). That skin
-//! lay on the chest before (it encloses no breast volume); the volume it adds is the
+//! its rim mollified, above the planned fold). That skin lay on the chest before (it encloses no breast volume); the volume it adds is the
 //! volume its triangles sweep from rest to their moved positions.
 
 use crate::bed::ImplantBed;
@@ -206,5 +205,91 @@ mod tests {
             }
         }
         assert!(edges.values().all(|&c| c == 0));
+    }
+
+    /// A grid of `spacing_mm` squares over `[-half_mm, half_mm]²` at height `z_mm`,
+    /// shifted by `offset_mm` in x and y.
+    fn grid(half_mm: f64, spacing_mm: f64, offset_mm: f64, z_mm: f64) -> TriMesh {
+        let n = (2.0 * half_mm / spacing_mm).round() as u32;
+        let positions = (0..=n)
+            .flat_map(|j| (0..=n).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let at = |k: u32| -half_mm + offset_mm + spacing_mm * k as f64;
+                DVec3::new(at(i), at(j), z_mm)
+            })
+            .collect();
+        let index = |i: u32, j: u32| j * (n + 1) + i;
+        let triangles = (0..n)
+            .flat_map(|j| (0..n).map(move |i| (i, j)))
+            .flat_map(|(i, j)| {
+                let (a, b) = (index(i, j), index(i + 1, j));
+                let (c, d) = (index(i + 1, j + 1), index(i, j + 1));
+                [[a, b, c], [a, c, d]]
+            })
+            .collect();
+        TriMesh::new(positions, triangles)
+    }
+
+    /// A flat bed in z = 0 over x, y in [-100, 100] mm, its parameters (u, v) = (x, y) to
+    /// within 1e-8 mm (a cylinder of radius 10⁵ mm about the y axis behind it).
+    fn flat_bed() -> ImplantBed {
+        let surface = grid(100.0, 5.0, 0.0, 0.0);
+        let topology = mesh::Topology::new(&surface);
+        let outer = topology.boundary_loops(&surface).remove(0);
+        let (surface, boundary_count) = crate::pocket::boundary_first(&surface, &outer);
+        let radius_mm = 1e5;
+        let cylinder = crate::bed::ChestCylinder {
+            centre: DVec3::new(0.0, 0.0, -radius_mm),
+            axes: glam::DMat3::from_cols(DVec3::Z, DVec3::X, DVec3::Y),
+            radius_mm,
+        };
+        ImplantBed::new(
+            anatomy::breast::Side::Left,
+            &surface,
+            boundary_count,
+            &cylinder,
+            0.0,
+        )
+        .unwrap()
+    }
+
+    /// Skin 10 mm over a flat bed, under a round 120 mm implant anchored at the origin
+    /// (rim not mollified) with the planned fold at y = -20 mm: exactly the triangles
+    /// whose three corners lie inside the 60 mm circle and above the fold are over the
+    /// implant, by the corners' own coordinates (no corner lies on either line: the
+    /// grid's coordinates are odd multiples of 2.5 mm). With the fold far below, the
+    /// circle alone decides.
+    #[test]
+    fn skin_under_the_planned_fold_is_not_over_the_implant() {
+        let bed = flat_bed();
+        let skin = grid(97.5, 5.0, 0.0, 10.0);
+        let shape = implant::ImplantShape::from(implant::RoundImplant::new(120.0, 30.0).unwrap());
+        let thickness = SmoothedThickness::new(shape, 0.0);
+        let fold_at = |y_mm: f64| FoldPlane {
+            point: DVec3::new(0.0, y_mm, 0.0),
+            up: DVec3::Y,
+            taper_mm: 5.0,
+        };
+        let expected = |fold_y_mm: f64| -> Vec<usize> {
+            let inside = |v: u32| {
+                let p = skin.positions[v as usize];
+                p.x * p.x + p.y * p.y < 60.0 * 60.0 && p.y > fold_y_mm
+            };
+            (skin.triangles.iter().enumerate())
+                .filter(|(_, t)| t.iter().all(|&v| inside(v)))
+                .map(|(k, _)| k)
+                .collect()
+        };
+        for fold_y_mm in [-20.0, -200.0] {
+            let over = triangles_over_implant(
+                &skin,
+                &bed,
+                &Anchor::flat(),
+                &thickness,
+                &fold_at(fold_y_mm),
+            );
+            assert_eq!(over, expected(fold_y_mm), "fold at {fold_y_mm} mm");
+        }
+        assert!(expected(-20.0).len() < expected(-200.0).len());
     }
 }

@@ -353,7 +353,7 @@ fn perimeter(positions: &[DVec3], boundary: &[u32]) -> f64 {
 }
 
 /// `mesh` renumbered with `boundary`'s vertices first, in its order, and their count.
-fn boundary_first(mesh: &TriMesh, boundary: &[u32]) -> (TriMesh, usize) {
+pub(crate) fn boundary_first(mesh: &TriMesh, boundary: &[u32]) -> (TriMesh, usize) {
     let mut order: Vec<u32> = boundary.to_vec();
     let mut placed = vec![false; mesh.positions.len()];
     for &v in boundary {

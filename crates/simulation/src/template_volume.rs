@@ -90,7 +90,9 @@ fn bed_section_volume_mm3(
 /// The implant's volume over the bed sections of the fill-in elements `fill_in`
 /// (element, corners as candidate indices into `feet`), in ml. A bed
 /// crossing lies on an edge that several fill-in elements share: its point and mollified
-/// thickness (the costly part) are computed once per edge, in parallel.
+/// thickness (the costly part) are computed once per edge, in parallel. The whole
+/// implant, without the fold's share: the template is scaled to insert it all
+/// (docs/dev/standing-frame.md).
 pub fn covered_volume_ml(
     fill_in: &[(u32, [u32; 4])],
     feet: &BedFeet,

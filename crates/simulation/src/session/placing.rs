@@ -3,8 +3,8 @@
 
 use super::*;
 
-/// What [`Simulation::fit_on`] found: bed, feet, pocket bounds, requested and fitted
-/// anchor, fold lowering (mm).
+/// What [`Simulation::fit_on`] found: bed, feet, pocket bounds (at the final fold
+/// lowering), requested and fitted anchor, fold lowering (mm).
 type FittedOn = (
     ImplantBed,
     BedFeet,
@@ -229,9 +229,10 @@ impl Simulation {
     }
 
     /// The skin vertices along the planned `fold` ([`PlacedImplant::fold_vertices`]): on
-    /// the skin, up to one finest spacing below the fold's height (standing frame), across the width of the template's vertices below the implant's middle,
-    /// and neither template vertices nor their neighbours (a held vertex next to one
-    /// pushed by the implant folds the element between them over).
+    /// the skin, up to one finest spacing below the fold's height (standing frame),
+    /// across the width of the template's vertices below the implant's middle, and
+    /// neither template vertices nor their neighbours (a held vertex next to one pushed
+    /// by the implant folds the element between them over).
     pub(super) fn fold_line(&self, fold: &FoldPlane, template: &ImplantTemplate) -> Vec<u32> {
         let local = |v: u32| self.frame.to_local(self.finest.positions[v as usize]);
         let pushed: Vec<DVec3> = template.pushed_vertices().map(|&(v, _)| local(v)).collect();
@@ -294,7 +295,8 @@ impl Simulation {
             let feet = choice.candidates.feet(&bed);
             (bed, feet)
         };
-        // the pocket as planned for this implant (it was built for the deepest fold)
+        // the pocket at the planned lowering (it was built for the deepest fold), for the
+        // default anchor, the limit errors and how far the fit leaves the fold
         let limits = choice
             .bounds
             .and(self.options.pocket)
@@ -338,13 +340,15 @@ impl Simulation {
         }
         .map_err(limit_error)?;
         // a lowering planned for the implant follows it where the fit moved it (the new
-        // fold lies at its lower edge); a given one holds
+        // fold lies at its lower edge), no deeper than the pocket was built; a given one
+        // holds
         let below_mm = bounds.map_or(0.0, |b| {
             b.floor_y_mm - lowest_footprint_y_mm(&bed, &anchor, shape, &self.frame)
         });
+        let deepest_mm = limits.map_or(0.0, |l| l.fold_lowering.deepest_mm());
         let fold_lowering_mm = match self.fold_rule(side, placement) {
             Some(FoldLowering::ForImplant) if bounds.is_some() => {
-                (fold_lowering_mm + below_mm).max(0.0)
+                (fold_lowering_mm + below_mm).clamp(0.0, deepest_mm)
             }
             Some(FoldLowering::Mm(_)) if below_mm > FLOOR_TOLERANCE_MM => {
                 return Err(SimulationError::PocketLimit {
