@@ -563,9 +563,9 @@ pub fn simulate(
     run_session(session, model_dir, out_dir, options, progress)
 }
 
-/// The share of an implant's volume beyond the finest mesh above which `simulate` warns
-/// (see [`ImplantSummary::covered_volume_ml`]).
-const UNCOVERED_WARNING_SHARE: f64 = 0.05;
+/// The share of an implant's volume the prediction may leave out (beyond the finest mesh,
+/// or not inserted by the template) before `simulate` warns ([`ImplantSummary::left_out`]).
+const LEFT_OUT_WARNING_SHARE: f64 = 0.05;
 
 /// Sets the implants of `options` on a prepared session, solves, and writes the
 /// simulation folder (`model_dir` is only reported).
@@ -622,7 +622,7 @@ pub fn run_session(
         if let Some(warning) = implants
             .get(side)
             .as_ref()
-            .and_then(ImplantSummary::uncovered)
+            .and_then(ImplantSummary::left_out)
         {
             progress.warn(&format!("{side} implant: {warning}"));
         }

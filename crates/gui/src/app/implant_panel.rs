@@ -142,7 +142,7 @@ impl GuiApp {
                     "{side}: {}, {:.0} ml{fold_note}{fit_note}",
                     placed.spec, placed.volume_ml
                 ));
-                if let Some(warning) = placed.uncovered() {
+                if let Some(warning) = placed.left_out() {
                     ui.colored_label(WARNING_COLOR, format!("{side}: {warning}"));
                 }
             }

@@ -72,19 +72,39 @@ pub struct ImplantSummary {
 }
 
 impl ImplantSummary {
-    /// What the prediction leaves out where more than 5% of the implant's volume lies
-    /// beyond the finest mesh ([`ImplantSummary::covered_volume_ml`]).
-    pub fn uncovered(&self) -> Option<String> {
+    /// What the prediction leaves out of the implant's volume, where more than 5% of it
+    /// is left out: the part beyond the finest mesh ([`ImplantSummary::covered_volume_ml`]),
+    /// and the part of the covered volume the template does not insert
+    /// ([`ImplantSummary::template_volume_ml`]: it is only ever scaled down, so on a bed
+    /// too flat to overshoot, the push cut at the planned fold is not made up).
+    pub fn left_out(&self) -> Option<String> {
+        let limit_ml = LEFT_OUT_WARNING_SHARE * self.volume_ml;
         let outside_ml = self.volume_ml - self.covered_volume_ml;
-        (outside_ml > UNCOVERED_WARNING_SHARE * self.volume_ml).then(|| {
+        let beyond = (outside_ml > limit_ml).then(|| {
             format!(
                 "{outside_ml:.0} of its {:.0} ml lie beyond the model's side, where the scan \
                  ends: the prediction leaves that part out (a narrower implant, a more medial \
                  position, or a scan that reaches further round the side would include it)",
                 self.volume_ml
             )
-        })
+        });
+        let short_ml = self.covered_volume_ml - self.template_volume_ml;
+        let short = (short_ml > limit_ml).then(|| {
+            format!(
+                "the tissue model takes up only {:.0} of the {:.0} ml the model covers: the \
+                 push ends at the planned fold and the bed under the implant is too flat to \
+                 make it up, so the breast will gain less than the implant (lowering the fold \
+                 a few millimetres more, --lower-fold-left/--lower-fold-right, takes the cut \
+                 off the implant)",
+                self.template_volume_ml, self.covered_volume_ml
+            )
+        });
+        match (beyond, short) {
+            (Some(a), Some(b)) => Some(format!("{a}; {b}")),
+            (a, b) => a.or(b),
+        }
     }
+
     /// The summary of an implant placed as `request` asked, `catalog_entry` the entry
     /// its spec names, if any.
     pub fn new(
@@ -306,5 +326,62 @@ impl NippleToFold {
             simulated_fold_lowering_mm: simulated_fold
                 .map(|p| frame.to_local(before.get(fold)).y - frame.to_local(p).y),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 222 ml implant of which `covered_ml` lie over the mesh and `template_ml` are
+    /// inserted by its template.
+    fn summary(covered_ml: f64, template_ml: f64) -> ImplantSummary {
+        let shape = ImplantShape::from(implant::RoundImplant::new(115.0, 38.0).unwrap());
+        ImplantSummary {
+            spec: "catalog:R-MOD-115".into(),
+            catalog_id: None,
+            family: None,
+            shape,
+            width_mm: 115.0,
+            height_mm: 115.0,
+            projection_mm: 38.0,
+            volume_ml: 222.0,
+            template_volume_ml: template_ml,
+            template_scale: 1.0,
+            covered_volume_ml: covered_ml,
+            rim_smoothing_mm: 14.0,
+            template_layer_mm: 7.0,
+            sliding_skin_vertices: 0,
+            move_mm: [0.0; 3],
+            rotation_deg: 0.0,
+            fit_shift_mm: [0.0; 2],
+            fold_lowering_mm: 0.0,
+            anchor_mm: [0.0; 3],
+        }
+    }
+
+    /// 5% of 222 ml is 11.1 ml: 11 ml left out either way is quiet, 12 ml is named,
+    /// each cause with its own figures, both together in one warning.
+    #[test]
+    fn a_prediction_that_leaves_out_a_twentieth_of_the_implant_says_which_part() {
+        assert_eq!(summary(222.0, 222.0).left_out(), None);
+        assert_eq!(summary(211.0, 211.0).left_out(), None);
+        assert_eq!(summary(222.0, 211.0).left_out(), None);
+        let beyond = summary(210.0, 210.0).left_out().unwrap();
+        assert!(
+            beyond.starts_with("12 of its 222 ml lie beyond"),
+            "{beyond}"
+        );
+        assert!(!beyond.contains("planned fold"), "{beyond}");
+        let short = summary(222.0, 210.0).left_out().unwrap();
+        assert!(
+            short.starts_with("the tissue model takes up only 210 of the 222 ml"),
+            "{short}"
+        );
+        let both = summary(210.0, 190.0).left_out().unwrap();
+        assert!(
+            both.contains("12 of its 222 ml") && both.contains("only 190 of the 210 ml"),
+            "{both}"
+        );
     }
 }
