@@ -563,8 +563,9 @@ pub fn simulate(
     run_session(session, model_dir, out_dir, options, progress)
 }
 
-/// The share of an implant's volume the prediction may leave out (beyond the finest mesh,
-/// or not inserted by the template) before `simulate` warns ([`ImplantSummary::left_out`]).
+/// The share of an implant's volume the prediction may leave out by each cause (beyond
+/// the finest mesh; not inserted by the template) before `simulate` warns of that cause
+/// ([`ImplantSummary::left_out`]).
 const LEFT_OUT_WARNING_SHARE: f64 = 0.05;
 
 /// Sets the implants of `options` on a prepared session, solves, and writes the

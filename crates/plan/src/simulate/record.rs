@@ -91,11 +91,10 @@ impl ImplantSummary {
         let short_ml = self.covered_volume_ml - self.template_volume_ml;
         let short = (short_ml > limit_ml).then(|| {
             format!(
-                "the tissue model takes up only {:.0} of the {:.0} ml the model covers: the \
-                 push ends at the planned fold and the bed under the implant is too flat to \
-                 make it up, so the breast will gain less than the implant (lowering the fold \
-                 a few millimetres more, --lower-fold-left/--lower-fold-right, takes the cut \
-                 off the implant)",
+                "its displacement template inserts only {:.0} of the {:.0} ml the model \
+                 covers: the push ends at the planned fold, and the bed under the implant is \
+                 too flat to make that up, so the prediction understates the breast's gain by \
+                 about the difference",
                 self.template_volume_ml, self.covered_volume_ml
             )
         });
@@ -360,13 +359,16 @@ mod tests {
         }
     }
 
-    /// 5% of 222 ml is 11.1 ml: 11 ml left out either way is quiet, 12 ml is named,
-    /// each cause with its own figures, both together in one warning.
+    /// 5% of 222 ml is 11.1 ml: 11 ml left out by either cause is quiet, 12 ml is
+    /// named, each cause with its own figures, both together in one warning.
     #[test]
     fn a_prediction_that_leaves_out_a_twentieth_of_the_implant_says_which_part() {
         assert_eq!(summary(222.0, 222.0).left_out(), None);
         assert_eq!(summary(211.0, 211.0).left_out(), None);
         assert_eq!(summary(222.0, 211.0).left_out(), None);
+        // the bound is a share of the implant, not of the covered part: 11 ml is over 5% of
+        // 212 ml (10.6) but not of 222
+        assert_eq!(summary(212.0, 201.0).left_out(), None);
         let beyond = summary(210.0, 210.0).left_out().unwrap();
         assert!(
             beyond.starts_with("12 of its 222 ml lie beyond"),
@@ -375,7 +377,7 @@ mod tests {
         assert!(!beyond.contains("planned fold"), "{beyond}");
         let short = summary(222.0, 210.0).left_out().unwrap();
         assert!(
-            short.starts_with("the tissue model takes up only 210 of the 222 ml"),
+            short.starts_with("its displacement template inserts only 210 of the 222 ml"),
             "{short}"
         );
         let both = summary(210.0, 190.0).left_out().unwrap();

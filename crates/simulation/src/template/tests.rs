@@ -231,7 +231,8 @@ fn sliding_skin_moves_the_same_vertices_by_the_same_amount() {
 /// 4 mm over it is pushed by `3t² - 2t³` (t = 4/6, computed here) of its push without the
 /// fold; the rows from 6 mm up are pushed as without the fold. Each along the same
 /// normal: displacements agree to 1e-12 mm once each template's volume scale is
-/// divided out.
+/// divided out. Unscaled over this flat bed, the cut template inserts less than the
+/// covered volume (by more than the 5% `simulate` warns at).
 #[test]
 fn the_push_ends_smoothly_at_the_planned_fold() {
     let (mesh, ..) = slab();
@@ -250,6 +251,19 @@ fn the_push_ends_smoothly_at_the_planned_fold() {
             .collect()
     };
     let (all, over) = (unscaled(&unbounded), unscaled(&bounded));
+    // Over a flat bed the template is not scaled up: what the fold cuts off is missing
+    // from what it inserts (the shortfall `simulate` warns of past 5% of the implant).
+    println!(
+        "over the fold: scale {}, inserts {:.4} of {:.4} ml covered",
+        bounded.scale, bounded.template_volume_ml, bounded.covered_volume_ml
+    );
+    assert!(
+        bounded.scale == 1.0 && bounded.template_volume_ml < 0.95 * bounded.covered_volume_ml,
+        "scale {}, {} of {} ml",
+        bounded.scale,
+        bounded.template_volume_ml,
+        bounded.covered_volume_ml
+    );
     assert!(all.iter().any(|&(v, _)| height(v) < 0.0));
     assert!(all.iter().any(|&(v, _)| height(v) == 4.0));
     let t: f64 = 4.0 / 6.0;
