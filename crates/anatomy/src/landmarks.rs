@@ -203,8 +203,11 @@ impl std::fmt::Display for SnapWarning {
 
 /// Landmarks farther than this from the surface are rejected (mm).
 pub const MAX_SNAP_DISTANCE_MM: f64 = 5.0;
-/// Landmarks closer than this are considered on the surface and left alone (mm).
+/// Landmarks closer than this are snapped without a warning (mm).
 const ON_SURFACE_TOLERANCE_MM: f64 = 1e-3;
+/// A point this close to the surface (mm) lies on it: what is left is rounding, not a
+/// distance to snap, so points the tool wrote keep their coordinates when read back.
+pub const ON_SURFACE_MM: f64 = 1e-6;
 
 impl Landmarks {
     /// Reads a landmark file. Unknown keys are ignored; `units`, if given, must be `"mm"`.

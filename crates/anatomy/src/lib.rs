@@ -25,5 +25,6 @@ pub use closed_surface::{
 pub use fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
 pub use frame::{AnatomicalFrame, FrameError, SideError, Up, UpSource};
 pub use landmarks::{
-    LandmarkError, LandmarkName, Landmarks, NamedPoints, PartialLandmarks, SnapWarning,
+    LandmarkError, LandmarkName, Landmarks, NamedPoints, ON_SURFACE_MM, PartialLandmarks,
+    SnapWarning,
 };

@@ -3,7 +3,7 @@
 //! No egui here; the surface queries go through `mesh` and the files through `plan` and
 //! `anatomy`.
 
-use anatomy::{LandmarkName, Landmarks, PartialLandmarks, Up};
+use anatomy::{LandmarkName, Landmarks, ON_SURFACE_MM, PartialLandmarks, Up};
 use anyhow::{Context, Result, bail};
 use glam::DVec3;
 use mesh::SurfaceIndex;
@@ -11,9 +11,6 @@ use plan::case::{PlanningCase, ScanSource};
 use plan::{MarkedScan, PhantomParams, Scan, Silent};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-/// A saved point this close to the surface counts as on it (mm).
-const ON_SURFACE_MM: f64 = 1e-6;
 
 /// A scan with the landmarks placed on it so far.
 pub struct Document {

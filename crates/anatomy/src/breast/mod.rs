@@ -39,7 +39,7 @@ pub use spline::{ClosedSpline, MIN_CONTROL_POINT_SPACING_MM, SplineError};
 
 use crate::fill_in::{FillIn, FillInError, FillInParams, fill_hole, stitch};
 use crate::frame::AnatomicalFrame;
-use crate::landmarks::{LandmarkName, Landmarks, MAX_SNAP_DISTANCE_MM};
+use crate::landmarks::{LandmarkName, Landmarks, MAX_SNAP_DISTANCE_MM, ON_SURFACE_MM};
 use crate::measure::{MeasuredSurface, mean_normal_near};
 use crate::place::Place;
 use crate::scan_holes::{ClosedHole, ClosedScan, OpenHole, close_scan_holes, loop_length};
@@ -678,10 +678,6 @@ fn check_options(options: &BreastOptions) -> Result<(), BreastError> {
     Ok(())
 }
 
-/// A control point this close to the surface (mm, or a thousand rounding steps of its
-/// coordinates if more) is on it: rounding, not a distance to snap.
-const ON_SURFACE_MM: f64 = 1e-9;
-
 /// Closest-point steps a control point takes at most until it finds itself on the
 /// surface (one almost always).
 const MAX_SNAP_STEPS: usize = 3;
@@ -715,8 +711,7 @@ pub fn cut_curve(
         // control_points.json then rebuilds the same curve
         let (mut kept, mut found) = (point, closest);
         for _ in 0..MAX_SNAP_STEPS {
-            let rounding_mm = 1e3 * f64::EPSILON * kept.abs().max_element();
-            if found.distance <= ON_SURFACE_MM.max(rounding_mm) {
+            if found.distance <= ON_SURFACE_MM {
                 break;
             }
             kept = found.point;
