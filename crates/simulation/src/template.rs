@@ -500,20 +500,29 @@ pub struct TemplateRules<'a> {
     pub fold: FoldPlane,
 }
 
+/// The least width of the fold's taper as a multiple of the thickness it lays off: the
+/// smooth step's steepest slope is 1.5 over its width, so the push rises by at most 1.5
+/// mm per mm of height. Over `taper_mm` alone (1.5 spacings) an implant 11-16 mm thick
+/// at the plane rose by up to 2.3 per mm, and an element across the rise turned over on
+/// landmark-jittered bodies; 0.8 was the least that turned none there
+/// (docs/dev/standing-frame.md).
+pub const TAPER_PER_THICKNESS: f64 = 1.0;
+
 /// The planned fold as a horizontal plane of the standing frame. The pocket ends there
 /// and the fold's attachment holds the skin, so no part of the implant, its mollified rim
 /// included (which reaches up to its radius beyond the outline), pushes tissue over bed
 /// points below it; over the plane the push rises smoothly to the implant's thickness
-/// within `taper_mm`. (Where the bed normal leans down, a pushed vertex in front of the
-/// bed can lie a little below the plane while its foot lies above it.)
+/// within `taper_mm` or [`TAPER_PER_THICKNESS`] times that thickness, whichever is
+/// wider. (Where the bed normal leans down, a pushed vertex in front of the bed can lie
+/// a little below the plane while its foot lies above it.)
 #[derive(Debug, Clone, Copy)]
 pub struct FoldPlane {
     /// A point at the planned fold's height (file frame, mm).
     pub point: DVec3,
     /// Up, against gravity (file frame, unit).
     pub up: DVec3,
-    /// Height over the plane from which the full thickness is laid off (mm, positive;
-    /// the session's is `FOLD_TAPER`).
+    /// Least height over the plane from which the full thickness is laid off (mm,
+    /// positive; the session's is `FOLD_TAPER`).
     pub taper_mm: f64,
 }
 
@@ -523,14 +532,17 @@ impl FoldPlane {
         (p - self.point).dot(self.up)
     }
 
-    /// The share of the implant's thickness laid off over the bed point `p` (file frame): 0
-    /// below the plane, 1 from `taper_mm` over it, `3t² - 2t³` between (`t` the height
-    /// over `taper_mm`). Taken at the foot on the bed, so that it is the same all along
-    /// the bed normal: the prescribed map stays a function of the bed point alone, as
-    /// the paper's is, which as a continuous map folds nothing over.
-    pub fn share(&self, p: DVec3) -> f64 {
-        let t = (self.height_mm(p) / self.taper_mm).clamp(0.0, 1.0);
-        t * t * (3.0 - 2.0 * t)
+    /// The thickness laid off over the bed point `p` (file frame) where the implant is
+    /// `thickness_mm` thick (mm): none below the plane, all from the taper's width `w`
+    /// over it, `3t² - 2t³` of it between (`t` the height over `w`; `w` the wider of
+    /// `taper_mm` and [`TAPER_PER_THICKNESS`] times `thickness_mm`). Taken at the foot
+    /// on the bed, so that it is the same all along the bed normal: the prescribed map
+    /// stays a function of the bed point alone, as the paper's is, which as a continuous
+    /// map folds nothing over.
+    pub fn laid_off_mm(&self, p: DVec3, thickness_mm: f64) -> f64 {
+        let width_mm = self.taper_mm.max(TAPER_PER_THICKNESS * thickness_mm);
+        let t = (self.height_mm(p) / width_mm).clamp(0.0, 1.0);
+        t * t * (3.0 - 2.0 * t) * thickness_mm
     }
 }
 
@@ -729,17 +741,17 @@ fn classify(
 }
 
 /// The thickness the template lays off along the bed's normal at `foot` (mm): the
-/// implant's mollified `thickness` anchored at `anchor`, times its share over the
-/// `fold` taken at the foot itself, so that it is the same all along the normal.
+/// implant's mollified `thickness` anchored at `anchor`, as much of it as the `fold`
+/// lets off at the foot itself ([`FoldPlane::laid_off_mm`]), so that it is the same all
+/// along the normal.
 pub fn laid_thickness_mm(
     thickness: &SmoothedThickness,
     fold: &FoldPlane,
     anchor: &Anchor,
     foot: &Foot,
 ) -> f64 {
-    let share = fold.share(foot.position);
-    if share > 0.0 {
-        share * thickness.at(anchor.local(foot.uv))
+    if fold.height_mm(foot.position) > 0.0 {
+        fold.laid_off_mm(foot.position, thickness.at(anchor.local(foot.uv)))
     } else {
         0.0
     }

@@ -62,8 +62,10 @@ pub const DEFAULT_RIM_SMOOTHING: ResolvedLength = ResolvedLength {
     min_spacings: 2.0,
 };
 
-/// Height over the planned fold from which the implant's full thickness is laid off
-/// ([`crate::template::FoldPlane`]). The smooth step's steepest slope is 1.5 over its
+/// Least height over the planned fold from which the implant's full thickness is laid
+/// off ([`crate::template::FoldPlane`], which widens it to
+/// [`crate::template::TAPER_PER_THICKNESS`] times a greater thickness). The smooth
+/// step's steepest slope is 1.5 over its
 /// width, so 1.5 spacings make it no steeper than a linear ramp over one element; 10.5
 /// mm is 1.5 spacings of the default mesh on the largest of our bodies. Steeper steps
 /// left the skin under the held fold converging slowly or turned elements over, a

@@ -227,9 +227,10 @@ fn sliding_skin_moves_the_same_vertices_by_the_same_amount() {
 }
 
 /// The pocket ends at the planned fold. With the fold 10 mm below the implant's centre
-/// (its radius is 25 mm) and a 6 mm taper, no vertex under the fold is pushed; the row
-/// 4 mm over it is pushed by `3t² - 2t³` (t = 4/6, computed here) of its push without the
-/// fold; the rows from 6 mm up are pushed as without the fold. Each along the same
+/// (its radius is 25 mm) and a 6 mm taper, no vertex under the fold is pushed; a row
+/// `h` over it is pushed by `3t² - 2t³` of its push without the fold (`t = h / w`,
+/// computed here, `w` the wider of 6 mm and the thickness there, its push's length
+/// without the fold), and a row from `w` up as without the fold. Each along the same
 /// normal: displacements agree to 1e-12 mm once each template's volume scale is
 /// divided out. Unscaled over this flat bed, the cut template inserts less than the
 /// covered volume (by more than the 5% `simulate` warns at).
@@ -265,19 +266,24 @@ fn the_push_ends_smoothly_at_the_planned_fold() {
         bounded.covered_volume_ml
     );
     assert!(all.iter().any(|&(v, _)| height(v) < 0.0));
-    assert!(all.iter().any(|&(v, _)| height(v) == 4.0));
-    let t: f64 = 4.0 / 6.0;
+    let (mut widened, mut whole) = (0, 0);
     let expected: Vec<(u32, DVec3)> = (all.into_iter())
         .filter(|&(v, _)| height(v) > 0.0)
         .map(|(v, d)| {
-            let share = if height(v) < 6.0 {
+            let width_mm = SQUARE_MM.max(d.length());
+            let share = if height(v) < width_mm {
+                widened += usize::from(width_mm > SQUARE_MM);
+                let t = height(v) / width_mm;
                 3.0 * t * t - 2.0 * t * t * t
             } else {
+                whole += 1;
                 1.0
             };
             (v, d * share)
         })
         .collect();
+    // some rows' taper widened by a thickness past 6 mm, some rows pushed whole
+    assert!(widened > 0 && whole > 0, "{widened} widened, {whole} whole");
     assert_eq!(over.len(), expected.len());
     for ((v, d), (w, e)) in over.iter().zip(&expected) {
         assert_eq!(v, w);
