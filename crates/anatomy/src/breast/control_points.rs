@@ -38,11 +38,61 @@ pub const DEFAULT_CONTROL_POINT_ROLES: [&str; 6] = [
 ];
 
 /// Least drop of the fold's medial end PSMFm below the nipple, as a fraction of the fold's
-/// lowest point's (PSMF's) drop, before [`ControlPoints::landmark_doubts`] names it: on
-/// the breasts of the fifteen shared scans it is 0.44-0.74, except s01's left, -0.01 (its
-/// PSMFml at the nipple's height turns that body's left/right order of volume against
-/// the body model's; docs/dev/model-on-every-body.md).
+/// lowest point's (PSMF's) drop (along the sternal frame's up), before
+/// [`ControlPoints::landmark_doubts`] names it and the default curve takes the other
+/// side's fraction instead ([`MedialFoldEnds`]): on the breasts of the fifteen shared
+/// scans it is 0.44-0.74 in the file's vertical, except s01's left, -0.01.
 const MIN_MEDIAL_FOLD_DROP: f64 = 0.25;
+
+/// Where each side's default curve takes the fold's medial end from. A fold whose medial
+/// part rises steeply to the nipple's height (a U-shaped fold) has no one medial end:
+/// PSMFm marked anywhere on that arm is on the fold, and one marked near the nipple's
+/// height swings the curve's lower inner border and its medial point up and out, across
+/// the lower inner quadrant (docs/dev/model-on-every-body.md, sessions 50-51). Such a
+/// PSMFm (less than [`MIN_MEDIAL_FOLD_DROP`] of PSMF's drop below the nipple) is taken
+/// on the skin straight below it, at the other side's fraction of the drop, when the
+/// other side's PSMFm is not itself doubted; the landmark itself is left as marked.
+struct MedialFoldEnds {
+    /// Per side (left, right): the fold's medial end the default curve starts from.
+    ends: [DVec3; 2],
+    /// Per side: PSMFm's drop below the nipple as a fraction of PSMF's, and whether it
+    /// is doubted; `None` where PSMF does not lie below the nipple.
+    fractions: [Option<(f64, bool)>; 2],
+}
+
+impl MedialFoldEnds {
+    fn new(
+        surface: Option<&MeasuredSurface<'_>>,
+        frame: &AnatomicalFrame,
+        landmarks: &Landmarks,
+    ) -> MedialFoldEnds {
+        let up = frame.sternal().up();
+        let drops = Side::BOTH.map(|side| {
+            let names = side.landmark_names();
+            let drop = |name| (landmarks.get(names.nipple) - landmarks.get(name)).dot(up);
+            (drop(names.fold_medial), drop(names.fold_lowest))
+        });
+        let fractions = drops.map(|(medial_mm, lowest_mm)| {
+            (lowest_mm > 0.0).then(|| {
+                let fraction = medial_mm / lowest_mm;
+                (fraction, fraction < MIN_MEDIAL_FOLD_DROP)
+            })
+        });
+        let ends = Side::BOTH.map(|side| {
+            let here = side as usize;
+            let marked = landmarks.get(side.landmark_names().fold_medial);
+            let (Some(surface), Some((_, true)), Some((other, false))) =
+                (surface, fractions[here], fractions[1 - here])
+            else {
+                return marked;
+            };
+            let (medial_mm, lowest_mm) = drops[here];
+            let lowered = marked - up * (other * lowest_mm - medial_mm);
+            surface.index.closest_point(lowered).point
+        });
+        MedialFoldEnds { ends, fractions }
+    }
+}
 
 /// Cut-curve control points of both breasts (mm, file frame), in order around each.
 #[derive(Debug, Clone, PartialEq)]
@@ -62,29 +112,41 @@ impl ControlPoints {
 
     /// Landmarks the default control points rest on that look misplaced, one sentence
     /// each for the user: a fold's medial end PSMFm that lies less than
-    /// [`MIN_MEDIAL_FOLD_DROP`] of PSMF's drop below the nipple (along the frame's up).
-    /// The curve's lower inner border runs below PSMFm, so a PSMFm marked near the
-    /// nipple's height cuts off the breast's lower inner quadrant.
+    /// [`MIN_MEDIAL_FOLD_DROP`] of PSMF's drop below the nipple (along the sternal
+    /// frame's up; the millimetres in the message along `frame`'s). The curve's lower
+    /// inner border runs below PSMFm, so a PSMFm marked near the nipple's height would cut
+    /// off the breast's lower inner quadrant; the message says whether the default curve
+    /// takes the other side's depth instead ([`MedialFoldEnds`]).
     pub fn landmark_doubts(frame: &AnatomicalFrame, landmarks: &Landmarks) -> Vec<String> {
         let up = frame.up();
+        let fractions = MedialFoldEnds::new(None, frame, landmarks).fractions;
         Side::BOTH
             .into_iter()
-            .filter_map(|side| {
+            .filter(|&side| matches!(fractions[side as usize], Some((_, true))))
+            .map(|side| {
                 let names = side.landmark_names();
                 let drop = |name| (landmarks.get(names.nipple) - landmarks.get(name)).dot(up);
                 let (medial_mm, lowest_mm) = (drop(names.fold_medial), drop(names.fold_lowest));
-                (lowest_mm > 0.0 && medial_mm < MIN_MEDIAL_FOLD_DROP * lowest_mm).then(|| {
-                    format!(
-                        "{side} breast: the fold's medial end {} lies {:.0} mm {} the nipple, \
-                         while the fold's lowest point {} lies {lowest_mm:.0} mm below it; the \
-                         cut curve's lower inner border runs below {0}, so the lower inner \
-                         quadrant may be cut off: check where {0} is marked",
-                        names.fold_medial.as_str(),
-                        medial_mm.abs(),
-                        if medial_mm >= 0.0 { "below" } else { "above" },
-                        names.fold_lowest.as_str(),
-                    )
-                })
+                let medial = names.fold_medial.as_str();
+                let remedy = match fractions[side.opposite() as usize] {
+                    Some((_, false)) => format!(
+                        "the default cut curve takes the fold's medial end on the skin below \
+                         {medial}, as far below the nipple for the fold's depth as {}: check \
+                         where {medial} is marked, or move the curve's control points",
+                        side.opposite().landmark_names().fold_medial.as_str(),
+                    ),
+                    _ => format!(
+                        "the cut curve's lower inner border runs below {medial}, so the lower \
+                         inner quadrant may be cut off: check where {medial} is marked"
+                    ),
+                };
+                format!(
+                    "{side} breast: the fold's medial end {medial} lies {:.0} mm {} the nipple, \
+                     while the fold's lowest point {} lies {lowest_mm:.0} mm below it; {remedy}",
+                    medial_mm.abs(),
+                    if medial_mm >= 0.0 { "below" } else { "above" },
+                    names.fold_lowest.as_str(),
+                )
             })
             .collect()
     }
@@ -112,9 +174,11 @@ impl ControlPoints {
         if !(pc_ratio > 0.0 && pc_ratio < 1.0) {
             return Err(BreastError::InvalidPcRatio(pc_ratio));
         }
+        let medial_ends = MedialFoldEnds::new(Some(surface), frame, landmarks).ends;
         let side_points = |side: Side| -> Result<Vec<DVec3>, BreastError> {
             let names = side.landmark_names();
             let at = |name: crate::LandmarkName| landmarks.get(name);
+            let medial_end = medial_ends[side as usize];
             let clavicle_to_nipple =
                 section_path(surface, frame, at(names.clavicle), at(names.nipple)).map_err(
                     |source| BreastError::Section {
@@ -136,19 +200,19 @@ impl ControlPoints {
             };
             // The nearest surface point, not the one seen from the front: under a
             // hanging breast a ray from the front meets the lower pole, not the chest.
-            let below_fold = |name| {
+            let below_fold = |point: DVec3| {
                 surface
                     .index
-                    .closest_point(at(name) - frame.up() * FOLD_CLEARANCE_MM)
+                    .closest_point(point - frame.up() * FOLD_CLEARANCE_MM)
                     .point
             };
             Ok(vec![
-                below_fold(names.fold_medial),
-                below_fold(names.fold_lowest),
+                below_fold(medial_end),
+                below_fold(at(names.fold_lowest)),
                 at(names.fold_lateral),
                 around.between(upper, at(names.fold_lateral), lateral_direction),
                 upper,
-                around.between(upper, at(names.fold_medial), -lateral_direction),
+                around.between(upper, medial_end, -lateral_direction),
             ])
         };
         Ok(ControlPoints {
@@ -471,6 +535,83 @@ mod tests {
         assert!(
             doubts[0].starts_with("left breast")
                 && doubts[0].contains("PSMFml lies 1 mm above the nipple"),
+            "{doubts:?}"
+        );
+    }
+
+    /// Landmarks over a flat chest (z = 0): nipples 0 mm high, PSMF 60 mm below them, the
+    /// right's PSMFm 30 mm below (half the fold's drop) and the left's at `left_medial_y`.
+    fn folds_with_left_medial_end_at(left_medial_y: f64) -> Landmarks {
+        use crate::landmarks::LandmarkName::*;
+        Landmarks::new(|name| match name {
+            Pnl => DVec3::new(90.0, 0.0, 0.0),
+            Pnr => DVec3::new(-90.0, 0.0, 0.0),
+            PSMFl => DVec3::new(90.0, -60.0, 0.0),
+            PSMFr => DVec3::new(-90.0, -60.0, 0.0),
+            PSMFml => DVec3::new(35.0, left_medial_y, 0.0),
+            PSMFmr => DVec3::new(-35.0, -30.0, 0.0),
+            _ => DVec3::ZERO,
+        })
+    }
+
+    /// The default curves' medial fold ends over a flat chest (z = 0) in the file frame.
+    fn medial_ends_over_flat_chest(landmarks: &Landmarks) -> [DVec3; 2] {
+        let mesh = chest(|_, _| 0.0);
+        let topology = Topology::new(&mesh);
+        let index = SurfaceIndex::new(&mesh).unwrap();
+        let surface = MeasuredSurface {
+            mesh: &mesh,
+            topology: &topology,
+            index: &index,
+        };
+        MedialFoldEnds::new(Some(&surface), &file_frame(), landmarks).ends
+    }
+
+    /// A PSMFml at the nipple's height is taken, on a flat chest, exactly where the right
+    /// side's fraction of the drop (30 of 60 mm) puts it: (35, -30, 0) mm; the right's,
+    /// not doubted, stays as marked. With the left's at 40% of the drop nothing moves.
+    #[test]
+    fn a_doubted_medial_fold_end_takes_the_other_sides_depth() {
+        let frame = file_frame();
+        let doubted = folds_with_left_medial_end_at(1.0);
+        let ends = medial_ends_over_flat_chest(&doubted);
+        assert!(
+            ends[0].distance(DVec3::new(35.0, -30.0, 0.0)) < 1e-9,
+            "{}",
+            ends[0]
+        );
+        assert_eq!(ends[1], DVec3::new(-35.0, -30.0, 0.0));
+        let usual = folds_with_left_medial_end_at(-24.0);
+        let ends = medial_ends_over_flat_chest(&usual);
+        assert_eq!(
+            ends,
+            [DVec3::new(35.0, -24.0, 0.0), DVec3::new(-35.0, -30.0, 0.0)]
+        );
+        let doubts = ControlPoints::landmark_doubts(&frame, &doubted);
+        assert_eq!(doubts.len(), 1, "{doubts:?}");
+        assert!(doubts[0].contains("as far below the nipple for the fold's depth as PSMFmr"));
+    }
+
+    /// Both medial fold ends doubted: neither side has a depth to lend, both stay as
+    /// marked and both are named.
+    #[test]
+    fn two_doubted_medial_fold_ends_stay_as_marked() {
+        use crate::landmarks::LandmarkName::*;
+        let frame = file_frame();
+        let base = folds_with_left_medial_end_at(1.0);
+        let landmarks = Landmarks::new(|name| match name {
+            PSMFmr => DVec3::new(-35.0, -5.0, 0.0),
+            other => base.get(other),
+        });
+        let ends = medial_ends_over_flat_chest(&landmarks);
+        assert_eq!(
+            ends,
+            [DVec3::new(35.0, 1.0, 0.0), DVec3::new(-35.0, -5.0, 0.0)]
+        );
+        let doubts = ControlPoints::landmark_doubts(&frame, &landmarks);
+        assert_eq!(doubts.len(), 2, "{doubts:?}");
+        assert!(
+            doubts.iter().all(|d| d.contains("may be cut off")),
             "{doubts:?}"
         );
     }
