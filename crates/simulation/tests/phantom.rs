@@ -375,6 +375,10 @@ fn a_larger_implant_gives_a_larger_breast() {
     assert!(v[1].volume_ml > v[0].volume_ml);
 }
 
+/// The implant's added weight moves the nipple down by more than 0.25 mm, about ten
+/// times the skin's distance from its equilibrium at the default tolerance (0.03 mm,
+/// docs/dev/standing-frame.md): 0.42 mm on the phantom with the nearly incompressible
+/// implant, 0.77 mm when the implant's Poisson ratio was 0.3.
 #[test]
 fn gravity_correction_moves_the_nipple_down() {
     let p = common::phantom();
@@ -404,7 +408,7 @@ fn gravity_correction_moves_the_nipple_down() {
         gravity.relative_residual,
         sim.inverted_elements().len()
     );
-    assert!(drop < -0.5, "the nipple moved {drop} mm vertically");
+    assert!(drop < -0.25, "the nipple moved {drop} mm vertically");
 }
 
 #[test]

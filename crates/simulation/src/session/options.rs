@@ -21,6 +21,14 @@ const _: () = assert!(STERNUM_HALF_WIDTH_MM == 10.0);
 /// prescribed).
 pub const DEFAULT_IMPLANT_YOUNG_RATIO: f64 = 0.01;
 
+/// Default Poisson ratio of implant elements. The paper asks only for a very soft
+/// modulus; an implant's gel or saline fill is nearly incompressible (finite-element
+/// studies of implants take 0.45-0.49), so the implant keeps its volume while it sags.
+/// At 0.3 the gravity stage's linear answer squeezed elements along the implant's edge
+/// until they turned over on two landmark-jittered bodies (docs/dev/model-on-every-body.md,
+/// session 52).
+pub const DEFAULT_IMPLANT_POISSON_RATIO: f64 = 0.49;
+
 /// Default inversion barrier of the finest level: elements squeezed below half their
 /// volume resist with a modulus of 100 kPa (about forty times the tissue's Young's
 /// modulus), the soft implant elements too, and any stiffer element with forty times its
@@ -311,7 +319,7 @@ impl Default for SimulationOptions {
             tissue: Material::default(),
             skin: Some(SkinLayer::default()),
             implant_young_ratio: DEFAULT_IMPLANT_YOUNG_RATIO,
-            implant_poisson_ratio: 0.3,
+            implant_poisson_ratio: DEFAULT_IMPLANT_POISSON_RATIO,
             implant_density_kg_m3: DEFAULT_IMPLANT_DENSITY_KG_M3,
             gravity_m_s2: fem::STANDARD_GRAVITY_M_S2,
             multigrid: MultigridOptions::default(),
