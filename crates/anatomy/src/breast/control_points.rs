@@ -49,15 +49,19 @@ const MIN_MEDIAL_FOLD_DROP: f64 = 0.25;
 /// PSMFm marked anywhere on that arm is on the fold, and one marked near the nipple's
 /// height swings the curve's lower inner border and its medial point up and out, across
 /// the lower inner quadrant (docs/dev/model-on-every-body.md, sessions 50-51). Such a
-/// PSMFm (less than [`MIN_MEDIAL_FOLD_DROP`] of PSMF's drop below the nipple) is taken
-/// on the skin straight below it, at the other side's fraction of the drop, when the
-/// other side's PSMFm is not itself doubted; the landmark itself is left as marked.
+/// PSMFm (less than [`MIN_MEDIAL_FOLD_DROP`] of PSMF's drop below the nipple) on that
+/// arm, nearer the midline than the nipple, is taken on the skin straight below it, at
+/// the other side's fraction of the drop, when the other side's PSMFm is not itself
+/// doubted; the landmark itself is left as marked. One lateral of the nipple is not on
+/// the medial arm but misplaced (PSMFm and PSMFl swapped, say), and stays as marked.
 struct MedialFoldEnds {
     /// Per side (left, right): the fold's medial end the default curve starts from.
     ends: [DVec3; 2],
     /// Per side: PSMFm's drop below the nipple as a fraction of PSMF's, and whether it
     /// is doubted; `None` where PSMF does not lie below the nipple.
     fractions: [Option<(f64, bool)>; 2],
+    /// Per side: whether the end takes the other side's fraction.
+    lent: [bool; 2],
 }
 
 impl MedialFoldEnds {
@@ -78,19 +82,34 @@ impl MedialFoldEnds {
                 (fraction, fraction < MIN_MEDIAL_FOLD_DROP)
             })
         });
+        let from_midline_mm = |p: DVec3| frame.sternal().to_local(p).x.abs();
+        let lent_fraction = |side: Side| {
+            let names = side.landmark_names();
+            let medial_arm = from_midline_mm(landmarks.get(names.fold_medial))
+                < from_midline_mm(landmarks.get(names.nipple));
+            match (
+                fractions[side as usize],
+                fractions[side.opposite() as usize],
+            ) {
+                (Some((_, true)), Some((other, false))) if medial_arm => Some(other),
+                _ => None,
+            }
+        };
+        let lent = Side::BOTH.map(|side| lent_fraction(side).is_some());
         let ends = Side::BOTH.map(|side| {
-            let here = side as usize;
             let marked = landmarks.get(side.landmark_names().fold_medial);
-            let (Some(surface), Some((_, true)), Some((other, false))) =
-                (surface, fractions[here], fractions[1 - here])
-            else {
+            let (Some(surface), Some(other)) = (surface, lent_fraction(side)) else {
                 return marked;
             };
-            let (medial_mm, lowest_mm) = drops[here];
+            let (medial_mm, lowest_mm) = drops[side as usize];
             let lowered = marked - up * (other * lowest_mm - medial_mm);
             surface.index.closest_point(lowered).point
         });
-        MedialFoldEnds { ends, fractions }
+        MedialFoldEnds {
+            ends,
+            fractions,
+            lent,
+        }
     }
 }
 
@@ -119,7 +138,9 @@ impl ControlPoints {
     /// takes the other side's depth instead ([`MedialFoldEnds`]).
     pub fn landmark_doubts(frame: &AnatomicalFrame, landmarks: &Landmarks) -> Vec<String> {
         let up = frame.up();
-        let fractions = MedialFoldEnds::new(None, frame, landmarks).fractions;
+        let MedialFoldEnds {
+            fractions, lent, ..
+        } = MedialFoldEnds::new(None, frame, landmarks);
         Side::BOTH
             .into_iter()
             .filter(|&side| matches!(fractions[side as usize], Some((_, true))))
@@ -128,17 +149,18 @@ impl ControlPoints {
                 let drop = |name| (landmarks.get(names.nipple) - landmarks.get(name)).dot(up);
                 let (medial_mm, lowest_mm) = (drop(names.fold_medial), drop(names.fold_lowest));
                 let medial = names.fold_medial.as_str();
-                let remedy = match fractions[side.opposite() as usize] {
-                    Some((_, false)) => format!(
+                let remedy = if lent[side as usize] {
+                    format!(
                         "the default cut curve takes the fold's medial end on the skin below \
                          {medial}, as far below the nipple for the fold's depth as {}: check \
                          where {medial} is marked, or move the curve's control points",
                         side.opposite().landmark_names().fold_medial.as_str(),
-                    ),
-                    _ => format!(
+                    )
+                } else {
+                    format!(
                         "the cut curve's lower inner border runs below {medial}, so the lower \
                          inner quadrant may be cut off: check where {medial} is marked"
-                    ),
+                    )
                 };
                 format!(
                     "{side} breast: the fold's medial end {medial} lies {:.0} mm {} the nipple, \
@@ -590,6 +612,27 @@ mod tests {
         let doubts = ControlPoints::landmark_doubts(&frame, &doubted);
         assert_eq!(doubts.len(), 1, "{doubts:?}");
         assert!(doubts[0].contains("as far below the nipple for the fold's depth as PSMFmr"));
+    }
+
+    /// A doubted PSMFml lateral of the nipple (120 mm from the midline, the nipple 90) is
+    /// not on the fold's medial arm but misplaced: it stays as marked, and the warning
+    /// asks where it is marked.
+    #[test]
+    fn a_doubted_medial_fold_end_lateral_of_the_nipple_stays_as_marked() {
+        use crate::landmarks::LandmarkName::*;
+        let base = folds_with_left_medial_end_at(1.0);
+        let landmarks = Landmarks::new(|name| match name {
+            PSMFml => DVec3::new(120.0, 1.0, 0.0),
+            other => base.get(other),
+        });
+        let ends = medial_ends_over_flat_chest(&landmarks);
+        assert_eq!(
+            ends,
+            [DVec3::new(120.0, 1.0, 0.0), DVec3::new(-35.0, -30.0, 0.0)]
+        );
+        let doubts = ControlPoints::landmark_doubts(&file_frame(), &landmarks);
+        assert_eq!(doubts.len(), 1, "{doubts:?}");
+        assert!(doubts[0].contains("may be cut off"), "{doubts:?}");
     }
 
     /// Both medial fold ends doubted: neither side has a depth to lend, both stay as
