@@ -504,8 +504,9 @@ pub struct TemplateRules<'a> {
 /// smooth step's steepest slope is 1.5 over its width, so the push rises by at most 1.5
 /// mm per mm of height. Over `taper_mm` alone (1.5 spacings) an implant 11-16 mm thick
 /// at the plane rose by up to 2.3 per mm, and an element across the rise turned over on
-/// landmark-jittered bodies; 0.8 was the least that turned none there
-/// (docs/dev/standing-frame.md).
+/// landmark-jittered bodies; 0.8 was the least that turned none there, and 1.2 already
+/// left a lowered fold more than 1 mm above its plan (docs/dev/standing-frame.md and
+/// model-on-every-body.md, session 52).
 pub const TAPER_PER_THICKNESS: f64 = 1.0;
 
 /// The planned fold as a horizontal plane of the standing frame. The pocket ends there

@@ -73,11 +73,11 @@ pub const DEFAULT_RIM_SMOOTHING: ResolvedLength = ResolvedLength {
 /// Least height over the planned fold from which the implant's full thickness is laid
 /// off ([`crate::template::FoldPlane`], which widens it to
 /// [`crate::template::TAPER_PER_THICKNESS`] times a greater thickness). The smooth
-/// step's steepest slope is 1.5 over its
-/// width, so 1.5 spacings make it no steeper than a linear ramp over one element; 10.5
-/// mm is 1.5 spacings of the default mesh on the largest of our bodies. Steeper steps
-/// left the skin under the held fold converging slowly or turned elements over, a
-/// wider one left the simulated fold 2 mm above the plan (docs/dev/standing-frame.md).
+/// step's steepest slope is 1.5 over its width, so 1.5 spacings make it no steeper than
+/// a linear ramp over one element; 10.5 mm is 1.5 spacings of the default mesh on the
+/// largest of our bodies. Steeper steps left the skin under the held fold converging
+/// slowly or turned elements over, a wider one left the simulated fold 2 mm above the
+/// plan (docs/dev/standing-frame.md).
 pub const FOLD_TAPER: ResolvedLength = ResolvedLength {
     mm: 10.5,
     min_spacings: 1.5,
