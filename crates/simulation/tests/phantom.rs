@@ -375,10 +375,9 @@ fn a_larger_implant_gives_a_larger_breast() {
     assert!(v[1].volume_ml > v[0].volume_ml);
 }
 
-/// The implant's added weight moves the nipple down by more than 0.25 mm, about ten
+/// The implant's added weight moves the nipple down by more than 0.25 mm, about eight
 /// times the skin's distance from its equilibrium at the default tolerance (0.03 mm,
-/// docs/dev/standing-frame.md): 0.42 mm on the phantom with the nearly incompressible
-/// implant, 0.77 mm when the implant's Poisson ratio was 0.3.
+/// docs/dev/standing-frame.md; figures in docs/dev/model-on-every-body.md, session 52).
 #[test]
 fn gravity_correction_moves_the_nipple_down() {
     let p = common::phantom();

@@ -38,79 +38,89 @@ pub const DEFAULT_CONTROL_POINT_ROLES: [&str; 6] = [
 ];
 
 /// Least drop of the fold's medial end PSMFm below the nipple, as a fraction of the fold's
-/// lowest point's (PSMF's) drop (along the sternal frame's up), before
+/// lowest point's (PSMF's) drop (along the standing frame's up), before
 /// [`ControlPoints::landmark_doubts`] names it and the default curve takes the other
-/// side's fraction instead ([`MedialFoldEnds`]): on the breasts of the fifteen shared
-/// scans it is 0.44-0.74 in the file's vertical, except s01's left, -0.01.
+/// side's fraction instead ([`MedialFoldEnds`]); the fifteen shared scans' breasts lie
+/// well above it but for one (docs/dev/model-on-every-body.md, session 50).
 const MIN_MEDIAL_FOLD_DROP: f64 = 0.25;
 
 /// Where each side's default curve takes the fold's medial end from. A fold whose medial
 /// part rises steeply to the nipple's height (a U-shaped fold) has no one medial end:
 /// PSMFm marked anywhere on that arm is on the fold, and one marked near the nipple's
 /// height swings the curve's lower inner border and its medial point up and out, across
-/// the lower inner quadrant (docs/dev/model-on-every-body.md, sessions 50-51). Such a
+/// the lower inner quadrant (docs/dev/model-on-every-body.md, sessions 50-52). Such a
 /// PSMFm (less than [`MIN_MEDIAL_FOLD_DROP`] of PSMF's drop below the nipple) on that
 /// arm, nearer the midline than the nipple, is taken on the skin straight below it, at
-/// the other side's fraction of the drop, when the other side's PSMFm is not itself
-/// doubted; the landmark itself is left as marked. One lateral of the nipple is not on
-/// the medial arm but misplaced (PSMFm and PSMFl swapped, say), and stays as marked.
+/// the other side's fraction of the drop (at most all of it), when the other side's PSMFm
+/// is not itself doubted; the landmark itself is left as marked. One lateral of the
+/// nipple is not on the medial arm but misplaced (PSMFm and PSMFl swapped, say), and
+/// stays as marked. Drops are measured along the standing frame's up, as she stood.
 struct MedialFoldEnds {
     /// Per side (left, right): the fold's medial end the default curve starts from.
     ends: [DVec3; 2],
-    /// Per side: PSMFm's drop below the nipple as a fraction of PSMF's, and whether it
-    /// is doubted; `None` where PSMF does not lie below the nipple.
-    fractions: [Option<(f64, bool)>; 2],
-    /// Per side: whether the end takes the other side's fraction.
-    lent: [bool; 2],
+    /// Per side: PSMFm's and PSMF's drops below the nipple (mm).
+    drops_mm: [(f64, f64); 2],
+    /// Per side: PSMFm's drop as a fraction of PSMF's, `None` where PSMF does not lie
+    /// below the nipple.
+    fractions: [Option<f64>; 2],
+    /// Per side: the other side's fraction, where this side's end takes it.
+    lent: [Option<f64>; 2],
 }
 
 impl MedialFoldEnds {
+    /// The ends over `surface` (`None`: the marked ones, for the doubts alone), with
+    /// `frame` the standing frame.
     fn new(
         surface: Option<&MeasuredSurface<'_>>,
         frame: &AnatomicalFrame,
         landmarks: &Landmarks,
     ) -> MedialFoldEnds {
-        let up = frame.sternal().up();
-        let drops = Side::BOTH.map(|side| {
+        let up = frame.up();
+        let drops_mm = Side::BOTH.map(|side| {
             let names = side.landmark_names();
             let drop = |name| (landmarks.get(names.nipple) - landmarks.get(name)).dot(up);
             (drop(names.fold_medial), drop(names.fold_lowest))
         });
-        let fractions = drops.map(|(medial_mm, lowest_mm)| {
-            (lowest_mm > 0.0).then(|| {
-                let fraction = medial_mm / lowest_mm;
-                (fraction, fraction < MIN_MEDIAL_FOLD_DROP)
-            })
-        });
-        let from_midline_mm = |p: DVec3| frame.sternal().to_local(p).x.abs();
-        let lent_fraction = |side: Side| {
+        let fractions =
+            drops_mm.map(|(medial_mm, lowest_mm)| (lowest_mm > 0.0).then(|| medial_mm / lowest_mm));
+        let from_midline_mm = |p: DVec3| frame.to_local(p).x.abs();
+        let lent = Side::BOTH.map(|side| {
             let names = side.landmark_names();
             let medial_arm = from_midline_mm(landmarks.get(names.fold_medial))
                 < from_midline_mm(landmarks.get(names.nipple));
-            match (
-                fractions[side as usize],
-                fractions[side.opposite() as usize],
-            ) {
-                (Some((_, true)), Some((other, false))) if medial_arm => Some(other),
-                _ => None,
-            }
-        };
-        let lent = Side::BOTH.map(|side| lent_fraction(side).is_some());
+            let other = fractions[side.opposite() as usize];
+            (medial_arm && doubted(fractions[side as usize]) && !doubted(other))
+                .then_some(other)
+                .flatten()
+                .map(|f| f.min(1.0))
+        });
         let ends = Side::BOTH.map(|side| {
             let marked = landmarks.get(side.landmark_names().fold_medial);
-            let (Some(surface), Some(other)) = (surface, lent_fraction(side)) else {
+            let (Some(surface), Some(other)) = (surface, lent[side as usize]) else {
                 return marked;
             };
-            let (medial_mm, lowest_mm) = drops[side as usize];
+            let (medial_mm, lowest_mm) = drops_mm[side as usize];
             let lowered = marked - up * (other * lowest_mm - medial_mm);
             surface.index.closest_point(lowered).point
         });
         MedialFoldEnds {
             ends,
+            drops_mm,
             fractions,
             lent,
         }
     }
+
+    /// Whether `side`'s PSMFm is doubted.
+    fn doubted(&self, side: Side) -> bool {
+        doubted(self.fractions[side as usize])
+    }
+}
+
+/// Whether a PSMFm at this fraction of PSMF's drop ([`MedialFoldEnds::fractions`]) is
+/// doubted.
+fn doubted(fraction: Option<f64>) -> bool {
+    fraction.is_some_and(|f| f < MIN_MEDIAL_FOLD_DROP)
 }
 
 /// Cut-curve control points of both breasts (mm, file frame), in order around each.
@@ -131,36 +141,35 @@ impl ControlPoints {
 
     /// Landmarks the default control points rest on that look misplaced, one sentence
     /// each for the user: a fold's medial end PSMFm that lies less than
-    /// [`MIN_MEDIAL_FOLD_DROP`] of PSMF's drop below the nipple (along the sternal
-    /// frame's up; the millimetres in the message along `frame`'s). The curve's lower
-    /// inner border runs below PSMFm, so a PSMFm marked near the nipple's height would cut
-    /// off the breast's lower inner quadrant; the message says whether the default curve
-    /// takes the other side's depth instead ([`MedialFoldEnds`]).
+    /// [`MIN_MEDIAL_FOLD_DROP`] of PSMF's drop below the nipple (along the standing
+    /// `frame`'s up). The curve's lower inner border runs below PSMFm, so a PSMFm marked
+    /// near the nipple's height would cut off the breast's lower inner quadrant; the
+    /// message says whether the default curve takes the other side's depth instead
+    /// ([`MedialFoldEnds`]).
     pub fn landmark_doubts(frame: &AnatomicalFrame, landmarks: &Landmarks) -> Vec<String> {
-        let up = frame.up();
-        let MedialFoldEnds {
-            fractions, lent, ..
-        } = MedialFoldEnds::new(None, frame, landmarks);
+        let ends = MedialFoldEnds::new(None, frame, landmarks);
         Side::BOTH
             .into_iter()
-            .filter(|&side| matches!(fractions[side as usize], Some((_, true))))
+            .filter(|&side| ends.doubted(side))
             .map(|side| {
                 let names = side.landmark_names();
-                let drop = |name| (landmarks.get(names.nipple) - landmarks.get(name)).dot(up);
-                let (medial_mm, lowest_mm) = (drop(names.fold_medial), drop(names.fold_lowest));
+                let (medial_mm, lowest_mm) = ends.drops_mm[side as usize];
                 let medial = names.fold_medial.as_str();
-                let remedy = if lent[side as usize] {
-                    format!(
-                        "the default cut curve takes the fold's medial end on the skin below \
-                         {medial}, as far below the nipple for the fold's depth as {}: check \
-                         where {medial} is marked, or move the curve's control points",
+                let remedy = match ends.lent[side as usize] {
+                    Some(share) => format!(
+                        "the default cut curve starts its lower inner border on the skin below \
+                         {medial} instead, {:.0} mm below the nipple: the same share of the \
+                         fold's depth ({:.0}%) as {} on the {} breast. Check where {medial} is \
+                         marked, or move the curve's control points",
+                        share * lowest_mm,
+                        100.0 * share,
                         side.opposite().landmark_names().fold_medial.as_str(),
-                    )
-                } else {
-                    format!(
+                        side.opposite(),
+                    ),
+                    None => format!(
                         "the cut curve's lower inner border runs below {medial}, so the lower \
                          inner quadrant may be cut off: check where {medial} is marked"
-                    )
+                    ),
                 };
                 format!(
                     "{side} breast: the fold's medial end {medial} lies {:.0} mm {} the nipple, \
@@ -186,17 +195,20 @@ impl ControlPoints {
     /// at the mean of their distances from Pn; the medial point lies likewise between the
     /// upper point and PSMFm, as the breasts approach each other over the sternum. Both
     /// lie at the mean depth of the two points they lie between (see
-    /// [`AroundNipple::between`]). Landmarks are expected on the surface.
+    /// [`AroundNipple::between`]). Landmarks are expected on the surface. `standing` is
+    /// the standing frame: the points are placed in its body axes
+    /// ([`AnatomicalFrame::sternal`]), the fold's medial end taken by [`MedialFoldEnds`].
     pub fn from_landmarks(
         surface: &MeasuredSurface<'_>,
-        frame: &AnatomicalFrame,
+        standing: &AnatomicalFrame,
         landmarks: &Landmarks,
         pc_ratio: f64,
     ) -> Result<ControlPoints, BreastError> {
         if !(pc_ratio > 0.0 && pc_ratio < 1.0) {
             return Err(BreastError::InvalidPcRatio(pc_ratio));
         }
-        let medial_ends = MedialFoldEnds::new(Some(surface), frame, landmarks).ends;
+        let medial_ends = MedialFoldEnds::new(Some(surface), standing, landmarks).ends;
+        let frame = &standing.sternal();
         let side_points = |side: Side| -> Result<Vec<DVec3>, BreastError> {
             let names = side.landmark_names();
             let at = |name: crate::LandmarkName| landmarks.get(name);
@@ -576,8 +588,8 @@ mod tests {
         })
     }
 
-    /// The default curves' medial fold ends over a flat chest (z = 0) in the file frame.
-    fn medial_ends_over_flat_chest(landmarks: &Landmarks) -> [DVec3; 2] {
+    /// The default curves' medial fold ends over a flat chest (z = 0), `frame` standing.
+    fn medial_ends_over_flat_chest(landmarks: &Landmarks, frame: &AnatomicalFrame) -> [DVec3; 2] {
         let mesh = chest(|_, _| 0.0);
         let topology = Topology::new(&mesh);
         let index = SurfaceIndex::new(&mesh).unwrap();
@@ -586,7 +598,7 @@ mod tests {
             topology: &topology,
             index: &index,
         };
-        MedialFoldEnds::new(Some(&surface), &file_frame(), landmarks).ends
+        MedialFoldEnds::new(Some(&surface), frame, landmarks).ends
     }
 
     /// A PSMFml at the nipple's height is taken, on a flat chest, exactly where the right
@@ -596,7 +608,7 @@ mod tests {
     fn a_doubted_medial_fold_end_takes_the_other_sides_depth() {
         let frame = file_frame();
         let doubted = folds_with_left_medial_end_at(1.0);
-        let ends = medial_ends_over_flat_chest(&doubted);
+        let ends = medial_ends_over_flat_chest(&doubted, &file_frame());
         assert!(
             ends[0].distance(DVec3::new(35.0, -30.0, 0.0)) < 1e-9,
             "{}",
@@ -604,14 +616,36 @@ mod tests {
         );
         assert_eq!(ends[1], DVec3::new(-35.0, -30.0, 0.0));
         let usual = folds_with_left_medial_end_at(-24.0);
-        let ends = medial_ends_over_flat_chest(&usual);
+        let ends = medial_ends_over_flat_chest(&usual, &file_frame());
         assert_eq!(
             ends,
             [DVec3::new(35.0, -24.0, 0.0), DVec3::new(-35.0, -30.0, 0.0)]
         );
         let doubts = ControlPoints::landmark_doubts(&frame, &doubted);
         assert_eq!(doubts.len(), 1, "{doubts:?}");
-        assert!(doubts[0].contains("as far below the nipple for the fold's depth as PSMFmr"));
+        assert!(
+            doubts[0].contains("30 mm below the nipple: the same share of the fold's depth (50%) as PSMFmr on the right breast"),
+            "{doubts:?}"
+        );
+    }
+
+    /// The drops are measured as she stood, not along the sternum: with the sternum
+    /// leaning 26 degrees back (the shared scans lean 26-27), the doubted PSMFml is still
+    /// taken 30 of the fold's 60 mm below the nipple, straight down, as on an upright
+    /// sternum.
+    #[test]
+    fn a_leaning_sternum_leaves_the_drops_vertical() {
+        let lean = DMat3::from_rotation_x(-26f64.to_radians());
+        let frame = AnatomicalFrame {
+            sternal_axes: lean,
+            ..file_frame()
+        };
+        let ends = medial_ends_over_flat_chest(&folds_with_left_medial_end_at(1.0), &frame);
+        assert!(
+            ends[0].distance(DVec3::new(35.0, -30.0, 0.0)) < 1e-9,
+            "{}",
+            ends[0]
+        );
     }
 
     /// A doubted PSMFml lateral of the nipple (120 mm from the midline, the nipple 90) is
@@ -625,7 +659,7 @@ mod tests {
             PSMFml => DVec3::new(120.0, 1.0, 0.0),
             other => base.get(other),
         });
-        let ends = medial_ends_over_flat_chest(&landmarks);
+        let ends = medial_ends_over_flat_chest(&landmarks, &file_frame());
         assert_eq!(
             ends,
             [DVec3::new(120.0, 1.0, 0.0), DVec3::new(-35.0, -30.0, 0.0)]
@@ -646,7 +680,7 @@ mod tests {
             PSMFmr => DVec3::new(-35.0, -5.0, 0.0),
             other => base.get(other),
         });
-        let ends = medial_ends_over_flat_chest(&landmarks);
+        let ends = medial_ends_over_flat_chest(&landmarks, &file_frame());
         assert_eq!(
             ends,
             [DVec3::new(35.0, 1.0, 0.0), DVec3::new(-35.0, -5.0, 0.0)]

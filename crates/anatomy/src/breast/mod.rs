@@ -440,6 +440,7 @@ pub fn build_breast_model(
     landmarks: &Landmarks,
     options: &BreastOptions,
 ) -> Result<BreastModel, BreastError> {
+    let standing = frame;
     let frame = &frame.sternal();
     check_options(options)?;
     let hole_params = FillInParams {
@@ -464,7 +465,7 @@ pub fn build_breast_model(
     };
     let control_points = match &options.control_points {
         Some(points) => points.clone(),
-        None => ControlPoints::from_landmarks(&surface, frame, landmarks, options.pc_ratio)?,
+        None => ControlPoints::from_landmarks(&surface, standing, landmarks, options.pc_ratio)?,
     };
     let roles = options
         .control_points
