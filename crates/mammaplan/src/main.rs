@@ -248,6 +248,10 @@ struct SimulateArgs {
     /// a stiff skin membrane over it.
     #[arg(long)]
     no_skin: bool,
+    /// Give the pectoralis major's elements the breast tissue's material (the paper's
+    /// homogeneous model) instead of the stiffer muscle's.
+    #[arg(long)]
+    no_muscle: bool,
     /// Leave volume loss to the corotated energy (the paper's model) instead of
     /// resisting every loss with twice the first Lamé parameter (see docs/dev/volume-loss.md).
     #[arg(long)]
@@ -294,6 +298,7 @@ fn simulate_command(args: SimulateArgs, progress: &TerminalProgress) -> Result<(
         rotate_right,
         no_gravity,
         no_skin,
+        no_muscle,
         no_compression_penalty,
         skin_slides,
         catalog,
@@ -321,6 +326,7 @@ fn simulate_command(args: SimulateArgs, progress: &TerminalProgress) -> Result<(
             right: lower_fold_right,
         },
         no_skin,
+        no_muscle,
         no_compression_penalty,
         skin_slides,
     };

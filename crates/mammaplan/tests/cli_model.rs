@@ -41,6 +41,7 @@ fn model_writes_every_file_and_the_volumes() {
         "counts",
         "timings",
         "min_dihedral_deg",
+        "pectoralis_major",
     ] {
         assert!(json.get(key).is_some(), "{key} missing");
     }

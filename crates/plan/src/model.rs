@@ -12,6 +12,7 @@ use anatomy::closed_surface::{ClosedSurface, ClosedSurfaceOptions, build_closed_
 use anatomy::{BreastOptions, ControlPoints, build_breast_model};
 use anyhow::{Context, Result};
 use serde::{Deserialize, Serialize};
+use simulation::{MuscleFigures, MuscleLayer};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -199,6 +200,11 @@ pub struct PatientModel {
     pub levels: Vec<LevelReport>,
     /// The refined level's figures, when `tets.levels[0]` is one.
     pub refinement: Option<RefinementReport>,
+    /// The pectoralis major on the finest level ([`simulation::muscle`]): what its
+    /// elements measure, and their surface (`muscle_left.ply`, `muscle_right.ply`);
+    /// `None` on a side where it takes no element.
+    pub pectoralis_major: PerSide<Option<MuscleFigures>>,
+    pub muscle_surfaces: PerSide<Option<mesh::TriMesh>>,
     pub scan_vertices: usize,
     pub scan_triangles: usize,
     pub timings: ModelTimings,
@@ -311,6 +317,9 @@ pub struct ModelReport {
     pub levels: Vec<LevelReport>,
     /// The refinement of level 0 around the fill-ins (`None`: all levels uniform).
     pub refinement: Option<RefinementReport>,
+    /// What the pectoralis major's elements on level 0 measure ([`MuscleFigures`];
+    /// `None` on a side where it takes none).
+    pub pectoralis_major: PerSide<Option<MuscleFigures>>,
     /// The smallest dihedral angle over all levels (degrees).
     pub min_dihedral_deg: f64,
     /// The largest angle across each fill-in's stitch to the base between the base's and
@@ -464,6 +473,25 @@ pub fn build_model(
     let tetrahedra_ms = elapsed_ms(tets_start);
     progress.step();
     check_cancelled(progress)?;
+    let finest = &tets.levels[0];
+    let muscle = MuscleLayer::new(
+        &finest.mesh,
+        &closed_surface,
+        &marked.frame,
+        &marked.landmarks,
+    )
+    .context("placing the pectoralis major")?;
+    let wall_tolerance_mm = finest.spacing_mm * simulation::WALL_TOLERANCE_FACTOR;
+    let pectoralis_major = PerSide::from_fn(|side| {
+        muscle.figures(
+            &finest.mesh,
+            &closed_surface,
+            &marked.frame,
+            side,
+            wall_tolerance_mm,
+        )
+    });
+    let muscle_surfaces = PerSide::from_fn(|side| muscle.side_surface(&finest.mesh, side));
 
     Ok(PatientModel {
         scan_path: scan.path.clone(),
@@ -478,6 +506,8 @@ pub fn build_model(
         elements_requested: options.elements,
         levels,
         refinement,
+        pectoralis_major,
+        muscle_surfaces,
         scan_vertices: scan.mesh.vertex_count(),
         scan_triangles: scan.mesh.triangle_count(),
         timings: ModelTimings {
@@ -676,6 +706,7 @@ impl PatientModel {
             elements_requested: self.elements_requested,
             levels: self.levels.clone(),
             refinement: self.refinement,
+            pectoralis_major: self.pectoralis_major,
             min_dihedral_deg: self
                 .levels
                 .iter()

@@ -101,6 +101,9 @@ pub struct SimulateOptions {
     /// Homogeneous tissue up to the surface (the paper's model) instead of the default
     /// skin layer ([`simulation::skin`]).
     pub no_skin: bool,
+    /// The pectoralis major's elements of breast tissue (the paper's homogeneous model)
+    /// instead of the muscle's material ([`simulation::muscle`]).
+    pub no_muscle: bool,
     /// The paper's corotated energy alone, without the resistance to large volume loss
     /// ([`fem::CompressionPenalty`]).
     pub no_compression_penalty: bool,
@@ -550,6 +553,11 @@ pub fn simulate(
             None
         } else {
             SimulationOptions::default().skin
+        },
+        muscle: if options.no_muscle {
+            None
+        } else {
+            SimulationOptions::default().muscle
         },
         compression_penalty: if options.no_compression_penalty {
             None

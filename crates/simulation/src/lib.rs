@@ -51,6 +51,7 @@ pub mod bed;
 pub mod carry;
 pub mod error;
 pub mod field;
+pub mod muscle;
 pub mod over_implant;
 pub mod placement;
 pub mod pocket;
@@ -63,12 +64,13 @@ pub mod template_volume;
 pub use bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 pub use error::SimulationError;
 pub use field::{DEFAULT_FALLOFF_MM, PointMap};
+pub use muscle::{DEFAULT_MUSCLE, MuscleFigures, MuscleLayer, Pectoralis};
 pub use placement::{Anchor, AnchorRule, ParseAnchorRuleError, Placement};
 pub use resolved_length::ResolvedLength;
 pub use session::{
     BreastVolume, CARRIED_CONTROL_POINT_SPACING_MM, CycleInfo, PatientInput, PlacedImplant,
     RunReport, STERNUM_HALF_WIDTH_MM, Simulation, SimulationOptions, SolveReport, SolvedState,
-    Stage,
+    Stage, WALL_TOLERANCE_FACTOR,
 };
 pub use skin::SkinLayer;
 pub use template::ImplantTemplate;

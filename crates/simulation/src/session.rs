@@ -81,6 +81,7 @@ use crate::bed::{ChestCylinder, DEFAULT_SHIFT_MM, ImplantBed};
 use crate::carry::ScanCarry;
 use crate::error::SimulationError;
 use crate::field::{DEFAULT_FALLOFF_MM, FieldLocator, PointMap, SurfaceSmoother};
+use crate::muscle::{DEFAULT_MUSCLE, MuscleLayer};
 use crate::over_implant::{swept_prisms, swept_quad, triangles_over_implant};
 use crate::placement::{Anchor, AnchorRule, Placement, anchor_on_floor, resolve_anchor};
 use crate::pocket::{
@@ -326,6 +327,9 @@ pub struct Simulation {
     /// Tissue models of every level, finest first.
     levels: Vec<FemModel>,
     finest: TetMesh,
+    /// The pectoralis major on the finest level (its elements have the muscle's
+    /// material where [`SimulationOptions::muscle`] gives one).
+    muscle: MuscleLayer,
     spacing_mm: f64,
     rear_wall_offset_mm: f64,
     cylinder: ChestCylinder,
@@ -448,6 +452,11 @@ impl Simulation {
     /// The finest level (rest state).
     pub fn finest_mesh(&self) -> &TetMesh {
         &self.finest
+    }
+
+    /// The pectoralis major on the finest level ([`crate::muscle`]).
+    pub fn muscle(&self) -> &MuscleLayer {
+        &self.muscle
     }
 
     /// The finest level's lattice spacing (mm).

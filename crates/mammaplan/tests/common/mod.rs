@@ -104,7 +104,7 @@ pub fn model(scan: &Path, landmarks: &Path, out: &Path, extra: &[&str]) -> Outpu
 }
 
 /// The files `model` writes into its folder.
-pub const MODEL_FILES: [&str; 13] = [
+pub const MODEL_FILES: [&str; 15] = [
     "closed_surface.ply",
     "breast_left.ply",
     "breast_right.ply",
@@ -116,6 +116,8 @@ pub const MODEL_FILES: [&str; 13] = [
     "tets_level2.vtu",
     "cut_curve_left.obj",
     "cut_curve_right.obj",
+    "muscle_left.ply",
+    "muscle_right.ply",
     "control_points.json",
     "model.json",
 ];

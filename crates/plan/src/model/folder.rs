@@ -11,6 +11,9 @@
 //!   (OBJ `v` and `l` records; ParaView, MeshLab and Blender open them as lines);
 //! - `tets_level0.vtu`, `tets_level1.vtu`, ...: the tetrahedral meshes of the closed
 //!   surface, level 0 the finest (VTK XML unstructured grids; ParaView opens them);
+//! - `muscle_left.ply`, `muscle_right.ply`: the surface of each side's pectoralis major,
+//!   the finest level's elements the simulation gives the muscle's material
+//!   ([`simulation::muscle`]);
 //! - `control_points.json`: the control points used, snapped to the surface, in the
 //!   control-point file format, so a user can move some and pass the file back with
 //!   `--control-points`;
@@ -97,6 +100,15 @@ pub fn write_model(
         })?;
         files.push(name);
         progress.step();
+    }
+    for side in Side::BOTH {
+        if let Some(surface) = model.muscle_surfaces.get(side) {
+            let name = format!("muscle_{side}.ply");
+            staged.write(&out_dir.join(&name), |path| {
+                mesh::io::write_mesh(path, surface)
+            })?;
+            files.push(name);
+        }
     }
     staged.write(&out_dir.join("control_points.json"), |path| {
         model.control_points().write(path)

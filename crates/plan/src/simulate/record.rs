@@ -157,6 +157,16 @@ pub struct CompressionPenaltyReport {
     pub lambda_multiple: f64,
 }
 
+impl From<fem::Material> for MaterialReport {
+    fn from(material: fem::Material) -> MaterialReport {
+        MaterialReport {
+            young_kpa: material.young_kpa,
+            poisson_ratio: material.poisson_ratio,
+            density_kg_m3: material.density_kg_m3,
+        }
+    }
+}
+
 /// The materials of the simulation.
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
 pub struct MaterialsReport {
@@ -166,6 +176,10 @@ pub struct MaterialsReport {
     /// results and `--no-skin`).
     #[serde(default)]
     pub skin: Option<SkinReport>,
+    /// The pectoralis major's elements; `null`: breast tissue there too (older results
+    /// and `--no-muscle`).
+    #[serde(default)]
+    pub muscle: Option<MaterialReport>,
     /// `null`: the paper's corotated energy (older results and
     /// `--no-compression-penalty`).
     #[serde(default)]
@@ -176,16 +190,13 @@ impl MaterialsReport {
     pub(super) fn new(options: &SimulationOptions) -> MaterialsReport {
         let tissue = options.tissue;
         MaterialsReport {
-            tissue: MaterialReport {
-                young_kpa: tissue.young_kpa,
-                poisson_ratio: tissue.poisson_ratio,
-                density_kg_m3: tissue.density_kg_m3,
-            },
+            tissue: MaterialReport::from(tissue),
             implant: MaterialReport {
                 young_kpa: tissue.young_kpa * options.implant_young_ratio,
                 poisson_ratio: options.implant_poisson_ratio,
                 density_kg_m3: options.implant_density_kg_m3,
             },
+            muscle: options.muscle.map(MaterialReport::from),
             skin: options.skin.map(|skin| SkinReport {
                 young_kpa: skin.young_kpa,
                 thickness_mm: skin.thickness_mm,

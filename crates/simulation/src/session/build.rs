@@ -40,7 +40,7 @@ impl Simulation {
     ) -> Result<Simulation, SimulationError> {
         options.check()?;
         let frame = *input.frame;
-        let (finest, spacing_mm, mut levels) = tissue_levels(&input, &options)?;
+        let (finest, spacing_mm, mut levels, muscle) = tissue_levels(&input, &options)?;
         let closed = input.closed_surface;
         // one cylinder about the body's axis through both fill-ins
         let fill_points: Vec<DVec3> = Side::BOTH
@@ -100,6 +100,7 @@ impl Simulation {
             neighbours,
             frame,
             levels,
+            muscle,
             spacing_mm,
             rear_wall_offset_mm: closed.rear_wall_offset_mm,
             cylinder,
@@ -145,10 +146,13 @@ impl Simulation {
 }
 
 /// The finest level (mesh and spacing) and the tissue model of every level used.
+/// The finest mesh, its spacing (mm), the tissue model of every level (the
+/// pectoralis major's elements with its material, [`SimulationOptions::muscle`]) and the
+/// muscle layer on the finest level.
 fn tissue_levels(
     input: &PatientInput,
     options: &SimulationOptions,
-) -> Result<(TetMesh, f64, Vec<FemModel>), SimulationError> {
+) -> Result<(TetMesh, f64, Vec<FemModel>, MuscleLayer), SimulationError> {
     let Some(level0) = input.tets.levels.first() else {
         return Err(SimulationError::BadModel(
             "the hierarchy has no level".into(),
@@ -157,16 +161,28 @@ fn tissue_levels(
     let finest = level0.mesh.clone();
     let spacing_mm = level0.spacing_mm;
     let level_count = options.max_levels.unwrap_or(usize::MAX).max(1);
-    let mut levels = input
+    let levels = input
         .tets
         .levels
         .iter()
         .take(level_count)
-        .map(|l| FemModel::homogeneous(&l.mesh, options.tissue))
-        .collect::<Result<Vec<_>, _>>()?;
+        .map(|l| {
+            let mut model = FemModel::homogeneous(&l.mesh, options.tissue)?;
+            let layer =
+                MuscleLayer::new(&l.mesh, input.closed_surface, input.frame, input.landmarks)?;
+            if let Some(muscle) = options.muscle {
+                for &e in layer.elements.iter().flatten() {
+                    model.set_material(e as usize, muscle)?;
+                }
+            }
+            Ok((model, layer))
+        })
+        .collect::<Result<Vec<_>, SimulationError>>()?;
+    let muscle = levels[0].1.clone();
+    let mut levels: Vec<FemModel> = levels.into_iter().map(|(model, _)| model).collect();
     levels[0].set_inversion_barrier(options.inversion_barrier)?;
     levels[0].set_compression_penalty(options.compression_penalty)?;
-    Ok((finest, spacing_mm, levels))
+    Ok((finest, spacing_mm, levels, muscle))
 }
 
 /// Each side's data with its default anchor, its fill-in's bed (over the chest's

@@ -227,6 +227,9 @@ pub struct SimulationOptions {
     pub template_layer_mm: Option<f64>,
     /// Breast tissue.
     pub tissue: Material,
+    /// The pectoralis major's elements ([`crate::muscle`]); `None`: breast tissue there
+    /// too (the paper's homogeneous model).
+    pub muscle: Option<Material>,
     /// The skin over it ([`crate::skin`]); `None`: tissue up to the surface (the
     /// paper's homogeneous model).
     pub skin: Option<SkinLayer>,
@@ -317,6 +320,7 @@ impl Default for SimulationOptions {
             rim_smoothing_mm: None,
             template_layer_mm: None,
             tissue: Material::default(),
+            muscle: Some(DEFAULT_MUSCLE),
             skin: Some(SkinLayer::default()),
             implant_young_ratio: DEFAULT_IMPLANT_YOUNG_RATIO,
             implant_poisson_ratio: DEFAULT_IMPLANT_POISSON_RATIO,
