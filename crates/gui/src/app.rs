@@ -94,6 +94,10 @@ pub struct GuiApp {
     show_curves: bool,
     /// Whether the implants' footprint outlines are drawn on the scan.
     show_outlines: bool,
+    /// The pectoralis major of the built model (both sides, at rest), and whether it is
+    /// drawn under the shown surface, which then becomes a veil.
+    muscle: Option<Arc<SceneMesh>>,
+    show_muscle: bool,
     export_folder: String,
     /// The window's context once it has drawn a frame (workers wake the window with it).
     ctx: Option<egui::Context>,
@@ -142,6 +146,8 @@ impl GuiApp {
             display: DisplayMode::PreOperative,
             show_curves: true,
             show_outlines: false,
+            muscle: None,
+            show_muscle: false,
             export_folder: String::new(),
             ctx: None,
             script: None,
@@ -260,6 +266,7 @@ impl GuiApp {
     fn set_document(&mut self, document: Document) {
         self.cancel_build();
         self.model = None;
+        self.muscle = None;
         self.failure_place = None;
         self.live = None;
         self.settings.control_points = None;

@@ -21,6 +21,7 @@
 //! display MODE                    pre-operative, simulated, overlay, deviation or
 //!                                 post-operative
 //! view NAME                       front, left-oblique, left, right-oblique, right
+//! muscle on|off                   Show the pectoralis major (once a model is built)
 //! up AXIS                         the scan's vertical: +y, -z, ... or automatic
 //! stats                           from now on, once a second on stderr: window frames
 //!                                 per second, view updates per second (window frames
@@ -68,6 +69,8 @@ pub enum Action {
     },
     Display(DisplayMode),
     View(StandardView),
+    /// Show the pectoralis major under the surface, or not.
+    ShowMuscle(bool),
     /// The scan's vertical (`None`: the automatic rule).
     Up(Option<anatomy::Up>),
     Stats,
@@ -219,6 +222,14 @@ fn parse_action(code: &str) -> Result<Action> {
             count(2)?;
             Action::View(parse_view(words[1])?)
         }
+        "muscle" => {
+            count(2)?;
+            match words[1] {
+                "on" => Action::ShowMuscle(true),
+                "off" => Action::ShowMuscle(false),
+                other => bail!("`muscle` takes on or off, not `{other}`"),
+            }
+        }
         "up" => {
             count(2)?;
             match words[1] {
@@ -286,7 +297,7 @@ mod tests {
                     move up 2   # two presses\ndrag projection 30 45 2.5\nwait\n\
                     custom anatomic 120 113 42\ndisplay overlay\nview left-oblique\n\
                     screenshot /tmp/shot one.png\nregister post.ply post.json\n\
-                    display post-operative\nquit\n";
+                    display post-operative\nmuscle on\nquit\n";
         let script = Script::parse(text, Path::new("ci.script")).unwrap();
         let actions: Vec<&Action> = script.actions.iter().map(|(_, a)| a).collect();
         assert_eq!(script.actions[0].0, 2);
@@ -323,6 +334,7 @@ mod tests {
             }
         );
         assert_eq!(actions[12], &Action::Display(DisplayMode::PostOperative));
+        assert_eq!(actions[13], &Action::ShowMuscle(true));
 
         for (line, expected) in [
             ("elements many", "`many` is not a number"),
@@ -331,6 +343,7 @@ mod tests {
             ("fly", "unknown action `fly`"),
             ("screenshot", "expected a file"),
             ("register post.ply", "expected 3 words"),
+            ("muscle maybe", "takes on or off"),
         ] {
             let error =
                 Script::parse(&format!("phantom\n{line}\n"), Path::new("s.txt")).unwrap_err();

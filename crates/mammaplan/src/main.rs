@@ -665,6 +665,10 @@ struct ReportArgs {
     /// The unit of the post-operative scan's coordinates, as `model --units`.
     #[arg(long, value_name = "UNIT", requires = "postop")]
     postop_units: Option<plan::LengthUnit>,
+    /// Add views of the pectoralis major (the model's `muscle_*.ply`) through the
+    /// pre-operative skin.
+    #[arg(long)]
+    muscle: bool,
     /// The report (HTML).
     #[arg(long, value_name = "HTML")]
     out: PathBuf,
@@ -679,6 +683,7 @@ fn report_command(args: ReportArgs, progress: &TerminalProgress) -> Result<()> {
         postop_landmarks,
         postop_up,
         postop_units,
+        muscle,
         out,
     } = args;
     let inputs = plan::report::ReportInputs {
@@ -693,6 +698,7 @@ fn report_command(args: ReportArgs, progress: &TerminalProgress) -> Result<()> {
             }
         }),
         created: std::time::SystemTime::now(),
+        show_muscle: muscle,
     };
     let report = plan::report::write_report(&inputs, &out, progress)?;
     progress.finish();

@@ -282,6 +282,7 @@ pub fn demo(out_dir: &Path, textured: bool, progress: &dyn Progress) -> Result<D
             simulation_dir: path("simulation"),
             postoperative: None,
             created: SystemTime::now(),
+            show_muscle: false,
         },
         &path("report.html"),
         progress,

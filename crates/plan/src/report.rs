@@ -61,6 +61,9 @@ pub struct ReportInputs {
     pub postoperative: Option<PostoperativeScan>,
     /// When the report is made (shown as UTC date and time).
     pub created: SystemTime,
+    /// Show the pectoralis major (the model folder's `muscle_*.ply`) through the
+    /// pre-operative skin.
+    pub show_muscle: bool,
 }
 
 /// A post-operative scan and its landmark file.
@@ -257,9 +260,31 @@ pub fn write_session_folders(
             simulation_dir,
             postoperative,
             created: SystemTime::now(),
+            show_muscle: false,
         },
         update,
     })
+}
+
+/// The pectoralis major from a model folder (`muscle_left.ply`, `muscle_right.ply`, each
+/// written where the side has one); an error says what to do when neither is there.
+fn read_muscles(model_dir: &Path) -> Result<Vec<mesh::TriMesh>> {
+    let paths: Vec<PathBuf> = Side::BOTH
+        .iter()
+        .map(|side| model_dir.join(format!("muscle_{side}.ply")))
+        .filter(|path| path.is_file())
+        .collect();
+    if paths.is_empty() {
+        anyhow::bail!(
+            "{} has no muscle_left.ply or muscle_right.ply: the model was built before the \
+             pectoralis major was modelled; build it again with `mammaplan model` to show it",
+            model_dir.display()
+        );
+    }
+    paths
+        .iter()
+        .map(|path| mesh::io::read_mesh(path).with_context(|| path.display().to_string()))
+        .collect()
 }
 
 /// Builds the report of `inputs` and writes it to `out` (atomically).
@@ -348,7 +373,12 @@ pub fn report_content(
         )?,
         None => None,
     };
-    let views = report_views(&scans)?;
+    let muscles = if inputs.show_muscle {
+        read_muscles(model_dir)?
+    } else {
+        Vec::new()
+    };
+    let views = report_views(&scans, &muscles)?;
     progress.step();
 
     let volumes = volume_table(&model, &simulation, &scans);

@@ -19,6 +19,12 @@ const MIDLINE_MARKER: [u8; 3] = [35, 35, 35];
 /// Tone (sRGB) of skin the scanner did not see and the model reconstructed: a cool grey,
 /// apart from every skin tone and from the deviation map's colours.
 pub const RECONSTRUCTED_TONE: [u8; 3] = [150, 165, 190];
+/// Tone (sRGB) of the pectoralis major seen through the skin: a muscle red, apart from
+/// the skin tones, the reconstructed skin's grey and the deviation map's colours.
+pub const MUSCLE_TONE: [u8; 3] = [165, 55, 50];
+/// Opacity of the skin over the muscles where they are shown: a veil that lets them
+/// show through while the breasts' outline stays readable.
+const SKIN_VEIL_OPACITY: f64 = 0.4;
 /// Curve colour (sRGB) and stroke width (pixels).
 const CURVE_COLOUR: [u8; 3] = [100, 40, 150];
 const CURVE_WIDTH_PX: f64 = 2.5;
@@ -37,6 +43,9 @@ pub struct ViewContent<'a> {
     /// Skin the scanner did not see, reconstructed by the model (mm, scan frame): drawn
     /// over the scan's holes in [`RECONSTRUCTED_TONE`].
     pub reconstructed: &'a [TriMesh],
+    /// Surfaces under the skin drawn through it (mm, scan frame), e.g. the pectoralis
+    /// major ([`MUSCLE_TONE`]); with any, the skin is a translucent veil.
+    pub muscles: &'a [TriMesh],
     /// Picture size (pixels).
     pub width: u32,
     pub height: u32,
@@ -49,6 +58,7 @@ impl Default for ViewContent<'_> {
             texture: None,
             curves: &[],
             reconstructed: &[],
+            muscles: &[],
             width: 800,
             height: 1000,
         }
@@ -84,13 +94,26 @@ pub fn standard_views(
         (None, _, Some(_)) => Colouring::MeshColours,
         (None, _, None) => Colouring::Uniform(SKIN_TONE),
     };
-    let mut layers = vec![MeshLayer::new(scan, colouring)];
+    let skin_opacity = if content.muscles.is_empty() {
+        1.0
+    } else {
+        SKIN_VEIL_OPACITY
+    };
+    let mut layers = vec![MeshLayer::new(scan, colouring).with_opacity(skin_opacity)];
     layers.extend(
         content
             .reconstructed
             .iter()
             .filter(|skin| skin.triangle_count() > 0)
-            .map(|skin| MeshLayer::new(skin, Colouring::Uniform(RECONSTRUCTED_TONE))),
+            .map(|skin| {
+                MeshLayer::new(skin, Colouring::Uniform(RECONSTRUCTED_TONE))
+                    .with_opacity(skin_opacity)
+            }),
+    );
+    layers.extend(
+        (content.muscles.iter())
+            .filter(|muscle| muscle.triangle_count() > 0)
+            .map(|muscle| MeshLayer::new(muscle, Colouring::Uniform(MUSCLE_TONE))),
     );
     let scene = Scene {
         layers,

@@ -85,6 +85,7 @@ fn write_case(dir: &Path) -> (ReportInputs, phantom::Phantom) {
             units: None,
         }),
         created: UNIX_EPOCH + Duration::from_secs(1_795_339_260),
+        show_muscle: false,
     };
     (inputs, postop)
 }
@@ -354,6 +355,7 @@ fn missing_and_malformed_folders_are_named() {
         simulation_dir: dir.path().join(simulation),
         postoperative: None,
         created: UNIX_EPOCH,
+        show_muscle: false,
     };
     let error = |inputs: ReportInputs| {
         format!(
@@ -389,4 +391,38 @@ fn missing_and_malformed_folders_are_named() {
     std::fs::write(dir.path().join("simulation/result.json"), "{}").unwrap();
     let message = error(inputs("model", "simulation"));
     assert!(message.contains("not a simulation report"), "{message}");
+}
+
+/// On request the report adds the pectoralis major through the pre-operative skin,
+/// front and obliques, after the other views; a model folder without the muscle's
+/// files is named with what to do.
+#[test]
+fn the_report_shows_the_pectoralis_major_on_request() {
+    let dir = tempfile::tempdir().unwrap();
+    let (inputs, _) = write_case(dir.path());
+    let inputs = ReportInputs {
+        postoperative: None,
+        ..inputs
+    };
+    let plain = report_content(&inputs, &Silent).unwrap();
+    let with_muscle = ReportInputs {
+        show_muscle: true,
+        ..inputs.clone()
+    };
+    let content = report_content(&with_muscle, &Silent).unwrap();
+    assert_eq!(content.views.len(), plain.views.len() + 3);
+    let added: Vec<&str> = content.views[plain.views.len()..]
+        .iter()
+        .map(|v| v.title.as_str())
+        .collect();
+    for (title, view) in added.iter().zip(["Front", "Left oblique", "Right oblique"]) {
+        assert!(title.starts_with("Pectoralis major"), "{title}");
+        assert!(title.ends_with(view), "{title}");
+    }
+    for side in ["left", "right"] {
+        std::fs::remove_file(dir.path().join(format!("model/muscle_{side}.ply"))).unwrap();
+    }
+    let message = format!("{:#}", report_content(&with_muscle, &Silent).unwrap_err());
+    assert!(message.contains("muscle_left.ply"), "{message}");
+    assert!(message.contains("mammaplan model"), "{message}");
 }

@@ -264,26 +264,14 @@ impl MuscleLayer {
     /// The muscle of `side`'s elements as a mesh of their own (the mesh's vertices they
     /// use, renumbered), `None` where the side has none.
     pub fn side_mesh(&self, mesh: &TetMesh, side: Side) -> Option<TetMesh> {
-        let elements = &self.elements[side as usize];
-        if elements.is_empty() {
-            return None;
-        }
-        let mut new_index = vec![u32::MAX; mesh.positions.len()];
-        let mut positions = Vec::new();
-        let tets = elements
-            .iter()
-            .map(|&e| {
-                mesh.tets[e as usize].map(|v| {
-                    let slot = &mut new_index[v as usize];
-                    if *slot == u32::MAX {
-                        *slot = positions.len() as u32;
-                        positions.push(mesh.positions[v as usize]);
-                    }
-                    *slot
-                })
-            })
-            .collect();
-        Some(TetMesh { positions, tets })
+        elements_mesh(mesh, &self.elements[side as usize])
+    }
+
+    /// The surface of both muscles' elements (outward), as the GUI draws them; `None`
+    /// where neither side has any.
+    pub fn surface(&self, mesh: &TetMesh) -> Option<TriMesh> {
+        let both: Vec<u32> = self.elements.iter().flatten().copied().collect();
+        elements_mesh(mesh, &both).map(|m| m.boundary().mesh)
     }
 
     /// The closed surface of `side`'s muscle elements (outward), what
@@ -341,6 +329,30 @@ impl MuscleLayer {
             volume_ml: volume_mm3 / 1000.0,
         })
     }
+}
+
+/// The tetrahedra `elements` of `mesh` as a mesh of their own (the vertices they use,
+/// renumbered); `None` for none.
+fn elements_mesh(mesh: &TetMesh, elements: &[u32]) -> Option<TetMesh> {
+    if elements.is_empty() {
+        return None;
+    }
+    let mut new_index = vec![u32::MAX; mesh.positions.len()];
+    let mut positions = Vec::new();
+    let tets = elements
+        .iter()
+        .map(|&e| {
+            mesh.tets[e as usize].map(|v| {
+                let slot = &mut new_index[v as usize];
+                if *slot == u32::MAX {
+                    *slot = positions.len() as u32;
+                    positions.push(mesh.positions[v as usize]);
+                }
+                *slot
+            })
+        })
+        .collect();
+    Some(TetMesh { positions, tets })
 }
 
 /// The closed surface's rear wall as a surface index; `None` without its triangles.

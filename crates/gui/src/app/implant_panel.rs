@@ -116,6 +116,14 @@ impl GuiApp {
                 "the footprint of each implant (cyan) and, where it lies beyond the native \
                  breast, its pocket within the planned limits (pink), seen through the skin",
             );
+        ui.add_enabled(
+            self.muscle.is_some(),
+            egui::Checkbox::new(&mut self.show_muscle, "Show the pectoralis major"),
+        )
+        .on_hover_text(
+            "the muscle under the skin as the model placed it from the landmarks (at rest), \
+             the shown surface drawn as a veil over it",
+        );
     }
 
     /// What the simulation placed on each side (volume, fold lowering, the fit's move),

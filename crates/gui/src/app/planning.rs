@@ -12,6 +12,7 @@ use crate::live_simulation::{
     ExportPaths, ImplantSet, LiveSimulation, MeasurementState, ReportState, SolverStatus,
 };
 use crate::model_build::{BuildOutcome, ModelBuild};
+use crate::render::SceneMesh;
 use anatomy::ControlPoints;
 use anatomy::breast::{QuadrantVolumes, Side};
 use eframe::egui::{self, Color32};
@@ -207,6 +208,7 @@ impl GuiApp {
                     figures.levels
                 ));
                 self.model = Some(figures);
+                self.muscle = muscle_scene(&session);
                 if let Some(scene) = &self.scene {
                     self.live = Some(LiveSimulation::start(
                         *session,
@@ -772,4 +774,13 @@ fn stage_name(stage: Stage) -> &'static str {
         Stage::Implant => "implant",
         Stage::Gravity => "gravity",
     }
+}
+
+/// The built model's pectoralis major (both sides, at rest) as the viewport draws it, in
+/// the report's muscle tone; `None` where the model has none.
+fn muscle_scene(session: &plan::simulate::Session) -> Option<Arc<SceneMesh>> {
+    let simulation = &session.simulation;
+    let mut surface = simulation.muscle().surface(simulation.finest_mesh())?;
+    surface.vertex_colors = Some(vec![plan::views::MUSCLE_TONE; surface.positions.len()]);
+    Some(Arc::new(SceneMesh::new(&surface)))
 }

@@ -197,6 +197,15 @@ impl GuiApp {
                 self.set_up(*up);
                 Step::Done
             }
+            Action::ShowMuscle(show) => {
+                if *show && self.muscle.is_none() {
+                    return Step::Failed(
+                        "the pectoralis major is shown once a model is built".into(),
+                    );
+                }
+                self.show_muscle = *show;
+                Step::Done
+            }
             Action::Stats => {
                 run.stats = Some(RateLog::new(
                     self.live.as_ref().map_or(0, |l| l.frames_received),

@@ -445,8 +445,27 @@ impl GuiApp {
         }
     }
 
-    /// The meshes the viewport draws in the current display mode.
+    /// The meshes the viewport draws in the current display mode: with the pectoralis
+    /// major shown, the muscle and the front surface over it as a veil.
     fn layers(&self) -> Vec<Layer> {
+        let layers = self.surface_layers();
+        match (&self.muscle, layers.last()) {
+            (Some(muscle), Some(front)) if self.show_muscle => vec![
+                Layer {
+                    scene: Arc::clone(muscle),
+                    style: LayerStyle::Opaque,
+                },
+                Layer {
+                    scene: Arc::clone(&front.scene),
+                    style: LayerStyle::Translucent,
+                },
+            ],
+            _ => layers,
+        }
+    }
+
+    /// The surfaces the viewport draws in the current display mode.
+    fn surface_layers(&self) -> Vec<Layer> {
         let Some(scene) = &self.scene else {
             return Vec::new();
         };

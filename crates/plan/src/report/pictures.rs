@@ -6,8 +6,10 @@ use super::*;
 /// The rendered views of the report: the pre-operative, the simulated and (when given)
 /// the post-operative scan from the front, the obliques and the sides, with landmarks
 /// (labelled) and cut curves, then the simulated scan coloured by its distance from the
-/// pre-operative surface (where the implants changed the shape), front and obliques.
-pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
+/// pre-operative surface (where the implants changed the shape), front and obliques;
+/// with `muscles` (the model's `muscle_*.ply`), the pectoralis major through the
+/// pre-operative skin, front and obliques, last.
+pub fn report_views(scans: &ReportScans, muscles: &[mesh::TriMesh]) -> Result<Vec<report::View>> {
     let mut views = Vec::new();
     let mut shown = vec![
         ("Pre-operative", &scans.preoperative),
@@ -59,10 +61,7 @@ pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
         simulated.up(),
         &content,
     )? {
-        if matches!(
-            view.view,
-            StandardView::Front | StandardView::LeftOblique | StandardView::RightOblique
-        ) {
+        if is_front_or_oblique(view.view) {
             let title = format!("Change from the pre-operative surface, {}", view.name);
             views.push(report_view(
                 title,
@@ -73,7 +72,30 @@ pub fn report_views(scans: &ReportScans) -> Result<Vec<report::View>> {
             )?);
         }
     }
+    if !muscles.is_empty() {
+        let pre = &scans.preoperative.marked;
+        let content = ViewContent {
+            muscles,
+            ..Default::default()
+        };
+        for view in standard_views(&pre.scan.mesh, &pre.landmarks, pre.up(), &content)? {
+            if is_front_or_oblique(view.view) {
+                let title = format!(
+                    "Pectoralis major under the pre-operative skin, {}",
+                    view.name
+                );
+                views.push(report_view(title, view, None)?);
+            }
+        }
+    }
     Ok(views)
+}
+
+fn is_front_or_oblique(view: StandardView) -> bool {
+    matches!(
+        view,
+        StandardView::Front | StandardView::LeftOblique | StandardView::RightOblique
+    )
 }
 
 /// The cut curves of both breasts as points on the surface (mm).
