@@ -153,6 +153,11 @@ pub struct FemModel {
     membranes: Vec<MembraneRest>,
     membrane_ptr: Vec<u32>,
     pub(crate) sliders: Sliders,
+    /// Per element, `Σᵢ (Xᵢ - X₀) ⊗ gᵢ - I` of an element given a rest shape of its own
+    /// ([`FemModel::set_rest_shape`]; `X` the mesh's rest positions, `gᵢ` the rest
+    /// shape's gradients): added to every displacement gradient, so `I + ∇u` is the
+    /// deformation from the element's own rest shape. Empty while no element has one.
+    rest_offset: Vec<DMat3>,
 }
 
 /// Rest data of one tetrahedron; `Err` with its signed volume if it is not positive.
@@ -255,6 +260,7 @@ impl FemModel {
             membranes: Vec::new(),
             membrane_ptr: Vec::new(),
             sliders: Sliders::default(),
+            rest_offset: Vec::new(),
         })
     }
 
@@ -304,6 +310,63 @@ impl FemModel {
         e.vol_lambda = e.volume_mm3 * lambda;
         e.vol_mu = e.volume_mm3 * mu;
         self.materials[element] = material;
+        Ok(())
+    }
+
+    /// Gives element `e` a rest shape of its own, the tetrahedron `corners` (mm; e.g. an
+    /// inflated implant, stress-free only once its vertices reach those corners), with
+    /// its material kept. Its rest volume, mass and stiffness become the shape's.
+    ///
+    /// Errors: an element out of range, an inverted or flat shape (the model is left
+    /// unchanged).
+    pub fn set_rest_shape(&mut self, e: usize, corners: [DVec3; 4]) -> Result<(), FemError> {
+        let Some(&t) = self.tets.get(e) else {
+            return Err(FemError::BadElement {
+                element: e,
+                vertices: [0; 4],
+                reason: "element index out of range",
+            });
+        };
+        let rest = element_rest(corners, &self.materials[e]).map_err(|volume_mm3| {
+            FemError::InvertedElement {
+                element: e,
+                volume_mm3,
+            }
+        })?;
+        let x = t.map(|v| self.rest[v as usize]);
+        let offset = outer(x[1] - x[0], rest.grad[1])
+            + outer(x[2] - x[0], rest.grad[2])
+            + outer(x[3] - x[0], rest.grad[3])
+            - DMat3::IDENTITY;
+        if self.rest_offset.is_empty() {
+            self.rest_offset = vec![DMat3::ZERO; self.tets.len()];
+        }
+        self.rest_offset[e] = offset;
+        self.elements[e] = rest;
+        Ok(())
+    }
+
+    /// Gives element `e` back the mesh's rest shape (see [`FemModel::set_rest_shape`]).
+    ///
+    /// Errors: an element out of range.
+    pub fn reset_rest_shape(&mut self, e: usize) -> Result<(), FemError> {
+        let Some(&t) = self.tets.get(e) else {
+            return Err(FemError::BadElement {
+                element: e,
+                vertices: [0; 4],
+                reason: "element index out of range",
+            });
+        };
+        if let Some(offset) = self.rest_offset.get_mut(e) {
+            *offset = DMat3::ZERO;
+        }
+        let corners = t.map(|v| self.rest[v as usize]);
+        self.elements[e] = element_rest(corners, &self.materials[e]).map_err(|volume_mm3| {
+            FemError::InvertedElement {
+                element: e,
+                volume_mm3,
+            }
+        })?;
         Ok(())
     }
 
@@ -563,7 +626,11 @@ impl FemModel {
         let d1 = u[t[1] as usize] - u0;
         let d2 = u[t[2] as usize] - u0;
         let d3 = u[t[3] as usize] - u0;
-        outer(d1, g[1]) + outer(d2, g[2]) + outer(d3, g[3])
+        let du = outer(d1, g[1]) + outer(d2, g[2]) + outer(d3, g[3]);
+        match self.rest_offset.get(e) {
+            Some(offset) => du + *offset,
+            None => du,
+        }
     }
 
     /// The rotation of element `e` for displacement `u`.

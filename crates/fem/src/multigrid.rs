@@ -489,6 +489,23 @@ impl Multigrid {
         self.levels[0].model.set_material(element, material)
     }
 
+    /// Gives a finest element a rest shape of its own ([`FemModel::set_rest_shape`]), or
+    /// with `None` the mesh's back; the next [`Multigrid::assemble`] uses it.
+    ///
+    /// Errors: see [`FemModel::set_rest_shape`].
+    pub fn set_rest_shape(
+        &mut self,
+        element: usize,
+        corners: Option<[DVec3; 4]>,
+    ) -> Result<(), FemError> {
+        self.assembled = None;
+        let model = &mut self.levels[0].model;
+        match corners {
+            Some(corners) => model.set_rest_shape(element, corners),
+            None => model.reset_rest_shape(element),
+        }
+    }
+
     /// Replaces the finest model's sliders ([`FemModel::set_sliders`]); the next
     /// [`Multigrid::assemble`] uses them. Rediscretised coarse levels have none.
     ///

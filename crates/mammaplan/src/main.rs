@@ -252,6 +252,11 @@ struct SimulateArgs {
     /// homogeneous model) instead of the stiffer muscle's.
     #[arg(long)]
     no_muscle: bool,
+    /// Experimental: once the template's implant has pushed the tissue, release it as a
+    /// deformable, nearly incompressible gel of this Young's modulus (kPa), stress-free in
+    /// the template's shape, so that tissue that resists more (a muscle) compresses it.
+    #[arg(long, value_name = "KPA")]
+    implant_gel_kpa: Option<f64>,
     /// Leave volume loss to the corotated energy (the paper's model) instead of
     /// resisting every loss with twice the first Lamé parameter (see docs/dev/volume-loss.md).
     #[arg(long)]
@@ -299,6 +304,7 @@ fn simulate_command(args: SimulateArgs, progress: &TerminalProgress) -> Result<(
         no_gravity,
         no_skin,
         no_muscle,
+        implant_gel_kpa,
         no_compression_penalty,
         skin_slides,
         catalog,
@@ -327,6 +333,7 @@ fn simulate_command(args: SimulateArgs, progress: &TerminalProgress) -> Result<(
         },
         no_skin,
         no_muscle,
+        implant_gel_kpa,
         no_compression_penalty,
         skin_slides,
     };

@@ -104,6 +104,9 @@ pub struct SimulateOptions {
     /// The pectoralis major's elements of breast tissue (the paper's homogeneous model)
     /// instead of the muscle's material ([`simulation::muscle`]).
     pub no_muscle: bool,
+    /// Release the implant as a gel of this Young's modulus (kPa) once the template has
+    /// pushed the tissue ([`SimulationOptions::implant_gel`]); `None`: the template.
+    pub implant_gel_kpa: Option<f64>,
     /// The paper's corotated energy alone, without the resistance to large volume loss
     /// ([`fem::CompressionPenalty`]).
     pub no_compression_penalty: bool,
@@ -554,6 +557,11 @@ pub fn simulate(
         } else {
             SimulationOptions::default().skin
         },
+        implant_gel: options.implant_gel_kpa.map(|young_kpa| fem::Material {
+            young_kpa,
+            poisson_ratio: simulation::session::DEFAULT_IMPLANT_POISSON_RATIO,
+            density_kg_m3: simulation::session::DEFAULT_IMPLANT_DENSITY_KG_M3,
+        }),
         muscle: if options.no_muscle {
             None
         } else {

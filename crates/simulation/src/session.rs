@@ -383,6 +383,8 @@ pub struct Simulation {
     stage_cycles: usize,
     /// The constraints or loads changed since the last cycle (no line search then).
     fresh: bool,
+    /// Stage 1's implants released as a gel ([`SimulationOptions::implant_gel`]).
+    released: bool,
     /// Linear warm-up cycles still to run.
     warmup_left: usize,
     /// Stage 1's residual grew from one corotated cycle to the next: line search on

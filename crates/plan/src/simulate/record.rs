@@ -180,6 +180,10 @@ pub struct MaterialsReport {
     /// and `--no-muscle`).
     #[serde(default)]
     pub muscle: Option<MaterialReport>,
+    /// The gel the implant was released as after the template's push (`--implant-gel-kpa`,
+    /// experimental); `null`: the template's prescribed implant.
+    #[serde(default)]
+    pub implant_gel: Option<MaterialReport>,
     /// `null`: the paper's corotated energy (older results and
     /// `--no-compression-penalty`).
     #[serde(default)]
@@ -197,6 +201,7 @@ impl MaterialsReport {
                 density_kg_m3: options.implant_density_kg_m3,
             },
             muscle: options.muscle.map(MaterialReport::from),
+            implant_gel: options.implant_gel.map(MaterialReport::from),
             skin: options.skin.map(|skin| SkinReport {
                 young_kpa: skin.young_kpa,
                 thickness_mm: skin.thickness_mm,

@@ -120,6 +120,7 @@ impl Simulation {
             last_residual_mn: 0.0,
             stage_cycles: 0,
             fresh: true,
+            released: false,
             stage_one_search: false,
             stage_one_residuals: Vec::new(),
             anderson: AndersonMixing::new(ANDERSON_DEPTH),

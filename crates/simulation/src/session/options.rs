@@ -233,6 +233,12 @@ pub struct SimulationOptions {
     /// The skin over it ([`crate::skin`]); `None`: tissue up to the surface (the
     /// paper's homogeneous model).
     pub skin: Option<SkinLayer>,
+    /// Once stage 1 has converged with the template's prescribed implant, release the
+    /// implant's front and let it be a deformable gel of this material, stress-free in
+    /// the template's shape: where the tissue over it resists more (a muscle), it yields,
+    /// and being nearly incompressible it bulges elsewhere. Only [`Simulation::run`]
+    /// takes this step (experimental, issue 24). `None`: the paper's template.
+    pub implant_gel: Option<Material>,
     /// Implant elements' Young's modulus over the tissue's.
     pub implant_young_ratio: f64,
     /// Implant elements' Poisson ratio.
@@ -322,6 +328,7 @@ impl Default for SimulationOptions {
             tissue: Material::default(),
             muscle: Some(DEFAULT_MUSCLE),
             skin: Some(SkinLayer::default()),
+            implant_gel: None,
             implant_young_ratio: DEFAULT_IMPLANT_YOUNG_RATIO,
             implant_poisson_ratio: DEFAULT_IMPLANT_POISSON_RATIO,
             implant_density_kg_m3: DEFAULT_IMPLANT_DENSITY_KG_M3,

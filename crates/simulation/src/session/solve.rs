@@ -21,16 +21,20 @@ impl Simulation {
         self.stage_one_residuals.clear();
         self.newton_krylov = false;
         self.warmup_left = 0;
+        self.released = false;
     }
 
-    /// The constraints of stage 1 (or of stage 2 without the implant vertices).
+    /// The constraints of `stage`: stage 1's hold the implant vertices where the template
+    /// puts them (once released as a gel, only those on the band), stage 2's release
+    /// them.
     ///
     /// Besides the wall and the templates, a free vertex all of whose neighbours are held
     /// at zero is held at zero too (repeatedly): in stage 1 its equilibrium displacement
     /// is zero anyway (no load acts on it), and such islands, found between the fixed
     /// back vertices and the posterior wall, leave coarse multigrid functions that only
     /// see one free fine vertex, which made the Galerkin coarse operator singular.
-    pub(super) fn constraints(&self, with_implant_vertices: bool) -> Constraints {
+    pub(super) fn constraints(&self, stage: Stage) -> Constraints {
+        let with_implant_vertices = stage == Stage::Implant && !self.released;
         let n = self.finest.positions.len();
         let mut zero = vec![false; n];
         let mut held = vec![false; n];
@@ -90,6 +94,9 @@ impl Simulation {
             }
             for &(v, d) in &implant.template.implant_vertices {
                 if with_implant_vertices {
+                    c.prescribe(v, d);
+                } else if self.on_band[v as usize] && stage == Stage::Implant {
+                    // a released gel's vertex on the band stays where the template put it
                     c.prescribe(v, d);
                 } else if self.on_band[v as usize] {
                     // where the model is cut through the body, the holding force includes
@@ -167,18 +174,38 @@ impl Simulation {
             poisson_ratio: self.options.implant_poisson_ratio,
             density_kg_m3: self.options.implant_density_kg_m3,
         };
-        let current: Vec<u32> = self
-            .implants
-            .iter()
-            .flatten()
-            .flat_map(|i| i.template.implant_elements.iter().copied())
-            .collect();
+        let gel = self.options.implant_gel.filter(|_| self.released);
+        let current: Vec<u32> = match gel {
+            Some(_) => self.gel_elements(),
+            None => (self.implants.iter().flatten())
+                .flat_map(|i| i.template.implant_elements.iter().copied())
+                .collect(),
+        };
         for &e in &stage.soft_elements {
             let own = self.levels[0].materials()[e as usize];
             stage.multigrid.set_material(e as usize, own)?;
+            stage.multigrid.set_rest_shape(e as usize, None)?;
         }
+        let target = gel.map(|_| self.template_positions());
         for &e in &current {
-            stage.multigrid.set_material(e as usize, soft)?;
+            let shape = target.as_ref().and_then(|target| {
+                let t = self.finest.tets[e as usize];
+                Some((gel?, t.map(|v| target[v as usize])))
+            });
+            let Some((gel, corners)) = shape else {
+                stage.multigrid.set_material(e as usize, soft)?;
+                continue;
+            };
+            stage.multigrid.set_material(e as usize, gel)?;
+            // an element the template turns over (squeezed at the rim) has no shape to
+            // keep: it stays a soft filler
+            if stage
+                .multigrid
+                .set_rest_shape(e as usize, Some(corners))
+                .is_err()
+            {
+                stage.multigrid.set_material(e as usize, soft)?;
+            }
         }
         stage.soft_elements = current;
         let sliders = match which {
@@ -250,8 +277,8 @@ impl Simulation {
         stage: Stage,
     ) -> Result<(StageMultigrid, bool), SimulationError> {
         let (constraints, tangent) = match stage {
-            Stage::Implant => (self.constraints(true), self.options.multigrid.tangent),
-            Stage::Gravity => (self.constraints(false), self.options.gravity_tangent),
+            Stage::Implant => (self.constraints(stage), self.options.multigrid.tangent),
+            Stage::Gravity => (self.constraints(stage), self.options.gravity_tangent),
         };
         let (mut kept, built) = match self.multigrid.take() {
             Some(mut kept) => {
@@ -558,6 +585,10 @@ impl Simulation {
     /// or are eliminated, and the system leaves them alone) and the skin on sliders.
     fn dead_load_vertices(&self) -> Vec<bool> {
         let mut marked = vec![false; self.u.len()];
+        if self.released {
+            // a released gel's vertices are free in stage 1 already
+            return marked;
+        }
         for implant in self.implants.iter().flatten() {
             for &(v, _) in implant.template.pushed_vertices() {
                 marked[v as usize] = true;
@@ -613,6 +644,50 @@ impl Simulation {
         Ok(())
     }
 
+    /// Every finest vertex where the current templates put it: rest position plus its
+    /// prescribed displacement (the implants' shapes, stress-free for a released gel).
+    fn template_positions(&self) -> Vec<DVec3> {
+        let mut target = self.finest.positions.clone();
+        for implant in self.implants.iter().flatten() {
+            for &(v, d) in &implant.template.implant_vertices {
+                target[v as usize] += d;
+            }
+        }
+        target
+    }
+
+    /// The elements a released gel takes: every finest element whose four corners the
+    /// templates move or hold (the implant elements and the tissue layer the template
+    /// carries with them), so that a gel far stiffer than the tissue keeps the template's
+    /// answer.
+    fn gel_elements(&self) -> Vec<u32> {
+        let mut prescribed = vec![false; self.finest.positions.len()];
+        for implant in self.implants.iter().flatten() {
+            let template = &implant.template;
+            for &(v, _) in &template.implant_vertices {
+                prescribed[v as usize] = true;
+            }
+            for &v in &template.fixed_vertices {
+                prescribed[v as usize] = true;
+            }
+        }
+        (self.finest.tets.iter().enumerate())
+            .filter(|(_, t)| t.iter().all(|&v| prescribed[v as usize]))
+            .map(|(e, _)| e as u32)
+            .collect()
+    }
+
+    /// Releases stage 1's implants as a gel ([`SimulationOptions::implant_gel`]) from
+    /// the current displacement; the next cycles solve for where the tissue lets it be.
+    fn release_implants(&mut self) {
+        self.released = true;
+        self.dirty = true;
+        self.stage_cycles = 0;
+        self.stage_one_search = false;
+        self.stage_one_residuals.clear();
+        self.newton_krylov = false;
+    }
+
     /// Solves stage 1 to convergence and, unless `no_gravity`, the gravity correction,
     /// with the options' cycle limit and tolerance.
     pub fn run(&mut self, no_gravity: bool) -> Result<RunReport, SimulationError> {
@@ -621,7 +696,16 @@ impl Simulation {
             self.constraints_changed();
         }
         let (max, tol) = (self.options.max_cycles, self.options.relative_tolerance);
-        let implant = self.solve(max, tol)?;
+        let mut implant = self.solve(max, tol)?;
+        if self.options.implant_gel.is_some() && self.implants.iter().any(Option::is_some) {
+            self.release_implants();
+            let released = self.solve(max, tol)?;
+            implant = SolveReport {
+                cycles: implant.cycles + released.cycles,
+                time_ms: implant.time_ms + released.time_ms,
+                ..released
+            };
+        }
         let gravity = if no_gravity || self.implants.iter().all(Option::is_none) {
             None
         } else {
