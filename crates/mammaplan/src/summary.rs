@@ -180,6 +180,20 @@ fn model_figures(report: &ModelReport) -> String {
             refinement.max_edge_mm,
         );
     }
+    for (side, muscle) in [
+        ("left", &report.pectoralis_major.left),
+        ("right", &report.pectoralis_major.right),
+    ] {
+        let _ = match muscle {
+            Some(m) => writeln!(
+                out,
+                "{side} pectoralis major: {:.0} cm² of chest wall, {:.1} mm thick on average, \
+                 {:.1} ml; {:.1} mm from the midline",
+                m.area_cm2, m.mean_thickness_mm, m.volume_ml, m.medial_border_from_midline_mm,
+            ),
+            None => writeln!(out, "{side} pectoralis major: no element of the model"),
+        };
+    }
     out
 }
 

@@ -763,21 +763,29 @@ pub fn write_simulation(
     Ok(report)
 }
 
-/// Writes the finest level with its displacement, constrained and sliding vertices and
-/// implant elements.
+/// Writes the finest level with its displacement, constrained and sliding vertices,
+/// implant elements and the pectoralis major's (1 left, 2 right).
 fn write_fe_result(path: &Path, simulation: &Simulation) -> Result<()> {
     let mesh = simulation.finest_mesh();
     let mut constrained = vec![0.0; mesh.vertex_count()];
     let mut sliding = vec![0.0; mesh.vertex_count()];
     let mut implant_elements = vec![0.0; mesh.tet_count()];
+    let mut muscle = vec![0.0; mesh.tet_count()];
+    for (code, elements) in [1.0, 2.0].iter().zip(&simulation.muscle().elements) {
+        for &e in elements {
+            muscle[e as usize] = *code;
+        }
+    }
     for &v in simulation.wall_vertices() {
         constrained[v as usize] = 1.0;
     }
     for side in Side::BOTH {
         if let Some(placed) = simulation.implant(side) {
             let template = &placed.template;
-            for &(v, _) in &template.implant_vertices {
-                constrained[v as usize] = 1.0;
+            if !simulation.implants_released() {
+                for &(v, _) in &template.implant_vertices {
+                    constrained[v as usize] = 1.0;
+                }
             }
             for &v in &template.fixed_vertices {
                 constrained[v as usize] = 1.0;
@@ -798,7 +806,10 @@ fn write_fe_result(path: &Path, simulation: &Simulation) -> Result<()> {
             Field::scalars(CONSTRAINED, constrained),
             Field::scalars("sliding", sliding),
         ],
-        &[Field::scalars("implant", implant_elements)],
+        &[
+            Field::scalars("implant", implant_elements),
+            Field::scalars("pectoralis_major", muscle),
+        ],
     )
     .with_context(|| format!("writing {}", path.display()))
 }

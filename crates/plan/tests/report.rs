@@ -395,7 +395,8 @@ fn missing_and_malformed_folders_are_named() {
 
 /// On request the report adds the pectoralis major through the pre-operative skin,
 /// front and obliques, after the other views; a model folder without the muscle's
-/// files is named with what to do.
+/// files is named with what to do. The simulation's `fe_result.vtu` marks the muscle's
+/// elements the model measured.
 #[test]
 fn the_report_shows_the_pectoralis_major_on_request() {
     let dir = tempfile::tempdir().unwrap();
@@ -418,6 +419,28 @@ fn the_report_shows_the_pectoralis_major_on_request() {
     for (title, view) in added.iter().zip(["Front", "Left oblique", "Right oblique"]) {
         assert!(title.starts_with("Pectoralis major"), "{title}");
         assert!(title.ends_with(view), "{title}");
+    }
+    // the simulation's fe_result.vtu marks the same elements the model measured: their
+    // volumes, summed from the file's own geometry, are model.json's (to rounding)
+    let fe = tetra::vtu::read_vtu(&dir.path().join("simulation/fe_result.vtu")).unwrap();
+    let Some(tetra::vtu::FieldValues::Scalars(codes)) =
+        fe.cell_field("pectoralis_major").map(|f| &f.values)
+    else {
+        panic!("fe_result.vtu has no pectoralis_major scalars");
+    };
+    let model_json = read_json(&dir.path().join("model/model.json"));
+    for (code, side) in [(1.0, "left"), (2.0, "right")] {
+        let volume_mm3: f64 = (fe.mesh.tets.iter().zip(codes))
+            .filter(|(_, c)| **c == code)
+            .map(|(t, _)| tetra::quality::signed_volume(t.map(|v| fe.mesh.positions[v as usize])))
+            .sum();
+        let reported = model_json["pectoralis_major"][side]["volume_ml"]
+            .as_f64()
+            .unwrap();
+        assert!(
+            (volume_mm3 / 1000.0 / reported - 1.0).abs() < 1e-9,
+            "{side}: {volume_mm3} mm³ vs {reported} ml"
+        );
     }
     for side in ["left", "right"] {
         std::fs::remove_file(dir.path().join(format!("model/muscle_{side}.ply"))).unwrap();

@@ -456,6 +456,12 @@ impl Simulation {
         &self.finest
     }
 
+    /// Whether stage 1's implants were released as a gel
+    /// ([`SimulationOptions::implant_gel`]): their vertices are then free.
+    pub fn implants_released(&self) -> bool {
+        self.released
+    }
+
     /// The pectoralis major on the finest level ([`crate::muscle`]).
     pub fn muscle(&self) -> &MuscleLayer {
         &self.muscle
