@@ -481,6 +481,9 @@ pub fn build_model(
         &marked.landmarks,
     )
     .context("placing the pectoralis major")?;
+    for warning in &muscle.warnings {
+        progress.warn(&format!("{}: {warning}", scan.path.display()));
+    }
     let wall_tolerance_mm = finest.spacing_mm * simulation::WALL_TOLERANCE_FACTOR;
     let pectoralis_major = PerSide::from_fn(|side| {
         muscle.figures(

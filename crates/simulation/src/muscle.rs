@@ -65,7 +65,7 @@ pub const DEFAULT_MUSCLE: Material = Material {
 };
 
 /// The pectoralis major of one side: its outline and thickness (standing frame).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Pectoralis {
     pub side: Side,
     /// `x` towards this side: 1 on the left, -1 on the right.
@@ -75,12 +75,15 @@ pub struct Pectoralis {
     /// Pj's height (0) and the lower sternal origin's (mm, standing frame).
     pub origin_top_y_mm: f64,
     pub lower_origin_y_mm: f64,
-    /// The inferior border's corners `(a, y)`: the lower sternal origin, the fold's
-    /// lowest point, its lateral end; beyond the last it rises at
-    /// [`AXILLARY_RISE_DEG`].
-    pub inferior: [DVec2; 3],
-    /// The clavicular border's corners `(a, y)`: at the medial border, below Pc*.
-    pub clavicular: [DVec2; 2],
+    /// The inferior border's corners `(a, y)`, `a` increasing: the lower sternal
+    /// origin, the fold's lowest point, its lateral end (a landmark out of that order
+    /// left out); beyond the last it rises at [`AXILLARY_RISE_DEG`].
+    pub inferior: Vec<DVec2>,
+    /// The clavicular border's corners `(a, y)`: at the medial border, below Pc* (unless
+    /// Pc* lies nearer the midline than the sternal origin).
+    pub clavicular: Vec<DVec2>,
+    /// Landmarks left out of the outline, for the user.
+    pub warnings: Vec<String>,
     /// Full thickness (mm).
     pub thickness_mm: f64,
 }
@@ -107,8 +110,8 @@ fn polyline_y(corners: &[DVec2], a: f64, slope_beyond: f64) -> f64 {
 impl Pectoralis {
     /// The muscle of `side` from the landmarks, `thickness_mm` thick in its middle.
     ///
-    /// Errors: landmarks that give no outline: Px not below Pj, a fold or its lateral
-    /// end nearer the midline than the sternal origin or not in order from the midline.
+    /// Errors: Px not below Pj (no sternal origin). A fold point or clavicle nearer the
+    /// midline than the corner before it is left out of the border, with a warning.
     pub fn from_landmarks(
         side: Side,
         frame: &AnatomicalFrame,
@@ -139,31 +142,45 @@ impl Pectoralis {
             ));
         }
         let lower_origin = DVec2::new(MEDIAL_ORIGIN_MM, lower_origin_y_mm);
-        let (fold, fold_lateral) = (at(fold), at(fold_lateral));
-        if !(fold.x > MEDIAL_ORIGIN_MM && fold_lateral.x > fold.x) {
-            return bad(format!(
-                "the fold's lowest point ({:.0} mm from the midline) and its lateral end \
-                 ({:.0} mm) must lie in that order beyond the sternal origin ({MEDIAL_ORIGIN_MM} mm)",
-                fold.x, fold_lateral.x
-            ));
-        }
+        let mut warnings = Vec::new();
+        // corners in order from the midline; one out of order is left out and said
+        let mut ordered = |corners: &[(DVec2, LandmarkName)], start: DVec2| {
+            let mut kept = vec![start];
+            for &(corner, name) in corners {
+                let last = kept[kept.len() - 1];
+                if corner.x > last.x && corner.is_finite() {
+                    kept.push(corner);
+                } else {
+                    warnings.push(format!(
+                        "the {side} pectoralis major's border leaves out {} ({:.0} mm from \
+                         the midline), which does not lie beyond the border's last corner \
+                         ({:.0} mm)",
+                        name.as_str(),
+                        corner.x,
+                        last.x
+                    ));
+                }
+            }
+            kept
+        };
+        let inferior = ordered(
+            &[(at(fold), fold), (at(fold_lateral), fold_lateral)],
+            lower_origin,
+        );
         let below_clavicle = at(clavicle) - DVec2::new(0.0, BELOW_CLAVICLE_MM);
-        if !(below_clavicle.x > MEDIAL_ORIGIN_MM && below_clavicle.y > lower_origin_y_mm) {
-            return bad(format!(
-                "the clavicle's landmark ({:.0} mm from the midline, {:.0} mm below Pj) must \
-                 lie lateral of the sternum and above Px",
-                below_clavicle.x,
-                -at(clavicle).y
-            ));
-        }
+        let clavicular = ordered(
+            &[(below_clavicle, clavicle)],
+            DVec2::new(MEDIAL_ORIGIN_MM, 0.0),
+        );
         Ok(Pectoralis {
             side,
             side_sign,
             medial_a_mm: MEDIAL_ORIGIN_MM,
             origin_top_y_mm: 0.0,
             lower_origin_y_mm,
-            inferior: [lower_origin, fold, fold_lateral],
-            clavicular: [DVec2::new(MEDIAL_ORIGIN_MM, 0.0), below_clavicle],
+            inferior,
+            clavicular,
+            warnings,
             thickness_mm,
         })
     }
@@ -197,8 +214,10 @@ impl Pectoralis {
 /// Both muscles and the tetrahedra of a mesh they take.
 #[derive(Debug, Clone)]
 pub struct MuscleLayer {
-    /// `[left, right]`.
-    pub muscles: [Pectoralis; 2],
+    /// `[left, right]`; `None` where the landmarks place no muscle (see `warnings`).
+    pub muscles: [Option<Pectoralis>; 2],
+    /// What the user should know: landmarks left out of an outline, a side without one.
+    pub warnings: Vec<String>,
     /// Per side, the muscle's tetrahedra (indices into the mesh), ascending.
     pub elements: [Vec<u32>; 2],
 }
@@ -225,7 +244,8 @@ impl MuscleLayer {
     /// `closed`'s rear wall. The full thickness is the rear-wall offset less
     /// [`DEFAULT_SHIFT_MM`].
     ///
-    /// Errors: as [`Pectoralis::from_landmarks`]; a closed surface without a rear wall.
+    /// Errors: a closed surface without a rear wall. A side whose landmarks place no
+    /// muscle has none, and a warning says so.
     pub fn new(
         mesh: &TetMesh,
         closed: &ClosedSurface,
@@ -233,9 +253,19 @@ impl MuscleLayer {
         landmarks: &Landmarks,
     ) -> Result<MuscleLayer, SimulationError> {
         let thickness_mm = (closed.rear_wall_offset_mm - DEFAULT_SHIFT_MM).max(0.0);
-        let left = Pectoralis::from_landmarks(Side::Left, frame, landmarks, thickness_mm)?;
-        let right = Pectoralis::from_landmarks(Side::Right, frame, landmarks, thickness_mm)?;
-        let muscles = [left, right];
+        let mut warnings = Vec::new();
+        let muscles = Side::BOTH.map(|side| {
+            match Pectoralis::from_landmarks(side, frame, landmarks, thickness_mm) {
+                Ok(muscle) => {
+                    warnings.extend(muscle.warnings.iter().cloned());
+                    Some(muscle)
+                }
+                Err(error) => {
+                    warnings.push(format!("{error}: that side is breast tissue throughout"));
+                    None
+                }
+            }
+        });
         let wall = rear_wall(closed).ok_or_else(|| {
             SimulationError::BadModel("the closed surface has no rear wall".into())
         })?;
@@ -250,7 +280,7 @@ impl MuscleLayer {
                     / 4.0;
                 let local = frame.to_local(centroid);
                 let s = side_of(local);
-                let thickness = muscles[s].thickness_at(local);
+                let thickness = muscles[s].as_ref().map_or(0.0, |m| m.thickness_at(local));
                 (thickness > 0.0 && wall.is_within(centroid, thickness)).then_some((s, e as u32))
             })
             .collect();
@@ -258,7 +288,11 @@ impl MuscleLayer {
         for (s, e) in tagged.into_iter().flatten() {
             elements[s].push(e);
         }
-        Ok(MuscleLayer { muscles, elements })
+        Ok(MuscleLayer {
+            muscles,
+            warnings,
+            elements,
+        })
     }
 
     /// The muscle of `side`'s elements as a mesh of their own (the mesh's vertices they
@@ -291,7 +325,7 @@ impl MuscleLayer {
         side: Side,
         wall_tolerance_mm: f64,
     ) -> Option<MuscleFigures> {
-        let muscle = &self.muscles[side as usize];
+        let muscle = self.muscles[side as usize].as_ref()?;
         let sub = self.side_mesh(mesh, side)?;
         let wall = rear_wall(closed)?;
         let volume_mm3: f64 = sub.tets.iter().map(|t| tet_volume(&sub.positions, t)).sum();
@@ -419,24 +453,38 @@ mod tests {
     #[test]
     fn the_free_edge_rises_towards_the_axilla() {
         let (muscle, _, _) = phantom_muscle(Side::Left);
-        let end = muscle.inferior[2];
+        let end = muscle.inferior[muscle.inferior.len() - 1];
         assert!((muscle.inferior_y_mm(end.x + 10.0) - (end.y + 10.0)).abs() < 1e-9);
     }
 
-    /// Landmarks that leave no outline are refused with a message naming them.
+    /// A fold point nearer the midline than the sternal origin is left out of the
+    /// border, named in a warning, and the border runs from the origin to the next
+    /// corner; Px above Pj places no muscle on either side, and the layer says so.
     #[test]
-    fn a_fold_inside_the_sternum_is_refused() {
+    fn landmarks_out_of_order_are_left_out_and_said() {
         let mut landmarks = phantom::generate(&phantom::PhantomParams::default()).landmarks;
         let frame = AnatomicalFrame::from_landmarks(&landmarks, Up::FILE_VERTICAL).unwrap();
-        let fold = landmarks.get(LandmarkName::PSMFl);
-        let local = frame.to_local(fold);
+        let local = frame.to_local(landmarks.get(LandmarkName::PSMFl));
         landmarks.set(
             LandmarkName::PSMFl,
             frame.to_file(DVec3::new(2.0, local.y, local.z)),
         );
+        let muscle = Pectoralis::from_landmarks(Side::Left, &frame, &landmarks, 10.0).unwrap();
+        assert_eq!(muscle.inferior.len(), 2);
+        assert_eq!(muscle.warnings.len(), 1);
+        assert!(
+            muscle.warnings[0].contains("PSMFl"),
+            "{:?}",
+            muscle.warnings
+        );
+        let right = Pectoralis::from_landmarks(Side::Right, &frame, &landmarks, 10.0).unwrap();
+        assert!(right.warnings.is_empty());
+
+        let pj = landmarks.get(LandmarkName::Pj);
+        landmarks.set(LandmarkName::Px, pj + frame.up() * 20.0);
         let error = Pectoralis::from_landmarks(Side::Left, &frame, &landmarks, 10.0)
             .unwrap_err()
             .to_string();
-        assert!(error.contains("fold's lowest point"), "{error}");
+        assert!(error.contains("Px lies 20 mm above Pj"), "{error}");
     }
 }

@@ -19,7 +19,7 @@ fn the_muscle_elements_hold_the_volume_of_its_thickness_over_the_wall() {
     let finest = &patient.model.tets.levels[0].mesh;
     let layer = MuscleLayer::new(finest, closed, patient.frame(), patient.landmarks()).unwrap();
     for side in Side::BOTH {
-        let muscle = &layer.muscles[side as usize];
+        let muscle = layer.muscles[side as usize].as_ref().unwrap();
         let sign = if side == Side::Left { 1.0 } else { -1.0 };
         let integral_mm3: f64 = closed.mesh.triangles[closed.back_wall.clone()]
             .iter()
