@@ -315,18 +315,13 @@ impl FemModel {
 
     /// Gives element `e` a rest shape of its own, the tetrahedron `corners` (mm; e.g. an
     /// inflated implant, stress-free only once its vertices reach those corners), with
-    /// its material kept. Its rest volume, mass and stiffness become the shape's.
+    /// its material kept. Its rest volume, mass and stiffness become the shape's; a
+    /// membrane on one of its faces keeps the mesh's rest shape.
     ///
     /// Errors: an element out of range, an inverted or flat shape (the model is left
     /// unchanged).
     pub fn set_rest_shape(&mut self, e: usize, corners: [DVec3; 4]) -> Result<(), FemError> {
-        let Some(&t) = self.tets.get(e) else {
-            return Err(FemError::BadElement {
-                element: e,
-                vertices: [0; 4],
-                reason: "element index out of range",
-            });
-        };
+        let t = self.element_vertices(e)?;
         let rest = element_rest(corners, &self.materials[e]).map_err(|volume_mm3| {
             FemError::InvertedElement {
                 element: e,
@@ -346,17 +341,20 @@ impl FemModel {
         Ok(())
     }
 
+    /// The vertices of element `e`; an error where there is no such element.
+    fn element_vertices(&self, e: usize) -> Result<[u32; 4], FemError> {
+        self.tets.get(e).copied().ok_or(FemError::BadElement {
+            element: e,
+            vertices: [0; 4],
+            reason: "element index out of range",
+        })
+    }
+
     /// Gives element `e` back the mesh's rest shape (see [`FemModel::set_rest_shape`]).
     ///
     /// Errors: an element out of range.
     pub fn reset_rest_shape(&mut self, e: usize) -> Result<(), FemError> {
-        let Some(&t) = self.tets.get(e) else {
-            return Err(FemError::BadElement {
-                element: e,
-                vertices: [0; 4],
-                reason: "element index out of range",
-            });
-        };
+        let t = self.element_vertices(e)?;
         if let Some(offset) = self.rest_offset.get_mut(e) {
             *offset = DMat3::ZERO;
         }

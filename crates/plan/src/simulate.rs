@@ -764,17 +764,23 @@ pub fn write_simulation(
 }
 
 /// Writes the finest level with its displacement, constrained and sliding vertices,
-/// implant elements and the pectoralis major's (1 left, 2 right).
+/// implant elements (a released gel's where the implant was released) and the
+/// pectoralis major's (1 left, 2 right; none with breast tissue there).
 fn write_fe_result(path: &Path, simulation: &Simulation) -> Result<()> {
     let mesh = simulation.finest_mesh();
     let mut constrained = vec![0.0; mesh.vertex_count()];
     let mut sliding = vec![0.0; mesh.vertex_count()];
     let mut implant_elements = vec![0.0; mesh.tet_count()];
     let mut muscle = vec![0.0; mesh.tet_count()];
-    for (code, elements) in [1.0, 2.0].iter().zip(&simulation.muscle().elements) {
-        for &e in elements {
-            muscle[e as usize] = *code;
+    if simulation.options().muscle.is_some() {
+        for (code, elements) in [1.0, 2.0].iter().zip(&simulation.muscle().elements) {
+            for &e in elements {
+                muscle[e as usize] = *code;
+            }
         }
+    }
+    for e in simulation.implant_elements() {
+        implant_elements[e as usize] = 1.0;
     }
     for &v in simulation.wall_vertices() {
         constrained[v as usize] = 1.0;
@@ -792,9 +798,6 @@ fn write_fe_result(path: &Path, simulation: &Simulation) -> Result<()> {
             }
             for &(v, _) in &template.skin_vertices {
                 sliding[v as usize] = 1.0;
-            }
-            for &e in &template.implant_elements {
-                implant_elements[e as usize] = 1.0;
             }
         }
     }

@@ -420,8 +420,9 @@ fn the_report_shows_the_pectoralis_major_on_request() {
         assert!(title.starts_with("Pectoralis major"), "{title}");
         assert!(title.ends_with(view), "{title}");
     }
-    // the simulation's fe_result.vtu marks the same elements the model measured: their
-    // volumes, summed from the file's own geometry, are model.json's (to rounding)
+    // the simulation writes the muscle's elements into fe_result.vtu (the session places
+    // them as the model did): their volumes, summed from the file's geometry, are the
+    // ones model.json reports (to rounding)
     let fe = tetra::vtu::read_vtu(&dir.path().join("simulation/fe_result.vtu")).unwrap();
     let Some(tetra::vtu::FieldValues::Scalars(codes)) =
         fe.cell_field("pectoralis_major").map(|f| &f.values)

@@ -22,7 +22,9 @@
 //! women, see `anatomy::closed_surface::DEFAULT_REAR_WALL_OFFSET_MM`). It tapers
 //! linearly to zero over [`BORDER_TAPER_MM`] inside every border (measured across `a`
 //! at the medial border, along `y` at the others). A tetrahedron is muscle where its
-//! centroid lies within the thickness in front of the closed surface's rear wall.
+//! centroid lies within the thickness in front of the closed surface's rear wall, and
+//! at least [`crate::DEFAULT_SHIFT_MM`] under the skin (at the side of the chest the
+//! wall, moved straight back, comes closer to the skin than the muscle is thick).
 
 use crate::bed::DEFAULT_SHIFT_MM;
 use crate::error::SimulationError;
@@ -241,10 +243,11 @@ pub struct MuscleFigures {
 impl MuscleLayer {
     /// The muscles of both sides placed from the landmarks, with the tetrahedra of
     /// `mesh` each takes: those whose centroid lies within its thickness in front of
-    /// `closed`'s rear wall. The full thickness is the rear-wall offset less
-    /// [`DEFAULT_SHIFT_MM`].
+    /// `closed`'s rear wall and at least [`DEFAULT_SHIFT_MM`] under its skin. The full
+    /// thickness is the rear-wall offset less [`DEFAULT_SHIFT_MM`] (the bed's default
+    /// depth, so the muscle ends where a subglandular implant lies).
     ///
-    /// Errors: a closed surface without a rear wall. A side whose landmarks place no
+    /// Errors: a closed surface without a rear wall or skin. A side whose landmarks place no
     /// muscle has none, and a warning says so.
     pub fn new(
         mesh: &TetMesh,
@@ -266,9 +269,12 @@ impl MuscleLayer {
                 }
             }
         });
-        let wall = rear_wall(closed).ok_or_else(|| {
-            SimulationError::BadModel("the closed surface has no rear wall".into())
-        })?;
+        let (wall, skin) = (rear_wall(closed), part_index(closed, closed.front.clone()));
+        let (Some(wall), Some(skin)) = (wall, skin) else {
+            return Err(SimulationError::BadModel(
+                "the closed surface has no rear wall or no skin".into(),
+            ));
+        };
         let side_of = |local: DVec3| if local.x >= 0.0 { 0 } else { 1 };
         let tagged: Vec<Option<(usize, u32)>> = (0..mesh.tets.len())
             .into_par_iter()
@@ -281,7 +287,12 @@ impl MuscleLayer {
                 let local = frame.to_local(centroid);
                 let s = side_of(local);
                 let thickness = muscles[s].as_ref().map_or(0.0, |m| m.thickness_at(local));
-                (thickness > 0.0 && wall.is_within(centroid, thickness)).then_some((s, e as u32))
+                // within the thickness of the wall, and never nearer the skin than the bed
+                // lies (where the wall comes close to the skin at the chest's side)
+                let muscle = thickness > 0.0
+                    && wall.is_within(centroid, thickness)
+                    && !skin.is_within(centroid, DEFAULT_SHIFT_MM);
+                muscle.then_some((s, e as u32))
             })
             .collect();
         let mut elements = [Vec::new(), Vec::new()];
@@ -391,7 +402,12 @@ fn elements_mesh(mesh: &TetMesh, elements: &[u32]) -> Option<TetMesh> {
 
 /// The closed surface's rear wall as a surface index; `None` without its triangles.
 fn rear_wall(closed: &ClosedSurface) -> Option<SurfaceIndex> {
-    let triangles = closed.mesh.triangles[closed.back_wall.clone()].to_vec();
+    part_index(closed, closed.back_wall.clone())
+}
+
+/// The triangles `part` of the closed surface as a surface index; `None` for none.
+fn part_index(closed: &ClosedSurface, part: std::ops::Range<usize>) -> Option<SurfaceIndex> {
+    let triangles = closed.mesh.triangles[part].to_vec();
     SurfaceIndex::new(&TriMesh::new(closed.mesh.positions.clone(), triangles))
 }
 

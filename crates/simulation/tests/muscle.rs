@@ -8,7 +8,7 @@ use simulation::{MuscleLayer, WALL_TOLERANCE_FACTOR};
 
 /// The muscle's elements hold the volume its thickness integrates to over the rear wall,
 /// summed independently over the wall's triangles (area times the thickness at the
-/// centroid). The elements are taken whole by their centroids, so the layer's front
+/// centroid, or the room to the bed's depth under the skin where that is less). The elements are taken whole by their centroids, so the layer's front
 /// and its tapering borders are resolved to about half an element: at a 6-7 mm spacing
 /// over a 10 mm layer that is up to a third of its thickness locally, and it averages
 /// out over the layer to within 15%. The surface written for it encloses the same volume.
@@ -18,6 +18,11 @@ fn the_muscle_elements_hold_the_volume_of_its_thickness_over_the_wall() {
     let closed = &patient.model.closed_surface;
     let finest = &patient.model.tets.levels[0].mesh;
     let layer = MuscleLayer::new(finest, closed, patient.frame(), patient.landmarks()).unwrap();
+    let skin = mesh::SurfaceIndex::new(&mesh::TriMesh::new(
+        closed.mesh.positions.clone(),
+        closed.mesh.triangles[closed.front.clone()].to_vec(),
+    ))
+    .unwrap();
     for side in Side::BOTH {
         let muscle = layer.muscles[side as usize].as_ref().unwrap();
         let sign = if side == Side::Left { 1.0 } else { -1.0 };
@@ -28,8 +33,10 @@ fn the_muscle_elements_hold_the_volume_of_its_thickness_over_the_wall() {
                 let centroid = (a + b + c) / 3.0;
                 let local = patient.frame().to_local(centroid);
                 let area = 0.5 * (b - a).cross(c - a).length();
+                // the muscle keeps the bed's depth under the skin
+                let room = skin.closest_point(centroid).distance - simulation::DEFAULT_SHIFT_MM;
                 if local.x * sign >= 0.0 {
-                    area * muscle.thickness_at(local)
+                    area * muscle.thickness_at(local).min(room.max(0.0))
                 } else {
                     0.0
                 }

@@ -195,11 +195,7 @@ impl MaterialsReport {
         let tissue = options.tissue;
         MaterialsReport {
             tissue: MaterialReport::from(tissue),
-            implant: MaterialReport {
-                young_kpa: tissue.young_kpa * options.implant_young_ratio,
-                poisson_ratio: options.implant_poisson_ratio,
-                density_kg_m3: options.implant_density_kg_m3,
-            },
+            implant: MaterialReport::from(options.soft_implant()),
             muscle: options.muscle.map(MaterialReport::from),
             implant_gel: options.implant_gel.map(MaterialReport::from),
             skin: options.skin.map(|skin| SkinReport {

@@ -146,10 +146,9 @@ impl Simulation {
     }
 }
 
-/// The finest level (mesh and spacing) and the tissue model of every level used.
-/// The finest mesh, its spacing (mm), the tissue model of every level (the
-/// pectoralis major's elements with its material, [`SimulationOptions::muscle`]) and the
-/// muscle layer on the finest level.
+/// The finest mesh, its spacing (mm), the tissue model of every level used (the
+/// pectoralis major's elements with its material where [`SimulationOptions::muscle`]
+/// gives one) and the muscle layer on the finest level.
 fn tissue_levels(
     input: &PatientInput,
     options: &SimulationOptions,
@@ -162,25 +161,26 @@ fn tissue_levels(
     let finest = level0.mesh.clone();
     let spacing_mm = level0.spacing_mm;
     let level_count = options.max_levels.unwrap_or(usize::MAX).max(1);
-    let levels = input
-        .tets
-        .levels
-        .iter()
-        .take(level_count)
-        .map(|l| {
-            let mut model = FemModel::homogeneous(&l.mesh, options.tissue)?;
-            let layer =
-                MuscleLayer::new(&l.mesh, input.closed_surface, input.frame, input.landmarks)?;
-            if let Some(muscle) = options.muscle {
-                for &e in layer.elements.iter().flatten() {
-                    model.set_material(e as usize, muscle)?;
-                }
+    let layer_of =
+        |mesh: &TetMesh| MuscleLayer::new(mesh, input.closed_surface, input.frame, input.landmarks);
+    let muscle = layer_of(&finest)?;
+    let mut levels = Vec::with_capacity(level_count.min(input.tets.levels.len()));
+    for (l, level) in input.tets.levels.iter().take(level_count).enumerate() {
+        let mut model = FemModel::homogeneous(&level.mesh, options.tissue)?;
+        if let Some(material) = options.muscle {
+            let coarse;
+            let layer = if l == 0 {
+                &muscle
+            } else {
+                coarse = layer_of(&level.mesh)?;
+                &coarse
+            };
+            for &e in layer.elements.iter().flatten() {
+                model.set_material(e as usize, material)?;
             }
-            Ok((model, layer))
-        })
-        .collect::<Result<Vec<_>, SimulationError>>()?;
-    let muscle = levels[0].1.clone();
-    let mut levels: Vec<FemModel> = levels.into_iter().map(|(model, _)| model).collect();
+        }
+        levels.push(model);
+    }
     levels[0].set_inversion_barrier(options.inversion_barrier)?;
     levels[0].set_compression_penalty(options.compression_penalty)?;
     Ok((finest, spacing_mm, levels, muscle))

@@ -364,6 +364,16 @@ impl SimulationOptions {
         (self.rim_smoothing_mm).unwrap_or(DEFAULT_RIM_SMOOTHING.on_mesh(spacing_mm))
     }
 
+    /// The implant elements' material while the template prescribes their corners:
+    /// [`SimulationOptions::implant_young_ratio`] of the tissue's modulus.
+    pub fn soft_implant(&self) -> Material {
+        Material {
+            young_kpa: self.tissue.young_kpa * self.implant_young_ratio,
+            poisson_ratio: self.implant_poisson_ratio,
+            density_kg_m3: self.implant_density_kg_m3,
+        }
+    }
+
     /// The template's tissue layer over the footprint on a mesh of finest spacing
     /// `spacing_mm` (mm).
     pub fn template_layer_on_mesh(&self, spacing_mm: f64) -> f64 {
@@ -373,6 +383,17 @@ impl SimulationOptions {
     /// Checks every setting's range; the error names the first bad one.
     pub(super) fn check(&self) -> Result<(), SimulationError> {
         check_option("shift_mm", self.shift_mm, true, "a finite number of mm")?;
+        for (name, material) in [("muscle", self.muscle), ("implant_gel", self.implant_gel)] {
+            if let Some(material) = material {
+                check_option(
+                    name,
+                    material.young_kpa,
+                    material.check().is_ok(),
+                    "a positive Young's modulus (kPa), a Poisson ratio in (-1, 0.5) and a \
+                     non-negative density",
+                )?;
+            }
+        }
         check_option(
             "implant_young_ratio",
             self.implant_young_ratio,

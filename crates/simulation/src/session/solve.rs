@@ -30,9 +30,10 @@ impl Simulation {
     ///
     /// Besides the wall and the templates, a free vertex all of whose neighbours are held
     /// at zero is held at zero too (repeatedly): in stage 1 its equilibrium displacement
-    /// is zero anyway (no load acts on it), and such islands, found between the fixed
-    /// back vertices and the posterior wall, leave coarse multigrid functions that only
-    /// see one free fine vertex, which made the Galerkin coarse operator singular.
+    /// is zero anyway (no load acts on it; a released gel's vertices are never taken for
+    /// such, its elements push), and such islands, found between the fixed back vertices
+    /// and the posterior wall, leave coarse multigrid functions that only see one free
+    /// fine vertex, which made the Galerkin coarse operator singular.
     pub(super) fn constraints(&self, stage: Stage) -> Constraints {
         let with_implant_vertices = stage == Stage::Implant && !self.released;
         let n = self.finest.positions.len();
@@ -51,7 +52,7 @@ impl Simulation {
                 zero[v as usize] = true;
             }
         }
-        if with_implant_vertices {
+        if stage == Stage::Implant {
             for implant in self.implants.iter().flatten() {
                 for &(v, _) in &implant.template.implant_vertices {
                     held[v as usize] = true;
@@ -112,12 +113,7 @@ impl Simulation {
     /// The finest model with the implant elements' soft material.
     pub(super) fn finest_model(&self) -> Result<FemModel, SimulationError> {
         let mut model = self.levels[0].clone();
-        let t = self.options.tissue;
-        let soft = Material {
-            young_kpa: t.young_kpa * self.options.implant_young_ratio,
-            poisson_ratio: self.options.implant_poisson_ratio,
-            density_kg_m3: self.options.implant_density_kg_m3,
-        };
+        let soft = self.options.soft_implant();
         for implant in self.implants.iter().flatten() {
             for &e in &implant.template.implant_elements {
                 model.set_material(e as usize, soft)?;
@@ -159,8 +155,10 @@ impl Simulation {
         Ok(mg)
     }
 
-    /// Gives a stage's finest model the current implants' soft elements (and the
-    /// tissue back to the elements of earlier implants) and, in stage 1, the sliders
+    /// Gives a stage's finest model the current implants' soft elements, or once they
+    /// are released the gel's elements with its material and the template's shape as
+    /// their rest shape (and the tissue or muscle with the mesh's shape back to the
+    /// elements of earlier implants) and, in stage 1, the sliders
     /// that keep the skin over a thin pocket at the template's distance (stage 2 has
     /// none: their stage-1 forces become dead loads there).
     pub(super) fn update_implant_model(
@@ -168,19 +166,9 @@ impl Simulation {
         stage: &mut StageMultigrid,
         which: Stage,
     ) -> Result<(), SimulationError> {
-        let t = self.options.tissue;
-        let soft = Material {
-            young_kpa: t.young_kpa * self.options.implant_young_ratio,
-            poisson_ratio: self.options.implant_poisson_ratio,
-            density_kg_m3: self.options.implant_density_kg_m3,
-        };
+        let soft = self.options.soft_implant();
         let gel = self.options.implant_gel.filter(|_| self.released);
-        let current: Vec<u32> = match gel {
-            Some(_) => self.gel_elements(),
-            None => (self.implants.iter().flatten())
-                .flat_map(|i| i.template.implant_elements.iter().copied())
-                .collect(),
-        };
+        let current = self.implant_elements();
         for &e in &stage.soft_elements {
             let own = self.levels[0].materials()[e as usize];
             stage.multigrid.set_material(e as usize, own)?;
@@ -585,11 +573,15 @@ impl Simulation {
     /// or are eliminated, and the system leaves them alone) and the skin on sliders.
     fn dead_load_vertices(&self) -> Vec<bool> {
         let mut marked = vec![false; self.u.len()];
-        if self.released {
-            // a released gel's vertices are free in stage 1 already
-            return marked;
-        }
         for implant in self.implants.iter().flatten() {
+            if self.released {
+                // a released gel's vertices are free in stage 1 already; the skin on
+                // sliders is not
+                for &(v, _) in &implant.template.skin_vertices {
+                    marked[v as usize] = true;
+                }
+                continue;
+            }
             for &(v, _) in implant.template.pushed_vertices() {
                 marked[v as usize] = true;
             }
@@ -656,10 +648,21 @@ impl Simulation {
         target
     }
 
-    /// The elements a released gel takes: every finest element whose four corners the
-    /// templates move or hold (the implant elements and the tissue layer the template
-    /// carries with them), so that a gel far stiffer than the tissue keeps the template's
-    /// answer.
+    /// The elements that are implant now: the templates' implant elements, or once
+    /// released as a gel, the gel's ([`Simulation::gel_elements`]).
+    pub fn implant_elements(&self) -> Vec<u32> {
+        if self.options.implant_gel.is_some() && self.released {
+            return self.gel_elements();
+        }
+        (self.implants.iter().flatten())
+            .flat_map(|i| i.template.implant_elements.iter().copied())
+            .collect()
+    }
+
+    /// The elements a released gel takes: the templates' implant elements and every
+    /// finest element whose four corners the templates move or hold (the tissue layer
+    /// they carry with the implant), so that a gel far stiffer than the tissue keeps the
+    /// template's answer.
     fn gel_elements(&self) -> Vec<u32> {
         let mut prescribed = vec![false; self.finest.positions.len()];
         for implant in self.implants.iter().flatten() {
@@ -671,10 +674,17 @@ impl Simulation {
                 prescribed[v as usize] = true;
             }
         }
-        (self.finest.tets.iter().enumerate())
+        let mut elements: Vec<u32> = (self.finest.tets.iter().enumerate())
             .filter(|(_, t)| t.iter().all(|&v| prescribed[v as usize]))
             .map(|(e, _)| e as u32)
-            .collect()
+            .collect();
+        // the template's own implant elements too, also where a corner is left free
+        elements.extend(
+            (self.implants.iter().flatten()).flat_map(|i| i.template.implant_elements.iter()),
+        );
+        elements.sort_unstable();
+        elements.dedup();
+        elements
     }
 
     /// Releases stage 1's implants as a gel ([`SimulationOptions::implant_gel`]) from
@@ -682,6 +692,7 @@ impl Simulation {
     fn release_implants(&mut self) {
         self.released = true;
         self.dirty = true;
+        self.fresh = true;
         self.stage_cycles = 0;
         self.stage_one_search = false;
         self.stage_one_residuals.clear();
