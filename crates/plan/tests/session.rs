@@ -249,8 +249,10 @@ fn one_hierarchy_serves_both_stages_and_later_changes() {
 
     // Independent path: a fresh session solving the moved implant from scratch. Both
     // stop at a relative residual of 1e-5 from different starts, so the scans agree to
-    // the solver's tolerance, not to round-off: bound 0.1 mm (the implant moves the
-    // nipple by about 20 mm).
+    // the solver's tolerance, not to round-off: bound 0.15 mm (the implant moves the
+    // nipple by about 20 mm; the pectoralis major's elements, eight times stiffer than
+    // the breast's, widen the stiffness spread, so the same residual bounds the
+    // displacement less tightly: 0.107 mm measured with them, under 0.1 before).
     let mut fresh = tight();
     fresh
         .set_implant(Side::Left, &moved.spec, moved.placement())
@@ -263,5 +265,5 @@ fn one_hierarchy_serves_both_stages_and_later_changes() {
         .map(|(a, b)| a.distance(b))
         .fold(0.0, f64::max);
     println!("largest difference {largest_difference_mm:.4} mm");
-    assert!(largest_difference_mm < 0.1, "{largest_difference_mm} mm");
+    assert!(largest_difference_mm < 0.15, "{largest_difference_mm} mm");
 }
